@@ -1,1 +1,9 @@
-//! (work in progress)
+//! The tile hierarchy: adaptive partition into implicit-tiling leaves, Morton indexing, binary
+//! subtree files and `tileset.json`.
+
+pub mod morton;
+pub mod partition;
+pub mod subtree;
+pub mod tileset;
+
+pub use partition::{Leaf, Partition, Scheme, TileKey, partition};
