@@ -7,3 +7,5 @@ pub mod io;
 pub mod render;
 pub mod splat;
 pub mod tiling;
+pub mod cli;
+pub mod convert;

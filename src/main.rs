@@ -1,4 +1,28 @@
-//! The `splat2tiles` command line: a thin front over the library.
+//! The `splat2tiles` command line: parses arguments, dispatches to the library's command
+//! runners and turns their results into exit codes (0 ok, 1 findings, 2 could not run).
+
+use clap::{Parser, Subcommand};
+use splat2tiles::cli;
+
+/// Make huge 3D Gaussian Splatting scenes streamable: OGC 3D Tiles 1.1 of glTF
+/// KHR_gaussian_splatting tiles.
+#[derive(Debug, Parser)]
+#[command(name = "splat2tiles", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Convert a PLY, .splat or .spz scene into an implicit 3D Tiles 1.1 tileset.
+    Convert(cli::convert::ConvertArgs),
+}
+
 fn main() {
-    println!("splat2tiles");
+    let args = Cli::parse();
+    let code = match args.command {
+        Command::Convert(a) => cli::convert::run(a),
+    };
+    std::process::exit(code);
 }

@@ -1,0 +1,126 @@
+//! `splat2tiles convert`: arguments, their checks, and the human or JSON summary printed at the
+//! end of a conversion.
+
+use crate::convert::{ConvertOptions, NonFinitePolicy, SchemeChoice, convert};
+use crate::frame::UpAxis;
+use crate::frame::geo::Geodetic;
+use clap::Args;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+/// Arguments of `convert`.
+#[derive(Debug, Args)]
+#[command(after_help = "Examples:
+  splat2tiles convert scene.ply -o out/
+  splat2tiles convert scene.splat -o out/ --max-splats 16384
+  splat2tiles convert city.ply -o city/ --origin 2.2945,48.8584,35 --up-axis -y --heading 90")]
+pub struct ConvertArgs {
+    /// Input scene: trainer PLY (binary or ascii), antimatter15 .splat, or Niantic .spz (v2-v4).
+    pub input: PathBuf,
+    /// Output folder (created; an earlier tileset there is replaced only when the new one is complete).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Most splats per leaf tile.
+    #[arg(long, default_value_t = 32_768, value_parser = clap::value_parser!(u64).range(1..=16_777_216))]
+    pub max_splats: u64,
+    /// Deepest tree level (local scenes, default 16) or Web-Mercator zoom (georeferenced, default 30).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=30))]
+    pub max_depth: Option<u32>,
+    /// Which input axis points up: +x, -x, +y, -y, +z, -z [default: -y for .ply/.splat, +y for .spz].
+    #[arg(long, allow_hyphen_values = true)]
+    pub up_axis: Option<UpAxis>,
+    /// Turn the scene about its up axis by this many degrees (counter-clockwise from above).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub heading: f64,
+    /// Georeference the scene: lon,lat[,height] (degrees, metres) of its origin. Tiles then form a
+    /// Web-Mercator quadtree and the root carries an ECEF transform.
+    #[arg(long, value_parser = Geodetic::parse, allow_hyphen_values = true)]
+    pub origin: Option<Geodetic>,
+    /// Subdivision of local scenes.
+    #[arg(long, value_enum, default_value_t = SchemeChoice::Auto)]
+    pub scheme: SchemeChoice,
+    /// What to do with splats holding NaN or infinite values.
+    #[arg(long, value_enum, default_value_t = NonFinitePolicy::Drop)]
+    pub non_finite: NonFinitePolicy,
+    /// Levels per subtree file [default: 6 for quadtrees, 4 for octrees].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub subtree_levels: Option<u32>,
+    /// Print the summary as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bars and no summary.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// Runs `convert`; returns the process exit code.
+pub fn run(args: ConvertArgs) -> i32 {
+    if !args.heading.is_finite() {
+        eprintln!("splat2tiles: --heading must be a finite number of degrees");
+        return super::EXIT_FAILURE;
+    }
+    let opts = ConvertOptions {
+        max_splats_per_tile: args.max_splats as usize,
+        max_depth: args.max_depth,
+        up_axis: args.up_axis,
+        heading_deg: args.heading,
+        origin: args.origin,
+        scheme: args.scheme,
+        non_finite: args.non_finite,
+        subtree_levels: args.subtree_levels,
+        keep_index_map: false,
+        progress: !args.quiet && std::io::stderr().is_terminal(),
+    };
+    match convert(&args.input, &args.output, &opts) {
+        Ok(r) => {
+            if args.json {
+                let v = serde_json::json!({
+                    "input": args.input, "output": args.output,
+                    "splatsIn": r.splats_in, "splatsOut": r.splats_out,
+                    "droppedNonFinite": r.dropped_non_finite,
+                    "repairedRotations": r.repaired_rotations,
+                    "shDegree": r.sh_degree, "upAxis": r.up_axis, "scheme": r.scheme,
+                    "tiles": r.tiles, "contentTiles": r.content_tiles, "levels": r.levels,
+                    "subtrees": r.subtrees, "bytes": r.bytes, "seconds": r.seconds,
+                });
+                println!("{v}");
+            } else if !args.quiet {
+                let tileset = args.output.join("tileset.json");
+                println!(
+                    "converted {}: {} splats in, {} out (SH degree {}, up axis {})",
+                    args.input.display(),
+                    r.splats_in,
+                    r.splats_out,
+                    r.sh_degree,
+                    r.up_axis
+                );
+                if r.dropped_non_finite > 0 {
+                    println!("  dropped {} splats with NaN or infinite values", r.dropped_non_finite);
+                }
+                if r.repaired_rotations > 0 {
+                    println!("  replaced {} zero quaternions by the identity", r.repaired_rotations);
+                }
+                println!(
+                    "  {} {} tiles ({} with content) over {} levels, {} subtree files, {:.2} MB, {:.2} s",
+                    r.tiles,
+                    r.scheme.to_lowercase(),
+                    r.content_tiles,
+                    r.levels,
+                    r.subtrees,
+                    r.bytes as f64 / 1e6,
+                    r.seconds
+                );
+                println!("  tileset: {}", tileset.display());
+                println!(
+                    "  look at it: splat2tiles render {} --auto-view 0 -o view.png",
+                    tileset.display()
+                );
+            }
+            0
+        }
+        Err(e) => {
+            eprintln!("splat2tiles: {e}");
+            super::EXIT_FAILURE
+        }
+    }
+}

@@ -1,0 +1,751 @@
+//! The conversion pipeline: read a scene, move it into the tileset frame, partition it, write one
+//! glb per leaf, the subtrees and `tileset.json` into a temporary folder, then rename it into place.
+
+use crate::encode::tile::write_tile_glb;
+use crate::frame::geo::{Geodetic, mercator_unit};
+use crate::frame::{UpAxis, node_matrix, source_to_tileset};
+use crate::io::{self, ReadError, Scene};
+use crate::splat::Splats;
+use crate::tiling::subtree::{self, Column, SubtreeData, Table};
+use crate::tiling::tileset::{
+    self, Asset, BoundingVolume, Content, ImplicitTiling, Tile, Tileset,
+};
+use crate::tiling::{Partition, Scheme, TileKey, partition};
+use glam::{DMat3, DVec3};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What to do with splats holding NaN or infinite values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum NonFinitePolicy {
+    /// Drop them and report how many were dropped.
+    Drop,
+    /// Refuse the input, naming the first bad splat.
+    Fail,
+}
+
+/// Which subdivision to use for a local (not georeferenced) scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SchemeChoice {
+    /// Quadtree when the scene is flat (vertical extent < 1/4 of the horizontal), else octree.
+    Auto,
+    /// Always an octree.
+    Octree,
+    /// Always a quadtree.
+    Quadtree,
+}
+
+/// Settings of one conversion.
+#[derive(Debug, Clone)]
+pub struct ConvertOptions {
+    /// Most splats a leaf tile may hold (unless coincident splats cannot be separated).
+    pub max_splats_per_tile: usize,
+    /// Deepest level of the tree (local scenes) or deepest Web-Mercator zoom (georeferenced).
+    pub max_depth: Option<u32>,
+    /// Up axis of the input; `None` takes the format's usual one.
+    pub up_axis: Option<UpAxis>,
+    /// Turn about the up axis, degrees.
+    pub heading_deg: f64,
+    /// Georeference the scene at this place (ENU frame, Web-Mercator quadtree).
+    pub origin: Option<Geodetic>,
+    /// Subdivision of local scenes.
+    pub scheme: SchemeChoice,
+    /// NaN/Inf handling.
+    pub non_finite: NonFinitePolicy,
+    /// Levels per subtree file; `None` picks 6 (quadtree) or 4 (octree).
+    pub subtree_levels: Option<u32>,
+    /// Keep each leaf's splat indices in the report (for tests and tools).
+    pub keep_index_map: bool,
+    /// Draw progress bars (they hide themselves when stderr is not a terminal).
+    pub progress: bool,
+}
+
+impl Default for ConvertOptions {
+    fn default() -> Self {
+        ConvertOptions {
+            max_splats_per_tile: 32_768,
+            max_depth: None,
+            up_axis: None,
+            heading_deg: 0.0,
+            origin: None,
+            scheme: SchemeChoice::Auto,
+            non_finite: NonFinitePolicy::Drop,
+            subtree_levels: None,
+            keep_index_map: false,
+            progress: false,
+        }
+    }
+}
+
+/// What a conversion did.
+#[derive(Debug, Clone, Default)]
+pub struct ConvertReport {
+    /// Splats read.
+    pub splats_in: usize,
+    /// Splats written over all leaf tiles.
+    pub splats_out: usize,
+    /// Splats dropped for NaN/Inf values.
+    pub dropped_non_finite: usize,
+    /// Zero or non-finite quaternions replaced by the identity while reading.
+    pub repaired_rotations: usize,
+    /// SH degree of the output.
+    pub sh_degree: u8,
+    /// Up axis used.
+    pub up_axis: String,
+    /// "QUADTREE" or "OCTREE".
+    pub scheme: String,
+    /// Tiles in the tree (with or without content).
+    pub tiles: usize,
+    /// Tiles with content.
+    pub content_tiles: usize,
+    /// `availableLevels`.
+    pub levels: u32,
+    /// Subtree files written.
+    pub subtrees: usize,
+    /// Bytes of all files written.
+    pub bytes: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Per leaf: key and the indices of its splats in the (finite) input, in tile order.
+    pub leaves: Vec<(TileKey, Vec<usize>)>,
+}
+
+/// Why a conversion failed. Nothing is left at the output path when it does.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConvertError {
+    /// The input could not be read.
+    #[error(transparent)]
+    Read(#[from] ReadError),
+    /// A splat holds NaN/Inf and the policy is to fail.
+    #[error("{file}: {location}: splat {index} has a NaN or infinite value (use --non-finite drop to skip such splats)")]
+    NonFinite {
+        /// Input file.
+        file: String,
+        /// Where in the file.
+        location: String,
+        /// Splat index.
+        index: usize,
+    },
+    /// No splat is left to tile.
+    #[error("{file}: no splats to convert{why}")]
+    Empty {
+        /// Input file.
+        file: String,
+        /// Extra explanation.
+        why: String,
+    },
+    /// The output cannot be written.
+    #[error("{path}: {what}: {source}")]
+    Io {
+        /// Path involved.
+        path: PathBuf,
+        /// What was being done.
+        what: &'static str,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The output path is not something we may replace.
+    #[error("{path}: {why}")]
+    Output {
+        /// Path involved.
+        path: PathBuf,
+        /// Why not.
+        why: String,
+    },
+}
+
+fn io_err(path: &Path, what: &'static str) -> impl FnOnce(std::io::Error) -> ConvertError + '_ {
+    move |source| ConvertError::Io {
+        path: path.to_path_buf(),
+        what,
+        source,
+    }
+}
+
+/// Reads `input` and writes its tileset to the folder `output` (atomically).
+pub fn convert(
+    input: &Path,
+    output: &Path,
+    opts: &ConvertOptions,
+) -> Result<ConvertReport, ConvertError> {
+    let start = Instant::now();
+    let spinner = spinner(opts.progress, format!("reading {}", input.display()));
+    let scene = io::read_path(input)?;
+    spinner.finish_and_clear();
+    let mut report = convert_scene(scene, &input.display().to_string(), output, opts)?;
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// Writes the tileset of an already-read scene to `output`; `name` names the input in errors.
+pub fn convert_scene(
+    scene: Scene,
+    name: &str,
+    output: &Path,
+    opts: &ConvertOptions,
+) -> Result<ConvertReport, ConvertError> {
+    let start = Instant::now();
+    let up = opts
+        .up_axis
+        .unwrap_or_else(|| scene.format.default_up_axis().parse().unwrap_or(UpAxis::NegY));
+    let mut splats = scene.splats;
+    let mut report = ConvertReport {
+        splats_in: splats.len(),
+        repaired_rotations: scene.repaired_rotations,
+        sh_degree: splats.sh_degree,
+        up_axis: up.to_string(),
+        ..Default::default()
+    };
+    if let Some(i) = splats.first_non_finite() {
+        match opts.non_finite {
+            NonFinitePolicy::Fail => {
+                return Err(ConvertError::NonFinite {
+                    file: name.to_string(),
+                    location: scene.locator.describe(i),
+                    index: i,
+                });
+            }
+            NonFinitePolicy::Drop => report.dropped_non_finite = splats.drop_non_finite(),
+        }
+    }
+    if splats.is_empty() {
+        let why = if report.dropped_non_finite > 0 {
+            format!(
+                " (all {} splats had NaN or infinite values)",
+                report.dropped_non_finite
+            )
+        } else {
+            " (the file holds zero splats)".to_string()
+        };
+        return Err(ConvertError::Empty {
+            file: name.to_string(),
+            why,
+        });
+    }
+
+    let staging = Staging::beside(output)?;
+    let a = source_to_tileset(up, opts.heading_deg);
+    let layout = Layout::new(&splats, a, opts);
+    let part = partition(
+        &layout.unit,
+        layout.scheme,
+        opts.max_splats_per_tile,
+        layout.max_depth,
+    );
+    report.scheme = layout.scheme.as_str().to_string();
+    report.levels = part.levels;
+
+    let tiles = write_leaves(&splats, &layout, &part, staging.path(), opts.progress)?;
+    report.content_tiles = tiles.len();
+    report.splats_out = tiles.values().map(|t| t.splat_count as usize).sum();
+    report.bytes = tiles.values().map(|t| t.bytes).sum();
+    let tree = build_tree(tiles);
+    report.tiles = tree.len();
+
+    let subtree_levels = opts
+        .subtree_levels
+        .unwrap_or(match layout.scheme {
+            Scheme::Quadtree => 6,
+            Scheme::Octree => 4,
+        })
+        .clamp(1, part.levels.max(1));
+    let (subtrees, subtree_bytes) =
+        write_subtrees(&tree, layout.scheme, subtree_levels, staging.path())?;
+    report.subtrees = subtrees;
+    report.bytes += subtree_bytes;
+
+    let tileset = tileset_json(&tree, &layout, &part, subtree_levels, &report, name);
+    let json = serde_json::to_vec_pretty(&tileset).expect("tileset serialises");
+    let path = staging.path().join("tileset.json");
+    std::fs::write(&path, &json).map_err(io_err(&path, "writing"))?;
+    report.bytes += json.len() as u64;
+
+    staging.commit(output)?;
+    if opts.keep_index_map {
+        report.leaves = part
+            .leaves
+            .into_iter()
+            .map(|l| (l.key, l.indices))
+            .collect();
+    }
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// Where the tree lives: the tileset frame, the root volume and each splat's unit coordinates.
+struct Layout {
+    /// Rotation source -> tileset frame.
+    a: DMat3,
+    /// Splat centres in the tileset frame.
+    pos_t: Vec<DVec3>,
+    /// Centres in unit coordinates of the root volume.
+    unit: Vec<[f64; 3]>,
+    scheme: Scheme,
+    max_depth: u32,
+    /// Root bounding volume.
+    root_volume: BoundingVolume,
+    /// Root transform (georeferenced only).
+    transform: Option<[f64; 16]>,
+}
+
+impl Layout {
+    fn new(splats: &Splats, a: DMat3, opts: &ConvertOptions) -> Layout {
+        let pos_t: Vec<DVec3> = splats
+            .positions
+            .par_iter()
+            .map(|p| a * DVec3::from_array(*p))
+            .collect();
+        let (lo, hi) = bounds(&pos_t);
+        match opts.origin {
+            Some(origin) => {
+                // Georeferenced: ENU at the origin; Web-Mercator keys from zoom 0 name the tiles.
+                let enu = origin.enu_to_ecef();
+                let geo: Vec<Geodetic> = pos_t
+                    .par_iter()
+                    .map(|p| Geodetic::from_ecef(enu.transform_point3(*p)))
+                    .collect();
+                let unit = geo
+                    .par_iter()
+                    .map(|g| {
+                        let (x, y) = mercator_unit(g.lon, g.lat);
+                        [x, 1.0 - y, 0.5]
+                    })
+                    .collect();
+                let (hmin, hmax) = geo.iter().fold((f64::MAX, f64::MIN), |(a, b), g| {
+                    (a.min(g.height), b.max(g.height))
+                });
+                let lat = crate::frame::geo::MERCATOR_MAX_LAT.to_radians();
+                let pi = std::f64::consts::PI;
+                Layout {
+                    a,
+                    pos_t,
+                    unit,
+                    scheme: Scheme::Quadtree,
+                    max_depth: opts.max_depth.unwrap_or(30).min(30),
+                    root_volume: BoundingVolume {
+                        region: Some(vec![-pi, -lat, pi, lat, hmin - 1.0, hmax + 1.0]),
+                        ..Default::default()
+                    },
+                    transform: Some(enu.to_cols_array()),
+                }
+            }
+            None => {
+                let ext = hi - lo;
+                let horizontal = ext.x.max(ext.y);
+                let scheme = match opts.scheme {
+                    SchemeChoice::Octree => Scheme::Octree,
+                    SchemeChoice::Quadtree => Scheme::Quadtree,
+                    SchemeChoice::Auto if ext.z < 0.25 * horizontal => Scheme::Quadtree,
+                    SchemeChoice::Auto => Scheme::Octree,
+                };
+                let (centre, half) = padded_box(lo, hi);
+                let min = centre - half;
+                let size = half * 2.0;
+                let unit = pos_t
+                    .par_iter()
+                    .map(|p| {
+                        let u = (*p - min) / size;
+                        [u.x, u.y, if scheme == Scheme::Octree { u.z } else { 0.5 }]
+                    })
+                    .collect();
+                Layout {
+                    a,
+                    pos_t,
+                    unit,
+                    scheme,
+                    max_depth: opts.max_depth.unwrap_or(16).min(scheme.max_depth()),
+                    root_volume: BoundingVolume {
+                        box_: Some(box_array(centre, half)),
+                        ..Default::default()
+                    },
+                    transform: None,
+                }
+            }
+        }
+    }
+}
+
+fn bounds(p: &[DVec3]) -> (DVec3, DVec3) {
+    p.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(lo, hi), q| (lo.min(*q), hi.max(*q)),
+    )
+}
+
+/// Centre and half extents of a box, with flat axes padded so the box is never degenerate.
+fn padded_box(lo: DVec3, hi: DVec3) -> (DVec3, DVec3) {
+    let centre = (lo + hi) * 0.5;
+    let half = (hi - lo) * 0.5;
+    let floor = (half.max_element() * 1e-3).max(1e-6 * (1.0 + centre.abs().max_element()));
+    (centre, half.max(DVec3::splat(floor)))
+}
+
+fn box_array(centre: DVec3, half: DVec3) -> Vec<f64> {
+    vec![
+        centre.x, centre.y, centre.z, half.x, 0.0, 0.0, 0.0, half.y, 0.0, 0.0, 0.0, half.z,
+    ]
+}
+
+/// A tile of the tree: its tight box in the tileset frame and, for leaves, its content facts.
+#[derive(Debug, Clone)]
+struct TreeTile {
+    lo: DVec3,
+    hi: DVec3,
+    splat_count: u32,
+    bytes: u64,
+    has_content: bool,
+    is_leaf: bool,
+}
+
+fn write_leaves(
+    splats: &Splats,
+    layout: &Layout,
+    part: &Partition,
+    dir: &Path,
+    progress: bool,
+) -> Result<HashMap<TileKey, TreeTile>, ConvertError> {
+    let bar = bar(progress, part.leaves.len() as u64, "writing tiles");
+    let tiles: Result<Vec<(TileKey, TreeTile)>, ConvertError> = part
+        .leaves
+        .par_iter()
+        .map(|leaf| {
+            let tile = splats.select(&leaf.indices);
+            let pts: Vec<DVec3> = leaf.indices.iter().map(|&i| layout.pos_t[i]).collect();
+            let (lo, hi) = bounds(&pts);
+            let centre_t = (lo + hi) * 0.5;
+            let centre_s = layout.a.transpose() * centre_t;
+            let glb = write_tile_glb(&tile, centre_s.to_array(), node_matrix(layout.a, centre_s));
+            let path = dir.join(content_path(part.scheme, leaf.key));
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent).map_err(io_err(parent, "creating folder"))?;
+            }
+            std::fs::write(&path, &glb).map_err(io_err(&path, "writing"))?;
+            bar.inc(1);
+            Ok((
+                leaf.key,
+                TreeTile {
+                    lo,
+                    hi,
+                    splat_count: tile.len() as u32,
+                    bytes: glb.len() as u64,
+                    has_content: true,
+                    is_leaf: true,
+                },
+            ))
+        })
+        .collect();
+    bar.finish_and_clear();
+    Ok(tiles?.into_iter().collect())
+}
+
+/// Adds every ancestor of the leaves, with boxes that enclose their descendants.
+fn build_tree(leaves: HashMap<TileKey, TreeTile>) -> BTreeMap<TileKey, TreeTile> {
+    let mut tree: BTreeMap<TileKey, TreeTile> = leaves.into_iter().collect();
+    let keys: Vec<TileKey> = tree.keys().copied().collect();
+    for key in keys {
+        let (lo, hi) = (tree[&key].lo, tree[&key].hi);
+        let mut k = key;
+        while let Some(p) = k.parent() {
+            let t = tree.entry(p).or_insert(TreeTile {
+                lo,
+                hi,
+                splat_count: 0,
+                bytes: 0,
+                has_content: false,
+                is_leaf: false,
+            });
+            t.lo = t.lo.min(lo);
+            t.hi = t.hi.max(hi);
+            k = p;
+        }
+    }
+    tree
+}
+
+/// Geometric error of a tile: 0 for leaves (full detail); for tiles without content, the
+/// diagonal of their box (rendering nothing misses everything below).
+fn geometric_error(t: &TreeTile) -> f64 {
+    if t.is_leaf {
+        0.0
+    } else {
+        (t.hi - t.lo).length().max(1e-6)
+    }
+}
+
+fn content_path(scheme: Scheme, k: TileKey) -> String {
+    match scheme {
+        Scheme::Octree => format!("tiles/{}/{}/{}/{}.glb", k.level, k.x, k.y, k.z),
+        Scheme::Quadtree => format!("tiles/{}/{}/{}.glb", k.level, k.x, k.y),
+    }
+}
+
+fn subtree_path(scheme: Scheme, k: TileKey) -> String {
+    match scheme {
+        Scheme::Octree => format!("subtrees/{}/{}/{}/{}.subtree", k.level, k.x, k.y, k.z),
+        Scheme::Quadtree => format!("subtrees/{}/{}/{}.subtree", k.level, k.x, k.y),
+    }
+}
+
+fn write_subtrees(
+    tree: &BTreeMap<TileKey, TreeTile>,
+    scheme: Scheme,
+    levels: u32,
+    dir: &Path,
+) -> Result<(usize, u64), ConvertError> {
+    let arity = scheme.arity();
+    let n_tiles = subtree::tile_count(arity, levels) as usize;
+    let n_children = arity.pow(levels) as usize;
+    // Group tiles by the root of the subtree holding them.
+    let mut groups: BTreeMap<TileKey, Vec<TileKey>> = BTreeMap::new();
+    for &k in tree.keys() {
+        let root_level = k.level / levels * levels;
+        groups.entry(k.ancestor(root_level)).or_default().push(k);
+    }
+    let mut child_roots: BTreeMap<TileKey, Vec<TileKey>> = BTreeMap::new();
+    for &r in groups.keys().filter(|r| r.level >= levels) {
+        child_roots
+            .entry(r.ancestor(r.level - levels))
+            .or_default()
+            .push(r);
+    }
+    let mut files = 0;
+    let mut bytes = 0;
+    for (root, members) in &groups {
+        let mut tiles = vec![false; n_tiles];
+        let mut contents = vec![false; n_tiles];
+        let mut child_subtrees = vec![false; n_children];
+        let mut rows: Vec<(u64, TileKey)> = Vec::with_capacity(members.len());
+        for &k in members {
+            let rl = k.level - root.level;
+            let rel = |c: u32, r: u32| c - (r << rl);
+            let m = scheme.encode(rel(k.x, root.x), rel(k.y, root.y), rel(k.z, root.z));
+            let idx = subtree::tile_index(arity, rl, m);
+            tiles[idx as usize] = true;
+            contents[idx as usize] = tree[&k].has_content;
+            rows.push((idx, k));
+        }
+        // Child subtrees: the subtree roots one level below this subtree's last level.
+        for child in child_roots.get(root).into_iter().flatten() {
+            let rel = |c: u32, r: u32| c - (r << levels);
+            let m = scheme.encode(rel(child.x, root.x), rel(child.y, root.y), rel(child.z, root.z));
+            child_subtrees[m as usize] = true;
+        }
+        rows.sort_by_key(|(i, _)| *i);
+        let boxes: Vec<f64> = rows
+            .iter()
+            .flat_map(|(_, k)| {
+                let t = &tree[k];
+                let (c, h) = padded_box(t.lo, t.hi);
+                box_array(c, h)
+            })
+            .collect();
+        let errors: Vec<f64> = rows.iter().map(|(_, k)| geometric_error(&tree[k])).collect();
+        let counts: Vec<u32> = rows
+            .iter()
+            .filter(|(_, k)| tree[k].has_content)
+            .map(|(_, k)| tree[k].splat_count)
+            .collect();
+        let data = SubtreeData {
+            tiles,
+            contents,
+            child_subtrees,
+            tile_metadata: Some(Table {
+                class: tileset::TILE_CLASS.into(),
+                count: rows.len() as u64,
+                columns: vec![
+                    ("boundingBox".into(), Column::F64(boxes)),
+                    ("geometricError".into(), Column::F64(errors)),
+                ],
+            }),
+            content_metadata: (!counts.is_empty()).then(|| Table {
+                class: tileset::CONTENT_CLASS.into(),
+                count: counts.len() as u64,
+                columns: vec![("splatCount".into(), Column::U32(counts))],
+            }),
+        };
+        let encoded = subtree::write_subtree(&data);
+        let path = dir.join(subtree_path(scheme, *root));
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).map_err(io_err(parent, "creating folder"))?;
+        }
+        std::fs::write(&path, &encoded).map_err(io_err(&path, "writing"))?;
+        files += 1;
+        bytes += encoded.len() as u64;
+    }
+    Ok((files, bytes))
+}
+
+fn tileset_json(
+    tree: &BTreeMap<TileKey, TreeTile>,
+    layout: &Layout,
+    part: &Partition,
+    subtree_levels: u32,
+    report: &ConvertReport,
+    name: &str,
+) -> Tileset {
+    let root = &tree[&TileKey::ROOT];
+    let root_error = geometric_error(root);
+    let scheme = part.scheme;
+    let template = |kind: &str, ext: &str| match scheme {
+        Scheme::Octree => format!("{kind}/{{level}}/{{x}}/{{y}}/{{z}}.{ext}"),
+        Scheme::Quadtree => format!("{kind}/{{level}}/{{x}}/{{y}}.{ext}"),
+    };
+    let input_name = Path::new(name)
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    Tileset {
+        asset: Asset {
+            version: "1.1".into(),
+            generator: Some(format!("splat2tiles {}", env!("CARGO_PKG_VERSION"))),
+            tileset_version: None,
+        },
+        geometric_error: (root.hi - root.lo).length().max(1e-6),
+        root: Tile {
+            bounding_volume: layout.root_volume.clone(),
+            geometric_error: root_error,
+            refine: Some("REPLACE".into()),
+            transform: layout.transform.map(|t| t.to_vec()),
+            content: Some(Content {
+                uri: template("tiles", "glb"),
+            }),
+            implicit_tiling: Some(ImplicitTiling {
+                subdivision_scheme: scheme.as_str().into(),
+                subtree_levels,
+                available_levels: part.levels,
+                subtrees: Content {
+                    uri: template("subtrees", "subtree"),
+                },
+            }),
+            children: vec![],
+        },
+        schema: Some(tileset::schema()),
+        extensions_used: vec![],
+        extensions_required: vec![],
+        extensions: None,
+        extras: Some(serde_json::json!({
+            "splat2tiles": {
+                "input": input_name,
+                "splats": report.splats_out,
+                "shDegree": report.sh_degree,
+                "upAxis": report.up_axis,
+                "georeferenced": layout.transform.is_some(),
+            }
+        })),
+    }
+}
+
+/// A temporary output folder beside the target; removed on drop unless committed.
+struct Staging {
+    path: PathBuf,
+    committed: bool,
+}
+
+impl Staging {
+    fn beside(target: &Path) -> Result<Staging, ConvertError> {
+        let name = target
+            .file_name()
+            .ok_or_else(|| ConvertError::Output {
+                path: target.to_path_buf(),
+                why: "the output must name a folder".into(),
+            })?
+            .to_string_lossy()
+            .into_owned();
+        if target.exists() {
+            let ok = target.is_dir()
+                && (target.join("tileset.json").is_file()
+                    || std::fs::read_dir(target)
+                        .map_err(io_err(target, "listing"))?
+                        .next()
+                        .is_none());
+            if !ok {
+                return Err(ConvertError::Output {
+                    path: target.to_path_buf(),
+                    why: "exists and is not an empty folder or an earlier tileset: refusing to replace it".into(),
+                });
+            }
+        }
+        let parent = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        std::fs::create_dir_all(&parent).map_err(io_err(&parent, "creating folder"))?;
+        // Leftovers of interrupted runs into the same target.
+        let prefix = format!(".{name}.s2t-tmp-");
+        if let Ok(entries) = std::fs::read_dir(&parent) {
+            for e in entries.flatten() {
+                if e.file_name().to_string_lossy().starts_with(&prefix) {
+                    let _ = std::fs::remove_dir_all(e.path());
+                }
+            }
+        }
+        let path = parent.join(format!("{prefix}{}", std::process::id()));
+        std::fs::create_dir_all(&path).map_err(io_err(&path, "creating folder"))?;
+        Ok(Staging {
+            path,
+            committed: false,
+        })
+    }
+
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Moves the finished folder into place, replacing an earlier result only at the very end.
+    fn commit(mut self, target: &Path) -> Result<(), ConvertError> {
+        let old = self
+            .path
+            .with_file_name(format!(".{}.s2t-old-{}", target.file_name().unwrap_or_default().to_string_lossy(), std::process::id()));
+        let had_old = target.exists();
+        if had_old {
+            std::fs::rename(target, &old).map_err(io_err(target, "moving the earlier result aside"))?;
+        }
+        if let Err(e) = std::fs::rename(&self.path, target) {
+            if had_old {
+                let _ = std::fs::rename(&old, target);
+            }
+            return Err(io_err(target, "moving the new result into place")(e));
+        }
+        self.committed = true;
+        if had_old {
+            let _ = std::fs::remove_dir_all(&old);
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.path);
+        }
+    }
+}
+
+fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    let b = ProgressBar::new(len);
+    b.set_style(
+        ProgressStyle::with_template("{msg:>14} [{bar:40}] {pos}/{len} ({eta})")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    b.set_message(msg);
+    b
+}
+
+fn spinner(show: bool, msg: String) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    let s = ProgressBar::new_spinner();
+    s.set_message(msg);
+    s.enable_steady_tick(std::time::Duration::from_millis(120));
+    s
+}
