@@ -4,6 +4,7 @@
 pub mod morton;
 pub mod partition;
 pub mod subtree;
+pub mod load;
 pub mod tileset;
 
 pub use partition::{Leaf, Partition, Scheme, TileKey, partition};

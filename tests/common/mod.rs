@@ -1,0 +1,123 @@
+//! Helpers shared by the integration tests: where the shared scenes are, the CLI binary,
+//! seeded generated scenes, and decoding a whole tileset back into splats.
+#![allow(dead_code)]
+
+use glam::{DMat3, DMat4, DVec3};
+use splat2tiles::encode::tile::read_tile_glb;
+use splat2tiles::splat::{Splat, Splats, sh_rest_count};
+use splat2tiles::tiling::TileKey;
+use splat2tiles::tiling::load::load_tileset;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// `../shared/scenes` beside the crate (present in CI).
+pub fn scenes() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes")
+}
+
+/// A shared scene by file name; panics with a clear message when the folder is missing.
+pub fn scene(name: &str) -> PathBuf {
+    let p = scenes().join(name);
+    assert!(p.is_file(), "missing shared scene {} (../shared/scenes)", p.display());
+    p
+}
+
+/// The built `splat2tiles` binary.
+pub fn bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_splat2tiles"))
+}
+
+/// A tiny deterministic generator (xorshift) for test scenes.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// Uniform in [0, 1).
+    pub fn f(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Uniform in [a, b).
+    pub fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.f()
+    }
+}
+
+/// `n` random splats of SH degree `deg` with non-zero higher SH, spread over a box of `size`.
+pub fn random_splats(n: usize, deg: u8, size: f64, seed: u64) -> Splats {
+    let mut r = Rng(seed.max(1));
+    let mut s = Splats::with_capacity(deg, n);
+    for _ in 0..n {
+        let q = [
+            r.range(-1.0, 1.0) as f32,
+            r.range(-1.0, 1.0) as f32,
+            r.range(-1.0, 1.0) as f32,
+            r.range(-1.0, 1.0) as f32,
+        ];
+        let rot = splat2tiles::splat::normalize_quat(q);
+        let splat = Splat {
+            position: [
+                r.range(0.0, size),
+                r.range(0.0, size),
+                r.range(0.0, size * 0.6),
+            ],
+            scale: [
+                r.range(0.001, 0.05) as f32 * size as f32,
+                r.range(0.001, 0.05) as f32 * size as f32,
+                r.range(0.001, 0.05) as f32 * size as f32,
+            ],
+            rotation: rot,
+            opacity: r.range(0.02, 0.99) as f32,
+            sh0: [
+                r.range(-1.5, 1.5) as f32,
+                r.range(-1.5, 1.5) as f32,
+                r.range(-1.5, 1.5) as f32,
+            ],
+        };
+        let rest: Vec<[f32; 3]> = (0..sh_rest_count(deg))
+            .map(|_| {
+                [
+                    r.range(-0.3, 0.3) as f32,
+                    r.range(-0.3, 0.3) as f32,
+                    r.range(-0.3, 0.3) as f32,
+                ]
+            })
+            .collect();
+        s.push(splat, &rest);
+    }
+    s
+}
+
+/// Writes `splats` as a trainer PLY file.
+pub fn write_ply_file(path: &Path, splats: &Splats) {
+    let f = std::fs::File::create(path).expect("create ply");
+    splat2tiles::io::write_ply(splats, std::io::BufWriter::new(f)).expect("write ply");
+}
+
+/// A decoded content tile: splats with positions back in the source frame.
+pub struct DecodedLeaf {
+    /// Splats, positions in the source frame (tile centre added back).
+    pub splats: Splats,
+}
+
+/// Decodes every content tile of a tileset, keyed by tile; positions are returned in the source
+/// frame (`node matrix = R * [I | c_S]`, so `c_S = R^T t`).
+pub fn decode_tileset(tileset: &Path) -> HashMap<TileKey, DecodedLeaf> {
+    let ts = load_tileset(tileset).expect("load tileset");
+    let mut out = HashMap::new();
+    for t in ts.tiles.iter() {
+        let Some(path) = &t.content else { continue };
+        let bytes = std::fs::read(path).expect("read glb");
+        let tile = read_tile_glb(&bytes).expect("decode glb");
+        let m = DMat4::from_cols_array(&tile.node_matrix);
+        let r = DMat3::from_mat4(m);
+        let c = r.transpose() * m.w_axis.truncate();
+        let mut splats = tile.splats;
+        for p in splats.positions.iter_mut() {
+            *p = (DVec3::from_array(*p) + c).to_array();
+        }
+        out.insert(t.key, DecodedLeaf { splats });
+    }
+    out
+}

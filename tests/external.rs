@@ -1,0 +1,190 @@
+//! Checks by tools we did not write: Khronos glTF-Validator over every tile of a converted scene,
+//! and `@playcanvas/splat-transform` (an independent KHR_gaussian_splatting writer) agreeing with
+//! our tiles splat by splat. Both need `npm ci --prefix tests/js` (done by `.ci/run`).
+
+mod common;
+
+use common::*;
+use glam::{DQuat, DVec3};
+use splat2tiles::encode::tile::read_tile_glb;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn js_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/js")
+}
+
+fn require_node_modules() {
+    let nm = js_dir().join("node_modules");
+    assert!(
+        nm.join("gltf-validator").is_dir() && nm.join("@playcanvas/splat-transform").is_dir(),
+        "tests/js/node_modules is missing: run `npm ci --prefix tests/js` (the .ci/run script does)"
+    );
+}
+
+fn glbs(dir: &Path) -> Vec<PathBuf> {
+    let mut out = vec![];
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            out.extend(glbs(&p));
+        } else if p.extension().is_some_and(|x| x == "glb") {
+            out.push(p);
+        }
+    }
+    out.sort();
+    out
+}
+
+fn convert_to(input: &Path, out: &Path, extra: &[&str]) {
+    let o = Command::new(bin())
+        .arg("convert")
+        .arg(input)
+        .arg("-o")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn khronos_gltf_validator_accepts_every_tile() {
+    require_node_modules();
+    let tmp = tempfile::tempdir().unwrap();
+    let sh3 = tmp.path().join("sh3.ply");
+    write_ply_file(&sh3, &random_splats(3000, 3, 5.0, 11));
+    let mut files = vec![];
+    for (name, input) in [
+        ("plant", scene("plant.splat")),
+        ("donut", scene("donut_fused_sh0.ply")),
+        ("biker", scene("biker.spz")),
+        ("sh3", sh3),
+    ] {
+        let out = tmp.path().join(name);
+        convert_to(&input, &out, &["--max-splats", "40000"]);
+        files.extend(glbs(&out));
+    }
+    assert!(files.len() >= 8, "tiles to validate: {}", files.len());
+    let o = Command::new("node")
+        .arg(js_dir().join("validate_glb.mjs"))
+        .args(&files)
+        .output()
+        .expect("node runs");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "glTF-Validator reported errors:\n{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(
+        stdout.lines().filter(|l| l.contains("numErrors")).count(),
+        files.len(),
+        "one report per tile: {stdout}"
+    );
+}
+
+/// splat-transform writes the scene rotated 180 degrees about z ((x, y, z) -> (-x, -y, z)),
+/// its frame conversion for .splat and .ply input; rotations turn with it.
+fn splat_transform_frame() -> DQuat {
+    DQuat::from_rotation_z(std::f64::consts::PI)
+}
+
+#[test]
+fn splat_transform_agrees_with_our_tiles() {
+    require_node_modules();
+    let tmp = tempfile::tempdir().unwrap();
+    let input = scene("plant.splat");
+    let reference = tmp.path().join("reference.glb");
+    let o = Command::new("node")
+        .arg(js_dir().join("node_modules/@playcanvas/splat-transform/bin/cli.mjs"))
+        .arg("-q")
+        .arg(&input)
+        .arg(&reference)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let theirs = read_tile_glb(&std::fs::read(&reference).unwrap())
+        .expect("our reader reads splat-transform's glb")
+        .splats;
+    assert_eq!(theirs.len(), 113_648);
+
+    let out = tmp.path().join("ours");
+    convert_to(&input, &out, &["--max-splats", "30000"]);
+    let ours = decode_tileset(&out.join("tileset.json"));
+    assert!(ours.len() >= 4, "several tiles");
+
+    // Index their splats by position (in our source frame) on a fine grid.
+    let frame = splat_transform_frame();
+    let cell = 1e-4;
+    let key = |p: DVec3| {
+        (
+            (p.x / cell).floor() as i64,
+            (p.y / cell).floor() as i64,
+            (p.z / cell).floor() as i64,
+        )
+    };
+    let mut grid: HashMap<(i64, i64, i64), Vec<usize>> = HashMap::new();
+    let their_pos: Vec<DVec3> = theirs
+        .positions
+        .iter()
+        .map(|p| frame.inverse() * DVec3::from_array(*p))
+        .collect();
+    for (i, p) in their_pos.iter().enumerate() {
+        grid.entry(key(*p)).or_default().push(i);
+    }
+    let mut matched = 0usize;
+    let mut worst = [0f64; 5];
+    for leaf in ours.values() {
+        let s = &leaf.splats;
+        for j in 0..s.len() {
+            let p = DVec3::from_array(s.positions[j]);
+            let k = key(p);
+            let mut best: Option<(f64, usize)> = None;
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        for &i in grid.get(&(k.0 + dx, k.1 + dy, k.2 + dz)).into_iter().flatten() {
+                            // Among coincident candidates prefer the one whose attributes agree.
+                            let d = (their_pos[i] - p).length()
+                                + (theirs.opacities[i] - s.opacities[j]).abs() as f64
+                                + (0..3)
+                                    .map(|a| (theirs.sh0[i][a] - s.sh0[j][a]).abs() as f64)
+                                    .sum::<f64>();
+                            if best.is_none_or(|(bd, _)| d < bd) {
+                                best = Some((d, i));
+                            }
+                        }
+                    }
+                }
+            }
+            let (_, i) = best.unwrap_or_else(|| panic!("no splat of theirs near {p}"));
+            let q_ours = DQuat::from_array(s.rotations[j].map(f64::from));
+            let q_theirs = frame.inverse() * DQuat::from_array(theirs.rotations[i].map(f64::from));
+            let errs = [
+                (their_pos[i] - p).length(),
+                1.0 - q_ours.dot(q_theirs).abs(),
+                (0..3)
+                    .map(|a| ((theirs.scales[i][a] - s.scales[j][a]) / s.scales[j][a].max(1e-12)).abs() as f64)
+                    .fold(0.0, f64::max),
+                (theirs.opacities[i] - s.opacities[j]).abs() as f64,
+                (0..3)
+                    .map(|a| (theirs.sh0[i][a] - s.sh0[j][a]).abs() as f64)
+                    .fold(0.0, f64::max),
+            ];
+            for (w, e) in worst.iter_mut().zip(errs) {
+                *w = w.max(e);
+            }
+            matched += 1;
+        }
+    }
+    assert_eq!(matched, 113_648);
+    let [pos, rot, scale, opacity, sh0] = worst;
+    assert!(pos < 1e-6, "position differs by {pos} m");
+    assert!(rot < 1e-5, "rotation differs: 1-|q.q'| = {rot}");
+    assert!(scale < 1e-5, "scale differs by {scale} (relative)");
+    assert!(opacity < 1e-5, "opacity differs by {opacity}");
+    // Both derive SH0 from 8-bit colours; allow float rounding of the two formulas.
+    assert!(sh0 < 1e-4, "SH0 differs by {sh0}");
+}
