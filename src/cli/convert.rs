@@ -82,6 +82,7 @@ pub fn run(args: ConvertArgs) -> i32 {
                     "shDegree": r.sh_degree, "upAxis": r.up_axis, "scheme": r.scheme,
                     "tiles": r.tiles, "contentTiles": r.content_tiles, "levels": r.levels,
                     "subtrees": r.subtrees, "bytes": r.bytes, "seconds": r.seconds,
+                    "peakRssMiB": peak_rss_mib(),
                 });
                 println!("{v}");
             } else if !args.quiet {
@@ -123,4 +124,12 @@ pub fn run(args: ConvertArgs) -> i32 {
             super::EXIT_FAILURE
         }
     }
+}
+
+/// Peak resident memory of this process in MiB (Linux `VmHWM`), if the OS tells.
+pub fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
 }
