@@ -330,7 +330,10 @@ mod tests {
         assert_eq!(read_glb(&glb), Err(GlbError::BadVersion { found: 1 }));
         glb[4] = 2;
         glb[8] = glb[8].wrapping_add(4);
-        assert!(matches!(read_glb(&glb), Err(GlbError::LengthMismatch { .. })));
+        assert!(matches!(
+            read_glb(&glb),
+            Err(GlbError::LengthMismatch { .. })
+        ));
     }
 
     #[test]

@@ -5,10 +5,9 @@ use glam::{DMat4, DQuat, DVec3};
 
 use super::glb::{GlbError, parse_json, read_glb, write_gltf_glb};
 use super::gltf::{
-    Accessor, AccessorType, Asset, Buffer, BufferView, ComponentType, Gltf,
-    KHR_GAUSSIAN_SPLATTING, KHR_GAUSSIAN_SPLATTING_SPZ_2, KHR_MESH_QUANTIZATION,
-    KhrGaussianSplatting, MODE_DEFAULT, MODE_POINTS, Mesh, Node, Primitive, PrimitiveExtensions,
-    Scene, TARGET_ARRAY_BUFFER,
+    Accessor, AccessorType, Asset, Buffer, BufferView, ComponentType, Gltf, KHR_GAUSSIAN_SPLATTING,
+    KHR_GAUSSIAN_SPLATTING_SPZ_2, KHR_MESH_QUANTIZATION, KhrGaussianSplatting, MODE_DEFAULT,
+    MODE_POINTS, Mesh, Node, Primitive, PrimitiveExtensions, Scene, TARGET_ARRAY_BUFFER,
 };
 use crate::splat::sh::{color_to_sh0, dc_color, srgb_to_linear};
 use crate::splat::{Splats, normalize_quat, sh_rest_count};
@@ -354,7 +353,11 @@ fn decode_component(ct: ComponentType, normalized: bool, b: &[u8]) -> f32 {
         }
         ComponentType::I16 => {
             let v = i16::from_le_bytes([b[0], b[1]]) as f32;
-            if normalized { (v / 32767.0).max(-1.0) } else { v }
+            if normalized {
+                (v / 32767.0).max(-1.0)
+            } else {
+                v
+            }
         }
         ComponentType::U16 => {
             let v = u16::from_le_bytes([b[0], b[1]]) as f32;
@@ -479,7 +482,11 @@ impl Ctx<'_> {
         for i in 0..count {
             let e = &data[i * stride..i * stride + elem];
             for c in 0..comps {
-                out.push(decode_component(ct, acc.normalized, &e[c * cs..(c + 1) * cs]));
+                out.push(decode_component(
+                    ct,
+                    acc.normalized,
+                    &e[c * cs..(c + 1) * cs],
+                ));
             }
         }
         Ok((out, comps))
@@ -488,16 +495,12 @@ impl Ctx<'_> {
     /// The bytes of a bufferView, checked against its buffer and the BIN chunk.
     fn view_bytes(&self, view: &BufferView, vpath: &str) -> Result<&[u8], GlbError> {
         let bpath = format!("/buffers/{}", view.buffer);
-        let buffer = self
-            .doc
-            .buffers
-            .get(view.buffer as usize)
-            .ok_or_else(|| {
-                GlbError::invalid(
-                    format!("{vpath}/buffer"),
-                    format!("buffer {} does not exist", view.buffer),
-                )
-            })?;
+        let buffer = self.doc.buffers.get(view.buffer as usize).ok_or_else(|| {
+            GlbError::invalid(
+                format!("{vpath}/buffer"),
+                format!("buffer {} does not exist", view.buffer),
+            )
+        })?;
         if view.buffer != 0 || buffer.uri.is_some() {
             return Err(GlbError::unsupported(
                 bpath,
@@ -548,33 +551,33 @@ fn local_matrix(node: &Node) -> DMat4 {
 
 /// Every (mesh index, world matrix) placed by the default scene (or scene 0).
 fn placed_meshes(doc: &Gltf) -> Result<Vec<(usize, DMat4, String)>, GlbError> {
-    let roots: Vec<u32> = match doc.scene.map(|s| s as usize).or(if doc.scenes.is_empty() {
-        None
-    } else {
-        Some(0)
-    }) {
-        Some(s) => {
-            doc.scenes
+    let roots: Vec<u32> =
+        match doc
+            .scene
+            .map(|s| s as usize)
+            .or(if doc.scenes.is_empty() { None } else { Some(0) })
+        {
+            Some(s) => doc
+                .scenes
                 .get(s)
                 .ok_or_else(|| GlbError::invalid("/scene", format!("scene {s} does not exist")))?
                 .nodes
-                .clone()
-        }
-        // No scene: every node that is nobody's child is a root.
-        None => {
-            let mut is_child = vec![false; doc.nodes.len()];
-            for n in &doc.nodes {
-                for &c in &n.children {
-                    if let Some(f) = is_child.get_mut(c as usize) {
-                        *f = true;
+                .clone(),
+            // No scene: every node that is nobody's child is a root.
+            None => {
+                let mut is_child = vec![false; doc.nodes.len()];
+                for n in &doc.nodes {
+                    for &c in &n.children {
+                        if let Some(f) = is_child.get_mut(c as usize) {
+                            *f = true;
+                        }
                     }
                 }
+                (0..doc.nodes.len() as u32)
+                    .filter(|&i| !is_child[i as usize])
+                    .collect()
             }
-            (0..doc.nodes.len() as u32)
-                .filter(|&i| !is_child[i as usize])
-                .collect()
-        }
-    };
+        };
     let mut visited = vec![false; doc.nodes.len()];
     let mut stack: Vec<(u32, DMat4)> = roots.iter().rev().map(|&r| (r, DMat4::IDENTITY)).collect();
     let mut out = Vec::new();
@@ -715,7 +718,10 @@ pub fn read_tile_glb(bytes: &[u8]) -> Result<DecodedTile, GlbError> {
     };
     use AccessorType::{Scalar, Vec3, Vec4};
 
-    let quantized = doc.extensions_used.iter().any(|e| e == KHR_MESH_QUANTIZATION);
+    let quantized = doc
+        .extensions_used
+        .iter()
+        .any(|e| e == KHR_MESH_QUANTIZATION);
     let pos_allowed = if quantized {
         Allowed::Quantized
     } else {
@@ -972,7 +978,10 @@ mod tests {
         assert_eq!(decode_component(ComponentType::I8, true, &[0x81]), -1.0);
         assert_eq!(decode_component(ComponentType::I8, true, &[0x80]), -1.0);
         assert_eq!(decode_component(ComponentType::U8, true, &[255]), 1.0);
-        assert_eq!(decode_component(ComponentType::U16, true, &[0xff, 0xff]), 1.0);
+        assert_eq!(
+            decode_component(ComponentType::U16, true, &[0xff, 0xff]),
+            1.0
+        );
         assert_eq!(
             decode_component(ComponentType::I16, true, &32767i16.to_le_bytes()),
             1.0
