@@ -1,0 +1,115 @@
+//! Runs the Khronos glTF-Validator (npm `gltf-validator`, via `tests/js/validate_glb.mjs`) over
+//! tiles we write and expects zero errors; needs `npm ci --prefix tests/js` once.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use splat2tiles::encode::glb::{parse_json, read_glb, write_gltf_glb};
+use splat2tiles::encode::tile::IDENTITY;
+use splat2tiles::encode::write_tile_glb;
+use splat2tiles::splat::{Splat, Splats, normalize_quat};
+
+fn js_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/js")
+}
+
+/// Fails (never skips) when the node harness is not installed.
+fn require_node_modules() {
+    let dir = js_dir().join("node_modules/gltf-validator");
+    assert!(
+        dir.is_dir(),
+        "{} is missing: run `npm ci --prefix tests/js` (needs Node >= 20)",
+        dir.display()
+    );
+}
+
+fn tile(degree: u8, n: usize) -> Splats {
+    let mut s = Splats::with_capacity(degree, n);
+    for i in 0..n {
+        let t = i as f32 / n as f32;
+        let rest: Vec<[f32; 3]> = (0..s.rest_per_splat())
+            .map(|k| [0.01 * k as f32 - 0.05, t - 0.5, 0.1])
+            .collect();
+        s.push(
+            Splat {
+                position: [100.0 + t as f64, -50.0 + (i % 7) as f64, 3.0 * t as f64],
+                scale: [0.01 + t, 0.02, 0.03],
+                rotation: normalize_quat([t, 0.2, -0.3, 1.0]),
+                opacity: t,
+                sh0: [t * 4.0 - 2.0, 0.3, -0.7],
+            },
+            &rest,
+        );
+    }
+    s
+}
+
+#[test]
+fn our_tiles_pass_the_khronos_validator() {
+    require_node_modules();
+    let dir = tempfile::tempdir().unwrap();
+    // y-down source frame to glTF y-up, plus the tile centre.
+    let m = [
+        1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 100.5, 50.0, -1.5, 1.0,
+    ];
+    let cases = [
+        ("sh0.glb", tile(0, 200), [100.5, -50.0, 1.5], m),
+        ("sh3.glb", tile(3, 333), [100.5, -50.0, 1.5], m),
+        ("sh1_identity.glb", tile(1, 1), [0.0; 3], IDENTITY),
+    ];
+    let mut paths = Vec::new();
+    for (name, splats, centre, matrix) in &cases {
+        let p = dir.path().join(name);
+        std::fs::write(&p, write_tile_glb(splats, *centre, *matrix)).unwrap();
+        paths.push(p);
+    }
+    let out = run_validator(&paths);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let mut reports = 0;
+    for line in stdout.lines() {
+        let r: serde_json::Value = serde_json::from_str(line)
+            .unwrap_or_else(|e| panic!("validator output is not JSON ({e}): {line}"));
+        assert!(
+            r.get("failure").is_none(),
+            "validator could not run: {line}"
+        );
+        // Reported, not asserted: warnings and infos (UNSUPPORTED_EXTENSION is expected).
+        eprintln!("validator: {line}");
+        assert_eq!(r["numErrors"].as_u64(), Some(0), "validator errors: {line}");
+        reports += 1;
+    }
+    assert_eq!(
+        reports,
+        cases.len(),
+        "one report per file; stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "exit status {:?}", out.status);
+}
+
+fn run_validator(paths: &[PathBuf]) -> std::process::Output {
+    Command::new("node")
+        .arg(js_dir().join("validate_glb.mjs"))
+        .args(paths)
+        .output()
+        .expect("cannot run `node` (install Node >= 20)")
+}
+
+/// Negative control: the harness must report a real defect (a wrong POSITION max) as an error.
+#[test]
+fn harness_reports_a_broken_tile() {
+    require_node_modules();
+    let glb = write_tile_glb(&tile(0, 10), [100.0, -50.0, 0.0], IDENTITY);
+    let chunks = read_glb(&glb).unwrap();
+    let mut doc = parse_json(&chunks).unwrap();
+    doc.accessors[0].max.as_mut().unwrap()[0] += 1.0;
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("bad_max.glb");
+    std::fs::write(&p, write_gltf_glb(&doc, chunks.bin).unwrap()).unwrap();
+    let out = run_validator(&[p]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let r: serde_json::Value = serde_json::from_str(stdout.trim()).expect("one JSON line");
+    assert!(r["numErrors"].as_u64().unwrap() > 0, "{stdout}");
+    assert!(stdout.contains("ACCESSOR_MAX_MISMATCH"), "{stdout}");
+    assert_eq!(out.status.code(), Some(1));
+}
