@@ -63,7 +63,9 @@ fn main() {
         scenes.join("biker.spz"),
         big,
     ];
-    println!("| input | splats | input MB | output MB | tiles | seconds | splats/s | peak RSS MiB |");
+    println!(
+        "| input | splats | input MB | output MB | tiles | seconds | splats/s | peak RSS MiB |"
+    );
     println!("|---|---|---|---|---|---|---|---|");
     for input in inputs {
         let out = tmp.path().join("out");

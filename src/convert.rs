@@ -7,9 +7,7 @@ use crate::frame::{UpAxis, node_matrix, source_to_tileset};
 use crate::io::{self, ReadError, Scene};
 use crate::splat::Splats;
 use crate::tiling::subtree::{self, Column, SubtreeData, Table};
-use crate::tiling::tileset::{
-    self, Asset, BoundingVolume, Content, ImplicitTiling, Tile, Tileset,
-};
+use crate::tiling::tileset::{self, Asset, BoundingVolume, Content, ImplicitTiling, Tile, Tileset};
 use crate::tiling::{Partition, Scheme, TileKey, partition};
 use glam::{DMat3, DVec3};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -121,7 +119,9 @@ pub enum ConvertError {
     #[error(transparent)]
     Read(#[from] ReadError),
     /// A splat holds NaN/Inf and the policy is to fail.
-    #[error("{file}: {location}: splat {index} has a NaN or infinite value (use --non-finite drop to skip such splats)")]
+    #[error(
+        "{file}: {location}: splat {index} has a NaN or infinite value (use --non-finite drop to skip such splats)"
+    )]
     NonFinite {
         /// Input file.
         file: String,
@@ -189,9 +189,13 @@ pub fn convert_scene(
     opts: &ConvertOptions,
 ) -> Result<ConvertReport, ConvertError> {
     let start = Instant::now();
-    let up = opts
-        .up_axis
-        .unwrap_or_else(|| scene.format.default_up_axis().parse().unwrap_or(UpAxis::NegY));
+    let up = opts.up_axis.unwrap_or_else(|| {
+        scene
+            .format
+            .default_up_axis()
+            .parse()
+            .unwrap_or(UpAxis::NegY)
+    });
     let mut splats = scene.splats;
     let mut report = ConvertReport {
         splats_in: splats.len(),
@@ -531,7 +535,11 @@ fn write_subtrees(
         // Child subtrees: the subtree roots one level below this subtree's last level.
         for child in child_roots.get(root).into_iter().flatten() {
             let rel = |c: u32, r: u32| c - (r << levels);
-            let m = scheme.encode(rel(child.x, root.x), rel(child.y, root.y), rel(child.z, root.z));
+            let m = scheme.encode(
+                rel(child.x, root.x),
+                rel(child.y, root.y),
+                rel(child.z, root.z),
+            );
             child_subtrees[m as usize] = true;
         }
         rows.sort_by_key(|(i, _)| *i);
@@ -543,7 +551,10 @@ fn write_subtrees(
                 box_array(c, h)
             })
             .collect();
-        let errors: Vec<f64> = rows.iter().map(|(_, k)| geometric_error(&tree[k])).collect();
+        let errors: Vec<f64> = rows
+            .iter()
+            .map(|(_, k)| geometric_error(&tree[k]))
+            .collect();
         let counts: Vec<u32> = rows
             .iter()
             .filter(|(_, k)| tree[k].has_content)
@@ -697,12 +708,15 @@ impl Staging {
 
     /// Moves the finished folder into place, replacing an earlier result only at the very end.
     fn commit(mut self, target: &Path) -> Result<(), ConvertError> {
-        let old = self
-            .path
-            .with_file_name(format!(".{}.s2t-old-{}", target.file_name().unwrap_or_default().to_string_lossy(), std::process::id()));
+        let old = self.path.with_file_name(format!(
+            ".{}.s2t-old-{}",
+            target.file_name().unwrap_or_default().to_string_lossy(),
+            std::process::id()
+        ));
         let had_old = target.exists();
         if had_old {
-            std::fs::rename(target, &old).map_err(io_err(target, "moving the earlier result aside"))?;
+            std::fs::rename(target, &old)
+                .map_err(io_err(target, "moving the earlier result aside"))?;
         }
         if let Err(e) = std::fs::rename(&self.path, target) {
             if had_old {

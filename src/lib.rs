@@ -1,11 +1,11 @@
 //! splat2tiles: turns 3D Gaussian Splatting scenes into OGC 3D Tiles 1.1 implicit tilesets of
 //! glTF 2.0 `KHR_gaussian_splatting` tiles, and renders, validates and streams them.
 
+pub mod cli;
+pub mod convert;
 pub mod encode;
 pub mod frame;
 pub mod io;
 pub mod render;
 pub mod splat;
 pub mod tiling;
-pub mod cli;
-pub mod convert;

@@ -46,7 +46,12 @@ fn shared_scenes_keep_every_splat() {
         assert!(ts.tiles.len() > 1, "{name}: more than one tile");
         let subtrees = walk(&out.join("subtrees"), "subtree");
         assert!(!subtrees.is_empty(), "{name}: subtree files written");
-        let from_metadata: u64 = ts.tiles.iter().filter_map(|t| t.splat_count).map(u64::from).sum();
+        let from_metadata: u64 = ts
+            .tiles
+            .iter()
+            .filter_map(|t| t.splat_count)
+            .map(u64::from)
+            .sum();
         assert_eq!(from_metadata as usize, count, "{name}: splatCount metadata");
         let decoded = decode_tileset(&out.join("tileset.json"));
         let total: usize = decoded.values().map(|d| d.splats.len()).sum();
@@ -102,14 +107,24 @@ fn assert_round_trip(input: &Path, opts: ConvertOptions) {
             let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * (1.0f32).max(b.abs());
             for a in 0..3 {
                 let d = (got.positions[j][a] - source.positions[i][a]).abs();
-                assert!(d <= 1e-5 * size, "{}: splat {i} position off by {d}", input.display());
+                assert!(
+                    d <= 1e-5 * size,
+                    "{}: splat {i} position off by {d}",
+                    input.display()
+                );
                 assert!(close(got.scales[j][a], source.scales[i][a]), "scale of {i}");
                 assert!(close(got.sh0[j][a], source.sh0[i][a]), "sh0 of {i}");
             }
             for a in 0..4 {
-                assert!(close(got.rotations[j][a], source.rotations[i][a]), "rotation of {i}");
+                assert!(
+                    close(got.rotations[j][a], source.rotations[i][a]),
+                    "rotation of {i}"
+                );
             }
-            assert!(close(got.opacities[j], source.opacities[i]), "opacity of {i}");
+            assert!(
+                close(got.opacities[j], source.opacities[i]),
+                "opacity of {i}"
+            );
             for (g, s) in got.rest_of(j).iter().zip(source.rest_of(i)) {
                 for c in 0..3 {
                     assert!(close(g[c], s[c]), "higher SH of {i}");
@@ -142,7 +157,10 @@ fn round_trip_generated_sh3_ply() {
     write_ply_file(&ply, &splats);
     let read = read_path(&ply).unwrap().splats;
     assert_eq!(read.sh_degree, 3);
-    assert!(read.sh_rest.iter().flatten().any(|v| v.abs() > 0.01), "non-zero higher SH");
+    assert!(
+        read.sh_rest.iter().flatten().any(|v| v.abs() > 0.01),
+        "non-zero higher SH"
+    );
     assert_round_trip(
         &ply,
         ConvertOptions {
@@ -176,7 +194,10 @@ fn georeferenced_scene_is_a_mercator_quadtree_with_ecef_root() {
     assert!(root.bounding_volume.region.is_some());
     // Leaves sit at Web-Mercator zooms that match a 2 km district (zoom 13-20).
     let leaf_levels: Vec<u32> = report.leaves.iter().map(|(k, _)| k.level).collect();
-    assert!(leaf_levels.iter().all(|&l| (12..=22).contains(&l)), "{leaf_levels:?}");
+    assert!(
+        leaf_levels.iter().all(|&l| (12..=22).contains(&l)),
+        "{leaf_levels:?}"
+    );
     // A leaf's implicit key is the Web-Mercator key (y flipped to grow northwards).
     let src = read_path(&ply).unwrap().splats;
     let enu = origin.enu_to_ecef();
@@ -213,7 +234,10 @@ fn local_scheme_follows_the_scene_shape() {
     assert_eq!(r.scheme, "OCTREE");
     assert!(r.levels >= 2);
     let ts = load_tileset(&tmp.path().join("b/tileset.json")).unwrap();
-    assert!(ts.tileset.root.transform.is_none(), "no Earth maths for a local scene");
+    assert!(
+        ts.tileset.root.transform.is_none(),
+        "no Earth maths for a local scene"
+    );
     assert!(ts.tileset.root.bounding_volume.box_.is_some());
 }
 
@@ -272,7 +296,10 @@ fn assert_refused(name: &str, bytes: &[u8], extra: &[&str], needle: &str) {
         .map(|e| e.file_name().to_string_lossy().into_owned())
         .filter(|n| n.starts_with('.'))
         .collect();
-    assert!(leftovers.is_empty(), "{name}: temporary folders left: {leftovers:?}");
+    assert!(
+        leftovers.is_empty(),
+        "{name}: temporary folders left: {leftovers:?}"
+    );
 }
 
 #[test]
@@ -298,12 +325,22 @@ fn absurd_vertex_count() {
 fn missing_required_property() {
     let props: Vec<&str> = PROPS.iter().copied().filter(|p| *p != "opacity").collect();
     let recs: Vec<Vec<f32>> = (0..3).map(|_| vec![0.0; props.len()]).collect();
-    assert_refused("noopacity.ply", &ply_bytes(&props, 3, &recs), &[], "opacity");
+    assert_refused(
+        "noopacity.ply",
+        &ply_bytes(&props, 3, &recs),
+        &[],
+        "opacity",
+    );
 }
 
 #[test]
 fn unknown_format() {
-    assert_refused("mystery.bin", b"this is not a splat scene at all", &[], "format");
+    assert_refused(
+        "mystery.bin",
+        b"this is not a splat scene at all",
+        &[],
+        "format",
+    );
 }
 
 #[test]
@@ -387,12 +424,18 @@ fn refuses_to_replace_a_folder_that_is_not_a_tileset() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(2));
-    assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "keep me");
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "keep me"
+    );
 }
 
 #[test]
 fn help_lists_examples() {
-    let o = Command::new(bin()).args(["convert", "--help"]).output().unwrap();
+    let o = Command::new(bin())
+        .args(["convert", "--help"])
+        .output()
+        .unwrap();
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success());
     assert!(s.contains("Examples:") && s.contains("--origin") && s.contains("--up-axis"));

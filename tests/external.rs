@@ -145,7 +145,11 @@ fn splat_transform_agrees_with_our_tiles() {
             for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
-                        for &i in grid.get(&(k.0 + dx, k.1 + dy, k.2 + dz)).into_iter().flatten() {
+                        for &i in grid
+                            .get(&(k.0 + dx, k.1 + dy, k.2 + dz))
+                            .into_iter()
+                            .flatten()
+                        {
                             // Among coincident candidates prefer the one whose attributes agree.
                             let d = (their_pos[i] - p).length()
                                 + (theirs.opacities[i] - s.opacities[j]).abs() as f64
@@ -166,7 +170,10 @@ fn splat_transform_agrees_with_our_tiles() {
                 (their_pos[i] - p).length(),
                 1.0 - q_ours.dot(q_theirs).abs(),
                 (0..3)
-                    .map(|a| ((theirs.scales[i][a] - s.scales[j][a]) / s.scales[j][a].max(1e-12)).abs() as f64)
+                    .map(|a| {
+                        ((theirs.scales[i][a] - s.scales[j][a]) / s.scales[j][a].max(1e-12)).abs()
+                            as f64
+                    })
                     .fold(0.0, f64::max),
                 (theirs.opacities[i] - s.opacities[j]).abs() as f64,
                 (0..3)

@@ -96,10 +96,16 @@ pub fn run(args: ConvertArgs) -> i32 {
                     r.up_axis
                 );
                 if r.dropped_non_finite > 0 {
-                    println!("  dropped {} splats with NaN or infinite values", r.dropped_non_finite);
+                    println!(
+                        "  dropped {} splats with NaN or infinite values",
+                        r.dropped_non_finite
+                    );
                 }
                 if r.repaired_rotations > 0 {
-                    println!("  replaced {} zero quaternions by the identity", r.repaired_rotations);
+                    println!(
+                        "  replaced {} zero quaternions by the identity",
+                        r.repaired_rotations
+                    );
                 }
                 println!(
                     "  {} {} tiles ({} with content) over {} levels, {} subtree files, {:.2} MB, {:.2} s",

@@ -233,7 +233,10 @@ mod tests {
         let (x, y) = mercator_unit(0.0, 90.0);
         assert!(x.is_finite() && y.is_finite());
         let b = mercator_tile_bounds(10, 550, 335);
-        assert!(b[0] <= 13.405 && 13.405 <= b[2] && b[1] <= 52.52 && 52.52 <= b[3], "{b:?}");
+        assert!(
+            b[0] <= 13.405 && 13.405 <= b[2] && b[1] <= 52.52 && 52.52 <= b[3],
+            "{b:?}"
+        );
         let world = mercator_tile_bounds(0, 0, 0);
         assert!((world[3] - MERCATOR_MAX_LAT).abs() < 1e-9);
     }

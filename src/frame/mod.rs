@@ -61,7 +61,11 @@ impl FromStr for UpAxis {
             "-y" => UpAxis::NegY,
             "+z" | "z" => UpAxis::PosZ,
             "-z" => UpAxis::NegZ,
-            other => return Err(format!("unknown up axis '{other}' (use +x, -x, +y, -y, +z or -z)")),
+            other => {
+                return Err(format!(
+                    "unknown up axis '{other}' (use +x, -x, +y, -y, +z or -z)"
+                ));
+            }
         })
     }
 }

@@ -131,16 +131,16 @@ mod tests {
             let d = [(r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32];
             let mut b = [0f32; 16];
             basis(3, d, &mut b);
-            for a in 0..16 {
-                for c in 0..16 {
-                    gram[a][c] += b[a] as f64 * b[c] as f64;
+            for (row, ba) in gram.iter_mut().zip(b) {
+                for (g, bc) in row.iter_mut().zip(b) {
+                    *g += ba as f64 * bc as f64;
                 }
             }
         }
         let w = 4.0 * std::f64::consts::PI / n as f64;
-        for a in 0..16 {
-            for c in 0..16 {
-                let v = gram[a][c] * w;
+        for (a, row) in gram.iter().enumerate() {
+            for (c, g) in row.iter().enumerate() {
+                let v = g * w;
                 let want = if a == c { 1.0 } else { 0.0 };
                 assert!((v - want).abs() < 2e-3, "gram[{a}][{c}] = {v}");
             }

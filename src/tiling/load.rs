@@ -190,8 +190,9 @@ pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
             continue;
         }
         let uri = expand_template(&implicit.subtrees.uri, root);
-        let spath = resolve_inside(&dir, &uri)
-            .ok_or_else(|| unsupported(&format!("subtree URI '{uri}' leaves the tileset folder")))?;
+        let spath = resolve_inside(&dir, &uri).ok_or_else(|| {
+            unsupported(&format!("subtree URI '{uri}' leaves the tileset folder"))
+        })?;
         let s = subtree::read_subtree(&read(&spath)?).map_err(|source| LoadError::Subtree {
             path: spath.clone(),
             source,
@@ -273,7 +274,10 @@ pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
             }
         }
         let children = s
-            .bits(&s.json.child_subtree_availability, arity.pow(levels) as usize)
+            .bits(
+                &s.json.child_subtree_availability,
+                arity.pow(levels) as usize,
+            )
             .ok_or_else(|| bad("child subtree availability unreadable"))?;
         for (m, _) in children.iter().enumerate().filter(|(_, b)| **b) {
             let (x, y, z) = scheme.decode(m as u64);
@@ -306,11 +310,21 @@ mod tests {
             y: 2,
             z: 7,
         };
-        assert_eq!(expand_template("t/{level}/{x}/{y}/{z}.glb", k), "t/3/1/2/7.glb");
+        assert_eq!(
+            expand_template("t/{level}/{x}/{y}/{z}.glb", k),
+            "t/3/1/2/7.glb"
+        );
         let d = Path::new("/data/ts");
         assert_eq!(resolve_inside(d, "a/b.glb"), Some(d.join("a/b.glb")));
         assert_eq!(resolve_inside(d, "a/../b.glb"), Some(d.join("a/../b.glb")));
-        for bad in ["../x.glb", "a/../../x", "/etc/passwd", "http://x/y.glb", "C:\\x", "\\\\srv\\x"] {
+        for bad in [
+            "../x.glb",
+            "a/../../x",
+            "/etc/passwd",
+            "http://x/y.glb",
+            "C:\\x",
+            "\\\\srv\\x",
+        ] {
             assert_eq!(resolve_inside(d, bad), None, "{bad}");
         }
     }

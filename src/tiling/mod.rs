@@ -1,10 +1,10 @@
 //! The tile hierarchy: adaptive partition into implicit-tiling leaves, Morton indexing, binary
 //! subtree files and `tileset.json`.
 
+pub mod load;
 pub mod morton;
 pub mod partition;
 pub mod subtree;
-pub mod load;
 pub mod tileset;
 
 pub use partition::{Leaf, Partition, Scheme, TileKey, partition};

@@ -148,7 +148,12 @@ fn codes(unit: &[[f64; 3]], scheme: Scheme, depth: u32) -> Vec<u64> {
 /// Splits splats (given by their centres in unit coordinates of the root volume) into leaves of
 /// at most `max_splats` each, subdividing no deeper than `max_depth` (a leaf at that depth may
 /// hold more: coincident splats cannot be separated).
-pub fn partition(unit: &[[f64; 3]], scheme: Scheme, max_splats: usize, max_depth: u32) -> Partition {
+pub fn partition(
+    unit: &[[f64; 3]],
+    scheme: Scheme,
+    max_splats: usize,
+    max_depth: u32,
+) -> Partition {
     let depth = max_depth.min(scheme.max_depth());
     let code = codes(unit, scheme, depth);
     let mut order: Vec<usize> = (0..unit.len()).collect();

@@ -347,7 +347,10 @@ pub fn read_subtree(bytes: &[u8]) -> Result<Subtree, SubtreeError> {
     let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
     let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
     if u32_at(0) != SUBTREE_MAGIC {
-        return Err(framing(0, format!("magic {:#010x} is not \"subt\"", u32_at(0))));
+        return Err(framing(
+            0,
+            format!("magic {:#010x} is not \"subt\"", u32_at(0)),
+        ));
     }
     if u32_at(4) != 1 {
         return Err(framing(4, format!("version {} is not 1", u32_at(4))));
@@ -419,7 +422,10 @@ mod tests {
             assert_eq!(v.byte_offset % 8, 0);
         }
         assert_eq!(s.bits(&s.json.tile_availability, n).unwrap(), tiles);
-        assert_eq!(s.bits(&s.json.content_availability[0], n).unwrap(), contents);
+        assert_eq!(
+            s.bits(&s.json.content_availability[0], n).unwrap(),
+            contents
+        );
         assert_eq!(s.json.child_subtree_availability.constant, Some(0));
         assert_eq!(s.json.tile_availability.available_count, Some(3));
         let t = &s.json.property_tables[s.json.tile_metadata.unwrap() as usize];
@@ -432,13 +438,18 @@ mod tests {
 
     #[test]
     fn bit_order_is_lsb_first() {
-        let bits = [true, false, false, false, false, false, false, false, false, true];
+        let bits = [
+            true, false, false, false, false, false, false, false, false, true,
+        ];
         assert_eq!(pack_bits(&bits), vec![0x01, 0x02]);
     }
 
     #[test]
     fn framing_errors_never_panic() {
-        assert!(matches!(read_subtree(&[]), Err(SubtreeError::Framing { offset: 0, .. })));
+        assert!(matches!(
+            read_subtree(&[]),
+            Err(SubtreeError::Framing { offset: 0, .. })
+        ));
         let mut good = write_subtree(&SubtreeData {
             tiles: vec![true],
             contents: vec![true],
@@ -448,13 +459,22 @@ mod tests {
         });
         let mut bad = good.clone();
         bad[0] = b'x';
-        assert!(matches!(read_subtree(&bad), Err(SubtreeError::Framing { offset: 0, .. })));
+        assert!(matches!(
+            read_subtree(&bad),
+            Err(SubtreeError::Framing { offset: 0, .. })
+        ));
         let mut bad = good.clone();
         bad[4] = 2;
-        assert!(matches!(read_subtree(&bad), Err(SubtreeError::Framing { offset: 4, .. })));
+        assert!(matches!(
+            read_subtree(&bad),
+            Err(SubtreeError::Framing { offset: 4, .. })
+        ));
         let mut bad = good.clone();
         bad[8..16].copy_from_slice(&u64::MAX.to_le_bytes());
-        assert!(matches!(read_subtree(&bad), Err(SubtreeError::Framing { offset: 8, .. })));
+        assert!(matches!(
+            read_subtree(&bad),
+            Err(SubtreeError::Framing { offset: 8, .. })
+        ));
         good.truncate(30);
         assert!(read_subtree(&good).is_err());
     }

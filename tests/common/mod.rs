@@ -18,7 +18,11 @@ pub fn scenes() -> PathBuf {
 /// A shared scene by file name; panics with a clear message when the folder is missing.
 pub fn scene(name: &str) -> PathBuf {
     let p = scenes().join(name);
-    assert!(p.is_file(), "missing shared scene {} (../shared/scenes)", p.display());
+    assert!(
+        p.is_file(),
+        "missing shared scene {} (../shared/scenes)",
+        p.display()
+    );
     p
 }
 
