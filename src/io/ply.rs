@@ -705,7 +705,12 @@ fn read_ascii(
         let mut n = 0usize;
         for tok in text.split_ascii_whitespace() {
             if n < nprops {
-                vals[n] = tok.parse::<f64>().map_err(|_| {
+                // A float property holds what an f32 holds: parse it as one (no double rounding).
+                let parsed = match v.props[n].kind {
+                    PropKind::Scalar(Scalar::F32) => tok.parse::<f32>().map(f64::from),
+                    _ => tok.parse::<f64>(),
+                };
+                vals[n] = parsed.map_err(|_| {
                     cx.line(
                         ln,
                         ReadErrorKind::BadRecord(format!(
