@@ -947,7 +947,7 @@ fn bad_ascii_unparseable_number() {
 #[test]
 fn bad_ascii_missing_and_trailing_lines() {
     let t = ascii_ply(&[ROW, ROW]);
-    let cut = t.rsplitn(2, ROW).nth(1).unwrap().to_string();
+    let cut = t.rsplit_once(ROW).unwrap().0.to_string();
     let e = read_bytes("cut.ply", cut.as_bytes()).unwrap_err();
     assert_err(
         &e,
@@ -1131,4 +1131,42 @@ fn read_path_reports_missing_files() {
     let e = read_path(std::path::Path::new("/nonexistent/scene.ply")).unwrap_err();
     assert!(matches!(e.kind(), ReadErrorKind::Io(_)));
     assert!(e.to_string().starts_with("/nonexistent/scene.ply: "), "{e}");
+}
+
+#[test]
+fn mutated_and_truncated_inputs_never_panic() {
+    // Every prefix and many byte flips of small valid files must give Ok or Err, never a panic.
+    let s = random_splats(6, 1, 12);
+    let order: Vec<usize> = (0..trainer_values(&s, 0).len()).collect();
+    let mut splat_file = Vec::new();
+    for i in 0..4u8 {
+        splat_file.extend([i; 32]);
+    }
+    let inputs: Vec<(&str, Vec<u8>)> = vec![
+        ("m.ply", write_to_vec(&s)),
+        ("m.ply", emit_ply(&s, PlyEncoding::Ascii, &order, false)),
+        (
+            "m.ply",
+            emit_ply(&s, PlyEncoding::BinaryBigEndian, &order, true),
+        ),
+        ("m.spz", spz_legacy(&s, 3)),
+        ("m.spz", spz_v4(&s)),
+        ("m.splat", splat_file),
+    ];
+    let mut r = Rng(99);
+    for (name, good) in &inputs {
+        for cut in 0..good.len() {
+            let _ = read_bytes(name, &good[..cut]);
+        }
+        for _ in 0..300 {
+            let mut b = good.clone();
+            for _ in 0..1 + (r.next() * 4.0) as usize {
+                let at = (r.next() * b.len() as f64) as usize;
+                b[at] = (r.next() * 256.0) as u8;
+            }
+            if let Err(e) = read_bytes(name, &b) {
+                assert!(e.to_string().starts_with(&format!("{name}: ")), "{e}");
+            }
+        }
+    }
 }

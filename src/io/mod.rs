@@ -13,6 +13,8 @@ mod ply_write;
 mod splat_file;
 mod spz;
 
+pub use spz::MAX_SPZ_POINTS;
+
 use std::fmt;
 use std::path::Path;
 
