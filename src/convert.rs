@@ -158,7 +158,10 @@ pub enum ConvertError {
     },
 }
 
-fn io_err(path: &Path, what: &'static str) -> impl FnOnce(std::io::Error) -> ConvertError + '_ {
+fn io_err<'a>(
+    path: &'a Path,
+    what: &'static str,
+) -> impl FnOnce(std::io::Error) -> ConvertError + 'a {
     move |source| ConvertError::Io {
         path: path.to_path_buf(),
         what,

@@ -228,8 +228,10 @@ fn local_scheme_follows_the_scene_shape() {
     assert_eq!(r.scheme, "QUADTREE");
     let cube = tmp.path().join("cube.ply");
     write_ply_file(&cube, &random_splats(3000, 0, 100.0, 4));
-    let mut opts = ConvertOptions::default();
-    opts.max_splats_per_tile = 100;
+    let opts = ConvertOptions {
+        max_splats_per_tile: 100,
+        ..Default::default()
+    };
     let r = convert(&cube, &tmp.path().join("b"), &opts).unwrap();
     assert_eq!(r.scheme, "OCTREE");
     assert!(r.levels >= 2);

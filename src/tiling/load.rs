@@ -224,14 +224,13 @@ pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
             .as_ref()
             .and_then(|v| v.first().copied())
             .and_then(|t| u32_rows(&s, t, "splatCount"));
-        let mut row = 0;
         let mut content_row = 0;
         // Tile indices grow with the level, then the Morton index: rows follow that order.
         let available = (0..levels).flat_map(|rl| {
             let first = subtree::tile_count(arity, rl) as usize;
             (0..arity.pow(rl)).map(move |m| (rl, m, first + m as usize))
         });
-        for (rl, m, idx) in available.filter(|&(_, _, idx)| avail[idx]) {
+        for (row, (rl, m, idx)) in available.filter(|&(_, _, idx)| avail[idx]).enumerate() {
             let (x, y, z) = scheme.decode(m);
             let key = TileKey {
                 level: root.level + rl,
@@ -268,7 +267,6 @@ pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
                     None
                 },
             });
-            row += 1;
             if has_content {
                 content_row += 1;
             }

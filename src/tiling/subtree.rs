@@ -180,7 +180,7 @@ impl BinBuilder {
     fn add(&mut self, bytes: &[u8]) -> u32 {
         let offset = self.bin.len() as u64;
         self.bin.extend_from_slice(bytes);
-        while self.bin.len() % 8 != 0 {
+        while !self.bin.len().is_multiple_of(8) {
             self.bin.push(0);
         }
         self.views.push(BufferView {
@@ -265,7 +265,7 @@ pub fn write_subtree(data: &SubtreeData) -> Vec<u8> {
         content_metadata,
     };
     let mut json_bytes = serde_json::to_vec(&json).expect("subtree JSON serialises");
-    while json_bytes.len() % 8 != 0 {
+    while !json_bytes.len().is_multiple_of(8) {
         json_bytes.push(b' ');
     }
     let mut out = Vec::with_capacity(24 + json_bytes.len() + b.bin.len());
