@@ -115,7 +115,11 @@ impl Splats {
 
     /// Appends one splat; `rest` must hold `rest_per_splat()` triples.
     pub fn push(&mut self, s: Splat, rest: &[[f32; 3]]) {
-        assert_eq!(rest.len(), self.rest_per_splat(), "wrong number of SH triples");
+        assert_eq!(
+            rest.len(),
+            self.rest_per_splat(),
+            "wrong number of SH triples"
+        );
         self.positions.push(s.position);
         self.scales.push(s.scale);
         self.rotations.push(s.rotation);
@@ -248,11 +252,17 @@ mod tests {
     #[test]
     fn normalize_degenerate_quats() {
         assert_eq!(normalize_quat([0.0; 4]), [0.0, 0.0, 0.0, 1.0]);
-        assert_eq!(normalize_quat([f32::NAN, 0.0, 0.0, 1.0]), [0.0, 0.0, 0.0, 1.0]);
+        assert_eq!(
+            normalize_quat([f32::NAN, 0.0, 0.0, 1.0]),
+            [0.0, 0.0, 0.0, 1.0]
+        );
         let q = normalize_quat([0.0, 0.0, 0.0, -2.0]);
         assert_eq!(q, [0.0, 0.0, 0.0, -1.0]);
         let q = normalize_quat([1e-20, 0.0, 0.0, 0.0]);
-        assert!((q[0] - 1.0).abs() < 1e-6, "tiny but non-zero quats normalise: {q:?}");
+        assert!(
+            (q[0] - 1.0).abs() < 1e-6,
+            "tiny but non-zero quats normalise: {q:?}"
+        );
     }
 
     #[test]
