@@ -262,18 +262,20 @@ mod tests {
 
     #[test]
     fn look_at_axes_follow_opencv_convention() {
-        // Eye on -z looking at the origin with +y up: camera x = world +x, camera y = world -y.
+        // Eye on -z looking at the origin (+z) with +y up: camera y = world -y, and right-handed
+        // x = y cross z = world -x (looking down +z, world +x is on the left).
         let cam = Camera::look_at(100, 80, 60.0, -5.0 * DVec3::Z, DVec3::ZERO, DVec3::Y);
         let r = cam.rotation();
-        assert!((r.x_axis - DVec3::X).length() < 1e-12, "{:?}", r.x_axis);
+        assert!((r.x_axis + DVec3::X).length() < 1e-12, "{:?}", r.x_axis);
         assert!((r.y_axis + DVec3::Y).length() < 1e-12, "{:?}", r.y_axis);
         assert!((r.z_axis - DVec3::Z).length() < 1e-12, "{:?}", r.z_axis);
         // The target lands on the principal point; a point above it (world +y) lands higher
-        // in the image (smaller row), one to the right lands to the right.
+        // in the image (smaller row), world -x lands to the right.
         let p = cam.project(DVec3::ZERO).unwrap();
         assert_eq!(p, [50.0, 40.0]);
         assert!(cam.project(DVec3::Y).unwrap()[1] < 40.0);
-        assert!(cam.project(DVec3::X).unwrap()[0] > 50.0);
+        assert!(cam.project(-DVec3::X).unwrap()[0] > 50.0);
+        assert!((r.determinant() - 1.0).abs() < 1e-12, "right-handed");
         assert!(cam.project(-10.0 * DVec3::Z).is_none());
         assert!((cam.fov_y_deg() - 60.0).abs() < 1e-9);
     }

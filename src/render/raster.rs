@@ -249,12 +249,12 @@ fn project_one(
     }
     let opacity = splats.opacities[i];
     // alpha = opacity * exp(power) <= opacity: below 1/255 it never shows (reference result).
-    if !(opacity >= ALPHA_MIN) {
+    if opacity.is_nan() || opacity < ALPHA_MIN {
         return None;
     }
     let p = DVec3::from(splats.positions[i]);
     let pv = f.m * p + f.b;
-    if !(pv.z > opts.near) {
+    if pv.z.is_nan() || pv.z <= opts.near {
         return None;
     }
     let (fx, fy) = (cam.fx, cam.fy);
@@ -428,8 +428,8 @@ fn composite_tile(
                 if test_t < t_min {
                     break;
                 }
-                for ch in 0..3 {
-                    c[ch] += g.color[ch] * alpha * t;
+                for (acc, col) in c.iter_mut().zip(g.color) {
+                    *acc += col * alpha * t;
                 }
                 t = test_t;
             }
