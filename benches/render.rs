@@ -1,0 +1,316 @@
+//! Reference-renderer benchmark (not a test): ms/frame at 1280x720 for plant.splat and a generated
+//! 1M-splat scene, and the accuracy/time trade-off of each `RenderOptions` knob.
+//!
+//! Run: `cargo bench --bench render` (release). Timed: one full `render` call (projection, sort,
+//! binning, compositing; no PNG encoding), fastest of several runs after a warm-up, with rayon's
+//! default thread count. Trade-off: plant.splat given synthetic SH degree 3 (so that SH
+//! truncation matters), each knob varied alone, SSIM of the 8-bit image against the exact render.
+//! Writes `target/render_bench.md` (the table pasted into BENCHMARKS.md) and
+//! `docs/render_tradeoff.svg`.
+
+#[path = "../tests/common/splat_file.rs"]
+mod splat_file;
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use glam::{DMat4, DVec3};
+use splat2tiles::render::{
+    Camera, DepthSort, Image, RenderOptions, auto_views_with, render, render_with_stats, ssim,
+};
+use splat2tiles::splat::Splats;
+
+const W: u32 = 1280;
+const H: u32 = 720;
+/// Timing rounds of the trade-off table.
+const ROUNDS: usize = 5;
+
+/// Fastest of `runs` timed calls after a warm-up (the minimum is the least disturbed by other
+/// processes sharing the cores).
+fn min_ms(runs: usize, mut f: impl FnMut() -> Image) -> (f64, Image) {
+    let img = f(); // warm-up
+    let mut best = f64::INFINITY;
+    for _ in 0..runs {
+        let t0 = Instant::now();
+        std::hint::black_box(f());
+        best = best.min(t0.elapsed().as_secs_f64() * 1e3);
+    }
+    (best, img)
+}
+
+/// Plant with deterministic synthetic higher SH: uniform in +-0.3, +-0.15, +-0.08 for degrees
+/// 1, 2, 3 (trained scenes have small, decreasing higher coefficients).
+fn with_synthetic_sh3(s: &Splats) -> Splats {
+    let mut out = Splats::with_capacity(3, s.len());
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) as f32
+    };
+    for i in 0..s.len() {
+        let rest: Vec<[f32; 3]> = (0..15)
+            .map(|k| {
+                let amp = if k < 3 {
+                    0.3
+                } else if k < 8 {
+                    0.15
+                } else {
+                    0.08
+                };
+                [next() * amp, next() * amp, next() * amp]
+            })
+            .collect();
+        out.push(s.get(i), &rest);
+    }
+    out
+}
+
+fn plant_camera(s: &Splats) -> Camera {
+    let (lo, hi) = s.bounds().unwrap();
+    auto_views_with(DVec3::from(lo), DVec3::from(hi), -DVec3::Y, W, H, 50.0)[0]
+}
+
+fn svg(points: &[(String, f64, f64)]) -> String {
+    let (x0, x1) = (0.0, points.iter().map(|p| p.1).fold(0.0, f64::max) * 1.1);
+    let ymin = points.iter().map(|p| p.2).fold(1.0, f64::min);
+    let (y0, y1) = ((ymin - 0.02).clamp(0.0, 0.95), 1.002);
+    let (pw, ph, m) = (640.0, 400.0, 60.0);
+    let sx = |x: f64| m + (x - x0) / (x1 - x0) * (pw - 2.0 * m);
+    let sy = |y: f64| ph - m - (y - y0) / (y1 - y0) * (ph - 2.0 * m);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{pw}" height="{ph}" font-family="sans-serif" font-size="11">"#
+    );
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="20" text-anchor="middle" font-size="14">Reference renderer: SSIM vs exact against time (plant + synthetic SH3, {W}x{H})</text>"#,
+        pw / 2.0
+    );
+    let _ = writeln!(
+        s,
+        r#"<line x1="{m}" y1="{0}" x2="{1}" y2="{0}" stroke="black"/><line x1="{m}" y1="{m}" x2="{m}" y2="{0}" stroke="black"/>"#,
+        ph - m,
+        pw - m
+    );
+    for i in 0..=4 {
+        let x = x0 + (x1 - x0) * i as f64 / 4.0;
+        let y = y0 + (y1 - y0) * i as f64 / 4.0;
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{x:.0}</text><text x="{:.1}" y="{:.1}" text-anchor="end">{y:.3}</text>"#,
+            sx(x),
+            ph - m + 16.0,
+            m - 6.0,
+            sy(y) + 4.0
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" text-anchor="middle">time per frame (ms)</text><text x="16" y="{}" transform="rotate(-90 16 {})" text-anchor="middle">SSIM vs exact</text>"#,
+        pw / 2.0,
+        ph - 16.0,
+        ph / 2.0,
+        ph / 2.0
+    );
+    for (label, t, q) in points {
+        let _ = writeln!(
+            s,
+            r#"<circle cx="{:.1}" cy="{:.1}" r="3.5" fill="steelblue"/><text x="{:.1}" y="{:.1}">{label}</text>"#,
+            sx(*t),
+            sy(*q),
+            sx(*t) + 5.0,
+            sy(*q) - 4.0
+        );
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn main() {
+    let threads = rayon::current_num_threads();
+    let plant = splat_file::read_splat(splat_file::PLANT);
+    let cam = plant_camera(&plant);
+    let exact = RenderOptions::default();
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "Machine: {threads} rayon threads. Frame {W}x{H}, auto-view 0 (up -y), exact options.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| scene | splats | visible | tile pairs | ms/frame (min of 5) |"
+    );
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|");
+    let (_, stats) = render_with_stats(&[(&plant, DMat4::IDENTITY)], &cam, &exact);
+    let (ms, _) = min_ms(5, || render(&[(&plant, DMat4::IDENTITY)], &cam, &exact));
+    let _ = writeln!(
+        md,
+        "| plant.splat | {} | {} | {} | {ms:.1} |",
+        stats.splats, stats.visible, stats.tile_pairs
+    );
+    eprintln!("plant: {ms:.1} ms");
+
+    // ~1M splats: 9 instances of plant on a 3x3 grid (model matrices), framed as a whole.
+    let (lo, hi) = plant.bounds().unwrap();
+    let ext = DVec3::from(hi) - DVec3::from(lo);
+    let models: Vec<DMat4> = (0..9)
+        .map(|k| {
+            let off = DVec3::new((k % 3) as f64 - 1.0, 0.0, (k / 3) as f64 - 1.0) * ext * 0.8;
+            DMat4::from_translation(off)
+        })
+        .collect();
+    let inst: Vec<(&Splats, DMat4)> = models.iter().map(|&m| (&plant, m)).collect();
+    let big_lo = DVec3::from(lo) - ext * 0.8;
+    let big_hi = DVec3::from(hi) + ext * 0.8;
+    let big_cam = auto_views_with(big_lo, big_hi, -DVec3::Y, W, H, 50.0)[0];
+    let (_, stats) = render_with_stats(&inst, &big_cam, &exact);
+    let (ms, _) = min_ms(3, || render(&inst, &big_cam, &exact));
+    let _ = writeln!(
+        md,
+        "| 9 x plant (instances, generated) | {} | {} | {} | {ms:.1} |",
+        stats.splats, stats.visible, stats.tile_pairs
+    );
+    eprintln!("9x plant: {ms:.1} ms");
+
+    // Trade-off on plant with synthetic SH3.
+    let sh3 = with_synthetic_sh3(&plant);
+    let one = |o: &RenderOptions| render(&[(&sh3, DMat4::IDENTITY)], &cam, o);
+    let variants: Vec<(String, RenderOptions)> = vec![
+        ("exact (SH3, 3 sigma, exact sort, T 1e-4)".into(), exact),
+        (
+            "SH degree 2".into(),
+            RenderOptions {
+                max_sh_degree: 2,
+                ..exact
+            },
+        ),
+        (
+            "SH degree 1".into(),
+            RenderOptions {
+                max_sh_degree: 1,
+                ..exact
+            },
+        ),
+        (
+            "SH degree 0".into(),
+            RenderOptions {
+                max_sh_degree: 0,
+                ..exact
+            },
+        ),
+        (
+            "footprint 2.5 sigma".into(),
+            RenderOptions {
+                footprint_sigma: 2.5,
+                ..exact
+            },
+        ),
+        (
+            "footprint 2 sigma".into(),
+            RenderOptions {
+                footprint_sigma: 2.0,
+                ..exact
+            },
+        ),
+        (
+            "sort 65536 buckets".into(),
+            RenderOptions {
+                sort: DepthSort::Buckets(65536),
+                ..exact
+            },
+        ),
+        (
+            "sort 4096 buckets".into(),
+            RenderOptions {
+                sort: DepthSort::Buckets(4096),
+                ..exact
+            },
+        ),
+        (
+            "sort 256 buckets".into(),
+            RenderOptions {
+                sort: DepthSort::Buckets(256),
+                ..exact
+            },
+        ),
+        (
+            "early stop T < 1e-3".into(),
+            RenderOptions {
+                min_transmittance: 1e-3,
+                ..exact
+            },
+        ),
+        (
+            "early stop T < 1e-2".into(),
+            RenderOptions {
+                min_transmittance: 1e-2,
+                ..exact
+            },
+        ),
+        (
+            "early stop T < 5e-2".into(),
+            RenderOptions {
+                min_transmittance: 5e-2,
+                ..exact
+            },
+        ),
+        (
+            "fast: SH1, 2 sigma, 4096 buckets, T < 1e-2".into(),
+            RenderOptions {
+                max_sh_degree: 1,
+                footprint_sigma: 2.0,
+                sort: DepthSort::Buckets(4096),
+                min_transmittance: 1e-2,
+                ..exact
+            },
+        ),
+    ];
+    let _ = writeln!(
+        md,
+        "\nTrade-off (plant.splat + synthetic SH degree 3, {W}x{H}, auto-view 0; SSIM of the 8-bit \
+         image against the exact render; fastest of {ROUNDS} round-robin runs):\n"
+    );
+    let _ = writeln!(md, "| variant | ms/frame | vs exact | SSIM | PSNR (dB) |");
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|");
+    // Round-robin timing (each round times every variant once) so that load from other
+    // processes spreads over all variants; keep each variant's fastest round.
+    let images: Vec<Image> = variants.iter().map(|(_, o)| one(o)).collect();
+    let mut best = vec![f64::INFINITY; variants.len()];
+    for _ in 0..ROUNDS {
+        for (b, (_, o)) in best.iter_mut().zip(&variants) {
+            let t0 = Instant::now();
+            std::hint::black_box(one(o));
+            *b = b.min(t0.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    let t_ref = best[0];
+    let ref_q = images[0].quantized();
+    let mut points = Vec::new();
+    for (((name, _), img), &t) in variants.iter().zip(&images).zip(&best) {
+        let q = img.quantized();
+        let s = ssim(&q, &ref_q).unwrap();
+        let p = splat2tiles::render::psnr(&q, &ref_q).unwrap();
+        let p_txt = if p.is_finite() {
+            format!("{p:.2}")
+        } else {
+            "inf".into()
+        };
+        let _ = writeln!(
+            md,
+            "| {name} | {t:.1} | {:.2}x | {s:.5} | {p_txt} |",
+            t / t_ref
+        );
+        eprintln!("{name}: {t:.1} ms, SSIM {s:.5}");
+        let short = name.split(" (").next().unwrap_or(name).to_string();
+        points.push((short, t, s));
+    }
+    let root = env!("CARGO_MANIFEST_DIR");
+    std::fs::create_dir_all(format!("{root}/docs")).unwrap();
+    std::fs::write(format!("{root}/docs/render_tradeoff.svg"), svg(&points)).unwrap();
+    std::fs::write(format!("{root}/target/render_bench.md"), &md).unwrap();
+    println!("{md}");
+}
