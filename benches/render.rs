@@ -72,58 +72,79 @@ fn plant_camera(s: &Splats) -> Camera {
     auto_views_with(DVec3::from(lo), DVec3::from(hi), -DVec3::Y, W, H, 50.0)[0]
 }
 
+/// SSIM-vs-time scatter: x = ms/frame, y = 1 - SSIM on a log scale (the exact render, 0, is drawn
+/// on the bottom edge); points are numbered, with the legend on the right.
 fn svg(points: &[(String, f64, f64)]) -> String {
-    let (x0, x1) = (0.0, points.iter().map(|p| p.1).fold(0.0, f64::max) * 1.1);
-    let ymin = points.iter().map(|p| p.2).fold(1.0, f64::min);
-    let (y0, y1) = ((ymin - 0.02).clamp(0.0, 0.95), 1.002);
-    let (pw, ph, m) = (640.0, 400.0, 60.0);
-    let sx = |x: f64| m + (x - x0) / (x1 - x0) * (pw - 2.0 * m);
-    let sy = |y: f64| ph - m - (y - y0) / (y1 - y0) * (ph - 2.0 * m);
+    let tmax = points.iter().map(|p| p.1).fold(0.0, f64::max);
+    let tmin = points.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    let (x0, x1) = ((tmin * 0.9).floor(), (tmax * 1.05).ceil());
+    let (l0, l1) = (-6.0f64, -1.0f64); // log10(1 - SSIM) range
+    let (pw, ph, left, right, top, bottom) = (860.0, 420.0, 70.0, 500.0, 50.0, 360.0);
+    let sx = |x: f64| left + (x - x0) / (x1 - x0) * (right - left);
+    let sy = |err: f64| {
+        let l = if err > 0.0 {
+            err.log10().clamp(l0, l1)
+        } else {
+            l0
+        };
+        bottom - (l - l0) / (l1 - l0) * (bottom - top)
+    };
     let mut s = String::new();
     let _ = writeln!(
         s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{pw}" height="{ph}" font-family="sans-serif" font-size="11">"#
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{pw}" height="{ph}" font-family="sans-serif" font-size="12">"#
     );
     let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
     let _ = writeln!(
         s,
-        r#"<text x="{}" y="20" text-anchor="middle" font-size="14">Reference renderer: SSIM vs exact against time (plant + synthetic SH3, {W}x{H})</text>"#,
+        r#"<text x="{}" y="24" text-anchor="middle" font-size="14">CPU reference renderer: error vs time per knob (plant + synthetic SH3, {W}x{H})</text>"#,
         pw / 2.0
     );
     let _ = writeln!(
         s,
-        r#"<line x1="{m}" y1="{0}" x2="{1}" y2="{0}" stroke="black"/><line x1="{m}" y1="{m}" x2="{m}" y2="{0}" stroke="black"/>"#,
-        ph - m,
-        pw - m
+        r#"<line x1="{left}" y1="{bottom}" x2="{right}" y2="{bottom}" stroke="black"/><line x1="{left}" y1="{top}" x2="{left}" y2="{bottom}" stroke="black"/>"#
     );
     for i in 0..=4 {
         let x = x0 + (x1 - x0) * i as f64 / 4.0;
-        let y = y0 + (y1 - y0) * i as f64 / 4.0;
         let _ = writeln!(
             s,
-            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{x:.0}</text><text x="{:.1}" y="{:.1}" text-anchor="end">{y:.3}</text>"#,
+            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{x:.0}</text>"#,
             sx(x),
-            ph - m + 16.0,
-            m - 6.0,
-            sy(y) + 4.0
+            bottom + 16.0
+        );
+    }
+    for l in (l0 as i32)..=(l1 as i32) {
+        let y = sy(10f64.powi(l));
+        let _ = writeln!(
+            s,
+            r#"<line x1="{left}" y1="{y:.1}" x2="{right}" y2="{y:.1}" stroke="lightgray"/><text x="{:.1}" y="{:.1}" text-anchor="end">1e{l}</text>"#,
+            left - 6.0,
+            y + 4.0
         );
     }
     let _ = writeln!(
         s,
-        r#"<text x="{}" y="{}" text-anchor="middle">time per frame (ms)</text><text x="16" y="{}" transform="rotate(-90 16 {})" text-anchor="middle">SSIM vs exact</text>"#,
-        pw / 2.0,
-        ph - 16.0,
-        ph / 2.0,
-        ph / 2.0
+        r#"<text x="{}" y="{}" text-anchor="middle">time per frame (ms)</text><text x="18" y="{}" transform="rotate(-90 18 {})" text-anchor="middle">1 - SSIM vs exact (log; exact on the axis)</text>"#,
+        (left + right) / 2.0,
+        bottom + 36.0,
+        (top + bottom) / 2.0,
+        (top + bottom) / 2.0
     );
-    for (label, t, q) in points {
+    for (k, (label, t, q)) in points.iter().enumerate() {
+        let (x, y) = (sx(*t), sy(1.0 - q));
         let _ = writeln!(
             s,
-            r#"<circle cx="{:.1}" cy="{:.1}" r="3.5" fill="steelblue"/><text x="{:.1}" y="{:.1}">{label}</text>"#,
-            sx(*t),
-            sy(*q),
-            sx(*t) + 5.0,
-            sy(*q) - 4.0
+            r#"<circle cx="{x:.1}" cy="{y:.1}" r="4" fill="steelblue"/><text x="{:.1}" y="{:.1}" font-size="10">{}</text>"#,
+            x + 5.0,
+            y - 5.0,
+            k + 1
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.1}" y="{:.1}">{}. {label}: {t:.1} ms, SSIM {q:.5}</text>"#,
+            right + 20.0,
+            top + 16.0 * k as f64,
+            k + 1
         );
     }
     s.push_str("</svg>\n");
@@ -142,15 +163,20 @@ fn main() {
     );
     let _ = writeln!(
         md,
-        "| scene | splats | visible | tile pairs | ms/frame (min of 5) |"
+        "| scene | splats | visible | tile pairs | ms/frame (min of 5) | project / sort / composite ms (one run) |"
     );
-    let _ = writeln!(md, "|---|---:|---:|---:|---:|");
-    let (_, stats) = render_with_stats(&[(&plant, DMat4::IDENTITY)], &cam, &exact);
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|---|");
     let (ms, _) = min_ms(5, || render(&[(&plant, DMat4::IDENTITY)], &cam, &exact));
+    let (_, stats) = render_with_stats(&[(&plant, DMat4::IDENTITY)], &cam, &exact);
     let _ = writeln!(
         md,
-        "| plant.splat | {} | {} | {} | {ms:.1} |",
-        stats.splats, stats.visible, stats.tile_pairs
+        "| plant.splat | {} | {} | {} | {ms:.1} | {:.1} / {:.1} / {:.1} |",
+        stats.splats,
+        stats.visible,
+        stats.tile_pairs,
+        stats.project_ms,
+        stats.sort_ms,
+        stats.composite_ms
     );
     eprintln!("plant: {ms:.1} ms");
 
@@ -167,12 +193,17 @@ fn main() {
     let big_lo = DVec3::from(lo) - ext * 0.8;
     let big_hi = DVec3::from(hi) + ext * 0.8;
     let big_cam = auto_views_with(big_lo, big_hi, -DVec3::Y, W, H, 50.0)[0];
-    let (_, stats) = render_with_stats(&inst, &big_cam, &exact);
     let (ms, _) = min_ms(3, || render(&inst, &big_cam, &exact));
+    let (_, stats) = render_with_stats(&inst, &big_cam, &exact);
     let _ = writeln!(
         md,
-        "| 9 x plant (instances, generated) | {} | {} | {} | {ms:.1} |",
-        stats.splats, stats.visible, stats.tile_pairs
+        "| 9 x plant (instances, generated) | {} | {} | {} | {ms:.1} | {:.1} / {:.1} / {:.1} |",
+        stats.splats,
+        stats.visible,
+        stats.tile_pairs,
+        stats.project_ms,
+        stats.sort_ms,
+        stats.composite_ms
     );
     eprintln!("9x plant: {ms:.1} ms");
 

@@ -79,8 +79,8 @@ impl Default for RenderOptions {
     }
 }
 
-/// Counters from one render.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// Counters and stage timings from one render.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RenderStats {
     /// Splats over all instances.
     pub splats: usize,
@@ -90,6 +90,12 @@ pub struct RenderStats {
     pub visible: usize,
     /// (splat, tile) pairs after binning.
     pub tile_pairs: usize,
+    /// Wall time of projection (culling, covariance, SH), ms.
+    pub project_ms: f64,
+    /// Wall time of the depth sort, ms.
+    pub sort_ms: f64,
+    /// Wall time of binning and compositing, ms.
+    pub composite_ms: f64,
 }
 
 /// A splat after projection: what binning and compositing need.
@@ -152,6 +158,7 @@ pub fn render_with_stats(
     let grid = [w.div_ceil(TILE), h.div_ceil(TILE)];
 
     // 1. Project every splat of every instance (order-preserving parallel collect).
+    let clock = std::time::Instant::now();
     let mut projected: Vec<Projected> = Vec::new();
     let mut gid_base = 0u64;
     for &(splats, model) in instances {
@@ -172,9 +179,13 @@ pub fn render_with_stats(
         gid_base += n as u64;
     }
     stats.visible = projected.len();
+    stats.project_ms = clock.elapsed().as_secs_f64() * 1e3;
 
     // 2. Depth order, deterministic: keys are unique thanks to the global index.
+    let clock = std::time::Instant::now();
     sort_front_to_back(&mut projected, opts.sort);
+    stats.sort_ms = clock.elapsed().as_secs_f64() * 1e3;
+    let clock = std::time::Instant::now();
     let rects: Vec<[u32; 4]> = projected.iter().map(|p| p.rect).collect();
     let hot: Vec<Hot> = projected.iter().map(|p| p.hot).collect();
     drop(projected);
@@ -189,6 +200,7 @@ pub fn render_with_stats(
         data.extend_from_slice(&band);
         stats.tile_pairs += pairs;
     }
+    stats.composite_ms = clock.elapsed().as_secs_f64() * 1e3;
     (
         Image {
             width: w,
