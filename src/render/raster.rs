@@ -128,8 +128,8 @@ struct InstanceFrame {
     b: DVec3,
     /// Camera centre in the model frame (for SH directions), when the model is invertible.
     c_local: Option<DVec3>,
-    /// World-to-model linear map for SH directions when not invertible: None; world direction is
-    /// then used as is.
+    /// Camera-to-world rotation: for a singular model the SH direction falls back to the world
+    /// direction (camera-space centre rotated back to world).
     rot_world_from_cam: DMat3,
 }
 
