@@ -3,6 +3,7 @@
 
 use clap::{Parser, Subcommand};
 use splat2tiles::cli;
+use splat2tiles::render::cli as render_cli;
 
 /// Make huge 3D Gaussian Splatting scenes streamable: OGC 3D Tiles 1.1 of glTF
 /// KHR_gaussian_splatting tiles.
@@ -17,12 +18,28 @@ struct Cli {
 enum Command {
     /// Convert a PLY, .splat or .spz scene into an implicit 3D Tiles 1.1 tileset.
     Convert(cli::convert::ConvertArgs),
+    /// Render a scene file or a tileset with the CPU reference renderer to a PNG.
+    Render(render_cli::RenderArgs),
+    /// Print SSIM and PSNR between two PNG images.
+    Compare(render_cli::CompareArgs),
 }
 
 fn main() {
     let args = Cli::parse();
     let code = match args.command {
         Command::Convert(a) => cli::convert::run(a),
+        Command::Render(a) => report(render_cli::run_render(&a)),
+        Command::Compare(a) => report(render_cli::run_compare(&a)),
     };
     std::process::exit(code);
+}
+
+fn report(result: anyhow::Result<()>) -> i32 {
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("splat2tiles: {e:#}");
+            cli::EXIT_FAILURE
+        }
+    }
 }

@@ -120,6 +120,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::needless_range_loop)] // a Gram matrix reads best with indices
     fn basis_is_orthonormal_numerically() {
         // Monte-Carlo-free check: integrate products over a Fibonacci sphere.
         let n = 20000;

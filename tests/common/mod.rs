@@ -2,6 +2,9 @@
 //! seeded generated scenes, and decoding a whole tileset back into splats.
 #![allow(dead_code)]
 
+pub mod scenes;
+pub mod splat_file;
+
 use glam::{DMat3, DMat4, DVec3};
 use splat2tiles::encode::tile::read_tile_glb;
 use splat2tiles::splat::{Splat, Splats, sh_rest_count};

@@ -1,0 +1,64 @@
+//! Reference-image test: `splat2tiles render ../shared/scenes/plant.splat --auto-view 0` (at
+//! 320x240) must match the committed `tests/data/render/plant_view0.png` with SSIM >= 0.99, and
+//! so must the same view rendered from a converted tileset. `S2T_BLESS=1` rewrites the PNG.
+
+mod common;
+
+use splat2tiles::render::{Image, ssim};
+use std::path::Path;
+use std::process::Command;
+
+const REF: &str = "tests/data/render/plant_view0.png";
+
+fn render(input: &Path, out: &Path) {
+    let o = Command::new(common::bin())
+        .arg("render")
+        .arg(input)
+        .args([
+            "--auto-view",
+            "0",
+            "--width",
+            "320",
+            "--height",
+            "240",
+            "-o",
+        ])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn plant_view0_matches_reference() {
+    let tmp = tempfile::tempdir().unwrap();
+    let png = tmp.path().join("a.png");
+    render(&common::scene("plant.splat"), &png);
+    if std::env::var_os("S2T_BLESS").is_some() {
+        std::fs::copy(&png, REF).unwrap();
+    }
+    let img = Image::load_png(&png).unwrap();
+    assert!(img.data.iter().all(|v| v.is_finite()));
+    let reference = Image::load_png(Path::new(REF)).unwrap();
+    let s = ssim(&img, &reference).unwrap();
+    assert!(s >= 0.99, "SSIM {s} against {REF}");
+}
+
+#[test]
+fn converted_tileset_renders_like_the_scene() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("ts");
+    let o = Command::new(common::bin())
+        .arg("convert")
+        .arg(common::scene("plant.splat"))
+        .args(["--max-splats", "10000", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let png = tmp.path().join("t.png");
+    render(&out.join("tileset.json"), &png);
+    let reference = Image::load_png(Path::new(REF)).unwrap();
+    let s = ssim(&Image::load_png(&png).unwrap(), &reference).unwrap();
+    assert!(s >= 0.99, "tileset render SSIM {s} against {REF}");
+}
