@@ -653,6 +653,23 @@ fn tileset_json(
     }
 }
 
+/// Staging folders of conversions in progress, removed by the interrupt handler.
+static ACTIVE_STAGING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Installs a Ctrl-C / SIGTERM handler that removes unfinished output folders and exits with
+/// 130, so an interrupted conversion leaves nothing behind. Call once, from the binary.
+pub fn remove_staging_on_interrupt() {
+    let _ = ctrlc::set_handler(|| {
+        if let Ok(dirs) = ACTIVE_STAGING.lock() {
+            for d in dirs.iter() {
+                let _ = std::fs::remove_dir_all(d);
+            }
+        }
+        eprintln!("splat2tiles: interrupted; no output written");
+        std::process::exit(130);
+    });
+}
+
 /// A temporary output folder beside the target; removed on drop unless committed.
 struct Staging {
     path: PathBuf,
@@ -698,6 +715,9 @@ impl Staging {
             }
         }
         let path = parent.join(format!("{prefix}{}", std::process::id()));
+        if let Ok(mut dirs) = ACTIVE_STAGING.lock() {
+            dirs.push(path.clone());
+        }
         std::fs::create_dir_all(&path).map_err(io_err(&path, "creating folder"))?;
         Ok(Staging {
             path,
@@ -711,6 +731,8 @@ impl Staging {
 
     /// Moves the finished folder into place, replacing an earlier result only at the very end.
     fn commit(mut self, target: &Path) -> Result<(), ConvertError> {
+        // The interrupt handler waits on this lock, so it never runs between the two renames.
+        let _no_interrupt = ACTIVE_STAGING.lock();
         let old = self.path.with_file_name(format!(
             ".{}.s2t-old-{}",
             target.file_name().unwrap_or_default().to_string_lossy(),
@@ -739,6 +761,9 @@ impl Drop for Staging {
     fn drop(&mut self) {
         if !self.committed {
             let _ = std::fs::remove_dir_all(&self.path);
+        }
+        if let Ok(mut dirs) = ACTIVE_STAGING.lock() {
+            dirs.retain(|d| d != &self.path);
         }
     }
 }

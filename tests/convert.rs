@@ -442,3 +442,66 @@ fn help_lists_examples() {
     assert!(o.status.success());
     assert!(s.contains("Examples:") && s.contains("--origin") && s.contains("--up-axis"));
 }
+
+#[cfg(unix)]
+#[test]
+fn interrupted_conversion_leaves_nothing_behind() {
+    let tmp = tempfile::tempdir().unwrap();
+    let ply = tmp.path().join("big.ply");
+    write_ply_file(&ply, &random_splats(400_000, 3, 50.0, 9));
+    let out = tmp.path().join("out");
+    let mut child = Command::new(bin())
+        .arg("convert")
+        .arg(&ply)
+        .arg("-o")
+        .arg(&out)
+        .args(["--max-splats", "2000"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the staging folder exists, then interrupt.
+    let start = std::time::Instant::now();
+    let staging_seen = loop {
+        let hidden = std::fs::read_dir(tmp.path())
+            .unwrap()
+            .flatten()
+            .any(|e| e.file_name().to_string_lossy().starts_with(".out.s2t-tmp-"));
+        if hidden || start.elapsed().as_secs() > 60 {
+            break hidden;
+        }
+        if child.try_wait().unwrap().is_some() {
+            break false;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    };
+    Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    let o = child.wait_with_output().unwrap();
+    eprintln!("convert exit status after SIGINT: {:?}", o.status.code());
+    let leftovers: Vec<_> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(
+        leftovers.is_empty(),
+        "temporary folders left: {leftovers:?}"
+    );
+    if o.status.success() {
+        // Finished before the signal: the output must then be complete.
+        assert!(!staging_seen || out.join("tileset.json").is_file());
+        assert!(out.join("tileset.json").is_file());
+    } else {
+        assert_eq!(
+            o.status.code(),
+            Some(130),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!out.exists(), "no partial output after an interrupt");
+    }
+}

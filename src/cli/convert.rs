@@ -71,6 +71,7 @@ pub fn run(args: ConvertArgs) -> i32 {
         keep_index_map: false,
         progress: !args.quiet && std::io::stderr().is_terminal(),
     };
+    crate::convert::remove_staging_on_interrupt();
     match convert(&args.input, &args.output, &opts) {
         Ok(r) => {
             if args.json {
