@@ -1,6 +1,8 @@
 //! Splat tile glb round trips (write -> read, SH degrees 0..3), layout checks, other writers'
 //! layouts (strides, offsets, quantised types) and malformed glbs that must fail without panics.
 
+mod common;
+use common::Rng;
 use splat2tiles::encode::glb::{GlbError, parse_json, read_glb, write_gltf_glb};
 use splat2tiles::encode::gltf::{
     Accessor, AccessorType, Buffer, BufferView, ComponentType, Gltf, KhrGaussianSplatting, Mesh,
@@ -9,21 +11,6 @@ use splat2tiles::encode::gltf::{
 use splat2tiles::encode::tile::{self, IDENTITY, sh_attribute};
 use splat2tiles::encode::{read_tile_glb, write_tile_glb};
 use splat2tiles::splat::{Splat, Splats, normalize_quat};
-
-/// Small deterministic generator (xorshift64*), so the tests need no extra crate.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-}
 
 fn scene(degree: u8, n: usize, seed: u64) -> Splats {
     let mut r = Rng(seed | 1);
@@ -38,7 +25,7 @@ fn scene(degree: u8, n: usize, seed: u64) -> Splats {
             ],
             scale: [0; 3].map(|_| r.range(0.0, 0.5) as f32),
             rotation: normalize_quat(q),
-            opacity: r.next() as f32,
+            opacity: r.f() as f32,
             sh0: [0; 3].map(|_| r.range(-2.0, 2.0) as f32),
         };
         let rest: Vec<[f32; 3]> = (0..s.rest_per_splat())

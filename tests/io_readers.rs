@@ -1,6 +1,8 @@
 //! Integration tests of `splat2tiles::io`: the shared real scenes, PLY round trips across
 //! encodings and property orders, SPZ v2/v3/v4 from a test-only encoder, and hostile inputs.
 
+mod common;
+use common::{Rng, scenes};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -11,25 +13,6 @@ use splat2tiles::splat::{Splat, Splats, logit, normalize_quat, sh::SH_C0};
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
-
-fn scenes() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes")
-}
-
-/// xorshift64*: deterministic, dependency-free.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-}
 
 /// Seeded random splats with non-zero higher SH, within SPZ-encodable ranges.
 fn random_splats(n: usize, degree: u8, seed: u64) -> Splats {
@@ -374,7 +357,7 @@ fn ascii_big_endian_and_shuffled_decode_identically() {
     let mut shuffled = straight.clone();
     let mut r = Rng(77);
     for i in (1..n).rev() {
-        shuffled.swap(i, (r.next() * (i + 1) as f64) as usize);
+        shuffled.swap(i, (r.f() * (i + 1) as f64) as usize);
     }
     assert_ne!(shuffled, straight);
     for enc in [
@@ -1160,9 +1143,9 @@ fn mutated_and_truncated_inputs_never_panic() {
         }
         for _ in 0..300 {
             let mut b = good.clone();
-            for _ in 0..1 + (r.next() * 4.0) as usize {
-                let at = (r.next() * b.len() as f64) as usize;
-                b[at] = (r.next() * 256.0) as u8;
+            for _ in 0..1 + (r.f() * 4.0) as usize {
+                let at = (r.f() * b.len() as f64) as usize;
+                b[at] = (r.f() * 256.0) as u8;
             }
             if let Err(e) = read_bytes(name, &b) {
                 assert!(e.to_string().starts_with(&format!("{name}: ")), "{e}");
