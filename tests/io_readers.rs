@@ -4,7 +4,6 @@
 mod common;
 use common::{Rng, scenes};
 use std::io::Write;
-use std::path::PathBuf;
 
 use splat2tiles::io::{
     InputFormat, PlyEncoding, ReadError, ReadErrorKind, Scene, read_bytes, read_path, write_ply,
