@@ -1,0 +1,2 @@
+//! Trace-driven streaming simulator: a clock-driven client over a network model, using the
+//! `stream` core, with the metrics of TileSplat Table 4 (CHR, TGQ, WD) and Table 5.
