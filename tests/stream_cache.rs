@@ -23,9 +23,7 @@ fn tree() -> TileCatalog {
                 tiles.push(LoadedTile {
                     key: TileKey { level, x, y, z: 0 },
                     content: Some(format!("{level}_{x}_{y}.glb").into()),
-                    bounding_box: Some([
-                        c[0], c[1], c[2], h, 0.0, 0.0, 0.0, h, 0.0, 0.0, 0.0, 2.0,
-                    ]),
+                    bounding_box: Some([c[0], c[1], c[2], h, 0.0, 0.0, 0.0, h, 0.0, 0.0, 0.0, 2.0]),
                     geometric_error: 8.0 / n as f64,
                     splat_count: Some(1000),
                 });
@@ -136,7 +134,11 @@ fn exact_test_matches_point_sampling_and_planes_is_conservative() {
     for _ in 0..400 {
         let pose = ViewPose {
             t: 0.0,
-            pos: DVec3::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(0.0, 3.0)),
+            pos: DVec3::new(
+                rng.range(-5.0, 5.0),
+                rng.range(-5.0, 5.0),
+                rng.range(0.0, 3.0),
+            ),
             yaw: rng.range(-3.1, 3.1),
             pitch: rng.range(-0.5, 0.5),
         };
@@ -164,7 +166,10 @@ fn exact_test_matches_point_sampling_and_planes_is_conservative() {
             assert!(VisTest::Planes.visible(&f, &b), "plane test missed");
         }
         if exact {
-            assert!(VisTest::Planes.visible(&f, &b), "plane test must be conservative");
+            assert!(
+                VisTest::Planes.visible(&f, &b),
+                "plane test must be conservative"
+            );
         } else if VisTest::Planes.visible(&f, &b) {
             fp_planes += 1;
         }

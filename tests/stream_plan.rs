@@ -36,8 +36,8 @@ fn brute(req: &PlanRequest) -> f64 {
             let v = req.candidates[i].variants[pick - 1];
             let s = v.bytes as f64;
             // Earliest end step e >= start with c[e] - c[start] >= s, then + latency.
-            let Some(e) = (start..=req.horizon_steps)
-                .find(|&e| c[e] - c[start] + 1e-9 * s.max(1.0) >= s)
+            let Some(e) =
+                (start..=req.horizon_steps).find(|&e| c[e] - c[start] + 1e-9 * s.max(1.0) >= s)
             else {
                 ok = false;
                 break;
@@ -142,7 +142,11 @@ fn dp_with_memory_budget_is_feasible_and_close() {
         let b = brute(&req);
         assert!(p.utility <= b + 1e-9, "case {case}");
         // Lagrangian answers lose at most one tile's utility here.
-        assert!(p.utility >= b - 1.0 - 1e-9, "case {case}: {} vs {b}", p.utility);
+        assert!(
+            p.utility >= b - 1.0 - 1e-9,
+            "case {case}: {} vs {b}",
+            p.utility
+        );
     }
 }
 

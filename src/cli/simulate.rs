@@ -82,7 +82,11 @@ fn load_scene(file: &Path, work: &Path, max_splats: u32) -> anyhow::Result<Scene
     });
     let mut content = Vec::with_capacity(cat.tiles.len());
     for t in &cat.tiles {
-        let lt = ts.tiles.iter().find(|l| l.key == t.key).expect("same tiles");
+        let lt = ts
+            .tiles
+            .iter()
+            .find(|l| l.key == t.key)
+            .expect("same tiles");
         content.push(match (&lt.content, t.has_content) {
             (Some(p), true) => {
                 let bytes = std::fs::read(p).with_context(|| p.display().to_string())?;
@@ -178,7 +182,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
 fn table5(seed: u64, scenes: &[Scene]) -> String {
     let mut md = String::new();
     let instances = 20;
-    let synthetic = |s: u64| TileCatalog::synthetic(30, (1.0, 3.0), s);
+    let synthetic = |s: u64| TileCatalog::synthetic(30, (2.0, 6.0), s);
     let pool: Vec<(usize, usize)> = scenes
         .iter()
         .enumerate()
@@ -203,14 +207,14 @@ fn table5(seed: u64, scenes: &[Scene]) -> String {
     type MakeCat<'a> = Box<dyn Fn(u64) -> TileCatalog + 'a>;
     let settings: Vec<(&str, MakeCat, Vec<f64>)> = vec![
         (
-            "synthetic (paper setting: 30 tiles, Best 1-3 MB, deadlines U(5,30) s, 4 levels)",
+            "synthetic (paper setting: 30 tiles, Best 2-6 MB: the paper's implied 4 MB mean, 120 MB / 30 tiles from its Util/MB; deadlines U(5,30) s, 4 levels)",
             Box::new(synthetic),
             vec![100.0, 50.0, 10.0],
         ),
         (
             "real tile sizes (30 tiles drawn from the 3 shared scenes at 4096 splats/tile; STAND-IN levels and utilities)",
             Box::new(real),
-            vec![100.0, 50.0, 10.0, 2.0, 1.0],
+            vec![100.0, 10.0, 1.0, 0.5, 0.25],
         ),
     ];
     let _ = writeln!(
@@ -342,21 +346,33 @@ fn table4(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<String> {
             let mut full: Vec<Image> = vec![];
             for (pi, mut p) in predictors(tr).into_iter().enumerate() {
                 let name = p.name().to_string();
-                let r = run_session(&s.cat, &tr.poses, p.as_mut(), &cfg, |k, pose, cache: &Cache| {
-                    if full.len() <= k {
-                        full.push(render_tiles(s, pose, |_| true));
-                    }
-                    let img = render_tiles(s, pose, |i| cache.level(i).is_some());
-                    ssim(&img, &full[k]).ok()
-                });
+                let r = run_session(
+                    &s.cat,
+                    &tr.poses,
+                    p.as_mut(),
+                    &cfg,
+                    |k, pose, cache: &Cache| {
+                        if full.len() <= k {
+                            full.push(render_tiles(s, pose, |_| true));
+                        }
+                        let img = render_tiles(s, pose, |i| cache.level(i).is_some());
+                        ssim(&img, &full[k]).ok()
+                    },
+                );
                 if s.name == "plant" && ti == 1 {
                     plot_q.push((
                         name.clone(),
-                        r.frames.iter().map(|f| (f.t, f.ssim.unwrap_or(0.0))).collect(),
+                        r.frames
+                            .iter()
+                            .map(|f| (f.t, f.ssim.unwrap_or(0.0)))
+                            .collect(),
                     ));
                     plot_b.push((
                         name.clone(),
-                        r.frames.iter().map(|f| (f.t, f.bytes as f64 / 1e6)).collect(),
+                        r.frames
+                            .iter()
+                            .map(|f| (f.t, f.bytes as f64 / 1e6))
+                            .collect(),
                     ));
                 }
                 if rows.len() <= pi {
@@ -381,7 +397,11 @@ fn table4(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<String> {
                 format!(
                     "{:.1}{}",
                     tgq.iter().sum::<f64>() / tgq.len() as f64,
-                    if tgq.len() < rs.len() { " (some never)" } else { "" }
+                    if tgq.len() < rs.len() {
+                        " (some never)"
+                    } else {
+                        ""
+                    }
                 )
             },
             100.0 * m(&|r| r.wd),
@@ -394,11 +414,23 @@ fn table4(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<String> {
     }
     std::fs::write(
         args.plots.join("stream_quality.svg"),
-        line_chart("plant, walk 1, 4 Mbps: SSIM vs full view", "time (s)", "SSIM", &plot_q, Some((0.0, 1.0))),
+        line_chart(
+            "plant, walk 1, 4 Mbps: SSIM vs full view",
+            "time (s)",
+            "SSIM",
+            &plot_q,
+            Some((0.0, 1.0)),
+        ),
     )?;
     std::fs::write(
         args.plots.join("stream_bytes.svg"),
-        line_chart("plant, walk 1, 4 Mbps: bytes received", "time (s)", "MB", &plot_b, None),
+        line_chart(
+            "plant, walk 1, 4 Mbps: bytes received",
+            "time (s)",
+            "MB",
+            &plot_b,
+            None,
+        ),
     )?;
     md.push_str("\nPlots: `docs/stream_quality.svg` (SSIM over time), `docs/stream_bytes.svg` (bytes over time).\n\n");
     Ok(md)
@@ -449,8 +481,16 @@ fn visibility_table(seed: u64) -> String {
     let n = 200_000;
     let boxes: Vec<crate::stream::geom::Obb> = (0..n)
         .map(|_| {
-            let c = DVec3::new(rng.range(-150.0, 150.0), rng.range(-150.0, 150.0), rng.range(-5.0, 15.0));
-            let h = DVec3::new(rng.range(1.0, 20.0), rng.range(1.0, 20.0), rng.range(1.0, 10.0));
+            let c = DVec3::new(
+                rng.range(-150.0, 150.0),
+                rng.range(-150.0, 150.0),
+                rng.range(-5.0, 15.0),
+            );
+            let h = DVec3::new(
+                rng.range(1.0, 20.0),
+                rng.range(1.0, 20.0),
+                rng.range(1.0, 10.0),
+            );
             crate::stream::geom::Obb::aabb(c - h, c + h)
         })
         .collect();
@@ -458,20 +498,18 @@ fn visibility_table(seed: u64) -> String {
         .map(|_| ViewPose {
             t: 0.0,
             pos: DVec3::new(rng.range(-50.0, 50.0), rng.range(-50.0, 50.0), 1.7),
-            yaw: rng.range(-3.14, 3.14),
+            yaw: rng.range(-std::f64::consts::PI, std::f64::consts::PI),
             pitch: rng.range(-0.3, 0.3),
         })
         .collect();
     let frusta: Vec<Frustum> = poses.iter().map(|p| Frustum::new(p, &k)).collect();
     let t0 = Instant::now();
-    let exact: Vec<bool> = (0..n).map(|i| VisTest::Exact.visible(&frusta[i], &boxes[i])).collect();
+    let exact: Vec<bool> = (0..n)
+        .map(|i| VisTest::Exact.visible(&frusta[i], &boxes[i]))
+        .collect();
     ns[3] = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
     for e in &exact {
-        if *e {
-            pos += 1
-        } else {
-            neg += 1
-        }
+        if *e { pos += 1 } else { neg += 1 }
     }
     for (ti, t) in tests.iter().enumerate() {
         let t0 = Instant::now();
@@ -507,7 +545,8 @@ fn visibility_table(seed: u64) -> String {
 /// Writes the committed traces and the split file.
 fn write_traces(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.traces)?;
-    let mut split = String::from("# trace file, split (train: predictors may learn from it; test: never)\n");
+    let mut split =
+        String::from("# trace file, split (train: predictors may learn from it; test: never)\n");
     let mut save = |t: &Trace, file: &str| -> anyhow::Result<()> {
         std::fs::write(args.traces.join(file), t.to_csv())?;
         let _ = writeln!(split, "{file},{}", t.header("split").unwrap_or("test"));
@@ -519,8 +558,14 @@ fn write_traces(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<()> {
         let c = (lo + hi) * 0.5;
         // Split by scene: biker is held out entirely; plant and donut walks train.
         let sp = if s.name == "biker" { "test" } else { "train" };
-        save(&trace::orbital(&s.name, lo, hi, args.seed, "test"), &format!("{}_orbital.csv", s.name))?;
-        save(&trace::dolly(&s.name, lo, hi, args.seed, "test"), &format!("{}_dolly.csv", s.name))?;
+        save(
+            &trace::orbital(&s.name, lo, hi, args.seed, "test"),
+            &format!("{}_orbital.csv", s.name),
+        )?;
+        save(
+            &trace::dolly(&s.name, lo, hi, args.seed, "test"),
+            &format!("{}_dolly.csv", s.name),
+        )?;
         for w in 0..2 {
             save(
                 &trace::walk(&s.name, lo, hi, c.z, 0.08 * diag, 60.0, args.seed + w, sp),
@@ -532,7 +577,16 @@ fn write_traces(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<()> {
     let city = scenes[0].cat.tiled_copies(400, 30.0);
     let (lo, hi) = city.bounds();
     for w in 0..2u64 {
-        let mut t = trace::walk("city", lo, hi, 1.7 + lo.z, 1.4, 120.0, args.seed + 10 + w, if w == 0 { "train" } else { "test" });
+        let mut t = trace::walk(
+            "city",
+            lo,
+            hi,
+            1.7 + lo.z,
+            1.4,
+            120.0,
+            args.seed + 10 + w,
+            if w == 0 { "train" } else { "test" },
+        );
         t.headers.push(("origin".into(), args.origin.clone()));
         save(&t, &format!("city_walk{}.csv", w + 1))?;
     }

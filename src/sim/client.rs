@@ -210,13 +210,17 @@ pub fn run_session(
             }
             let rate = cfg.net.rate(tt);
             let n_data = active.iter().filter(|a| a.lat_left <= 0.0).count();
-            let share = if n_data > 0 { rate / n_data as f64 } else { 0.0 };
+            let share = if n_data > 0 {
+                rate / n_data as f64
+            } else {
+                0.0
+            };
             let mut next = t.min(cfg.net.next_change(tt));
             for a in &active {
                 if a.lat_left > 0.0 {
-                    next = next.min(tt + a.lat_left);
+                    next = next.min(tt + a.lat_left.max(1e-9));
                 } else if share > 0.0 {
-                    next = next.min(tt + a.bytes_left / share);
+                    next = next.min(tt + (a.bytes_left / share).max(1e-9));
                 }
             }
             let step = (next - tt).max(0.0);
@@ -224,6 +228,9 @@ pub fn run_session(
             for a in active.iter_mut() {
                 if a.lat_left > 0.0 {
                     a.lat_left -= step;
+                    if a.lat_left < 1e-9 {
+                        a.lat_left = 0.0;
+                    }
                 } else {
                     let g = (share * step).min(a.bytes_left);
                     a.bytes_left -= g;
@@ -240,9 +247,6 @@ pub fn run_session(
                 } else {
                     i += 1;
                 }
-            }
-            if step <= 0.0 && completed.is_empty() && active.len() >= cfg.concurrency {
-                break;
             }
             if active.is_empty() && queue.is_empty() {
                 break;
@@ -340,8 +344,7 @@ pub fn run_session(
                     }
                 }
             } else {
-                let predicted =
-                    predictor.predict(history, cfg.plan.horizon_s, cfg.predict_step_s);
+                let predicted = predictor.predict(history, cfg.plan.horizon_s, cfg.predict_step_s);
                 let pinned: u64 = cache
                     .resident()
                     .filter(|(i, _)| visible[*i])

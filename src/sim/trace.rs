@@ -153,11 +153,7 @@ fn keyed(keys: &[(DVec3, DVec3)], seg_s: f64) -> Vec<ViewPose> {
         }
     }
     if let Some(&(p, t)) = keys.last() {
-        out.push(ViewPose::looking_at(
-            (keys.len() - 1) as f64 * seg_s,
-            p,
-            t,
-        ));
+        out.push(ViewPose::looking_at((keys.len() - 1) as f64 * seg_s, p, t));
     }
     out
 }
@@ -191,6 +187,7 @@ pub fn dolly(scene: &str, lo: DVec3, hi: DVec3, seed: u64, split: &str) -> Trace
 /// A synthetic first-person walk inside the box at eye height `eye_z` (WASD + mouse at 12 Hz):
 /// segments of walking forward, strafing, turning (mouse yaw 30-90 deg/s) and pausing, with
 /// eased speed changes and a turn back inwards near the box edge. `speed` in m/s.
+#[allow(clippy::too_many_arguments)] // plain scalar knobs of one generator
 pub fn walk(
     scene: &str,
     lo: DVec3,
@@ -229,7 +226,8 @@ pub fn walk(
             } else {
                 (3, rng.range(0.5, 2.5)) // pause
             };
-            yaw_rate = rng.range(30.0, 90.0).to_radians() * if rng.f64() < 0.5 { -1.0 } else { 1.0 };
+            yaw_rate =
+                rng.range(30.0, 90.0).to_radians() * if rng.f64() < 0.5 { -1.0 } else { 1.0 };
             if mode == 1 {
                 yaw_rate = yaw_rate.signum();
             }

@@ -177,10 +177,9 @@ impl Obb {
         let d = p - self.center;
         let mut q = DVec3::ZERO;
         let mut acc = 0.0;
-        for (k, a) in self.half.iter().enumerate() {
+        for a in &self.half {
             let len = a.length();
             if len < 1e-12 {
-                let _ = k;
                 continue;
             }
             let u = a / len;

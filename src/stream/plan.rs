@@ -129,7 +129,7 @@ pub fn capacity_prefix(bandwidth: &[f64], step_s: f64, steps: usize) -> Vec<f64>
 }
 
 fn deadline_step(deadline: f64, step_s: f64, t: usize) -> i64 {
-    if !(deadline >= 0.0) || step_s <= 0.0 {
+    if deadline.is_nan() || deadline < 0.0 || step_s <= 0.0 {
         return -1;
     }
     ((deadline / step_s + 1e-9).floor() as i64).min(t as i64)
@@ -334,7 +334,12 @@ fn greedy(req: &PlanRequest, order: Order, pick: Pick) -> Plan {
         Order::Deadline => deadline_order(cands),
         Order::Distance => {
             let mut o: Vec<usize> = (0..cands.len()).collect();
-            o.sort_by(|&a, &b| cands[a].distance.total_cmp(&cands[b].distance).then(a.cmp(&b)));
+            o.sort_by(|&a, &b| {
+                cands[a]
+                    .distance
+                    .total_cmp(&cands[b].distance)
+                    .then(a.cmp(&b))
+            });
             o
         }
     };

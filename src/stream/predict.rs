@@ -126,10 +126,7 @@ impl Predictor for LinearExtrapolation {
         let Some(last) = h.last().copied() else {
             return vec![];
         };
-        let w: Vec<&ViewPose> = h
-            .iter()
-            .filter(|p| last.t - p.t <= self.window_s)
-            .collect();
+        let w: Vec<&ViewPose> = h.iter().filter(|p| last.t - p.t <= self.window_s).collect();
         if w.len() < 2 {
             return (1..=steps(horizon, step))
                 .map(|k| ViewPose {
@@ -196,7 +193,11 @@ pub fn sample_trace(trace: &[ViewPose], t: f64) -> Option<ViewPose> {
     }
     let i = trace.partition_point(|p| p.t <= t);
     let (a, b) = (&trace[i - 1], &trace[i]);
-    let s = if b.t > a.t { (t - a.t) / (b.t - a.t) } else { 0.0 };
+    let s = if b.t > a.t {
+        (t - a.t) / (b.t - a.t)
+    } else {
+        0.0
+    };
     Some(a.lerp(b, s))
 }
 
@@ -235,7 +236,12 @@ pub fn needs_fallback(p: &dyn Predictor, history: &[ViewPose]) -> bool {
 pub fn radius_tiles(cat: &TileCatalog, pos: DVec3, radius: f64) -> Vec<usize> {
     let mut v: Vec<(f64, usize)> = cat
         .content_tiles()
-        .filter(|&i| cat.tiles[i].children.iter().all(|&c| !cat.tiles[c].has_content))
+        .filter(|&i| {
+            cat.tiles[i]
+                .children
+                .iter()
+                .all(|&c| !cat.tiles[c].has_content)
+        })
         .map(|i| (cat.tiles[i].bbox.distance(pos), i))
         .filter(|(d, _)| *d <= radius)
         .collect();

@@ -78,13 +78,7 @@ pub fn exact_test(f: &Frustum, b: &Obb) -> bool {
     let bax: Vec<DVec3> = b
         .half
         .iter()
-        .map(|h| {
-            DVec3::new(
-                h.dot(f.axes[0]),
-                h.dot(f.axes[1]),
-                h.dot(f.axes[2]),
-            )
-        })
+        .map(|h| DVec3::new(h.dot(f.axes[0]), h.dot(f.axes[1]), h.dot(f.axes[2])))
         .collect();
     let (tx, ty) = (f.tx, f.ty);
     let face = [
@@ -180,7 +174,8 @@ pub fn sgss_test(f: &Frustum, b: &Obb) -> bool {
     let c: Vec<DVec3> = b.corners().iter().map(|&p| f.to_camera(p)).collect();
     let (fx, fy, z) = (f.far * f.tx, f.far * f.ty, f.far);
     let o = DVec2::ZERO;
-    let planes: [(fn(DVec3) -> DVec2, Vec<DVec2>); 3] = [
+    type Proj = fn(DVec3) -> DVec2;
+    let planes: [(Proj, Vec<DVec2>); 3] = [
         (
             |p| DVec2::new(p.x, p.y),
             vec![
