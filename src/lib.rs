@@ -7,5 +7,7 @@ pub mod encode;
 pub mod frame;
 pub mod io;
 pub mod render;
+pub mod sim;
 pub mod splat;
+pub mod stream;
 pub mod tiling;

@@ -22,6 +22,8 @@ enum Command {
     Render(render_cli::RenderArgs),
     /// Print SSIM and PSNR between two PNG images.
     Compare(render_cli::CompareArgs),
+    /// Run the streaming experiments (trace-driven client simulator) and write tables and plots.
+    Simulate(cli::simulate::SimulateArgs),
 }
 
 fn main() {
@@ -30,6 +32,7 @@ fn main() {
         Command::Convert(a) => cli::convert::run(a),
         Command::Render(a) => report(render_cli::run_render(&a)),
         Command::Compare(a) => report(render_cli::run_compare(&a)),
+        Command::Simulate(a) => report(cli::simulate::run(&a)),
     };
     std::process::exit(code);
 }
