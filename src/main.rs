@@ -22,6 +22,8 @@ enum Command {
     Render(render_cli::RenderArgs),
     /// Print SSIM and PSNR between two PNG images.
     Compare(render_cli::CompareArgs),
+    /// Print a tileset's per-level table: tiles, splats, bytes, mean geometric error.
+    Stats(cli::stats::StatsArgs),
 }
 
 fn main() {
@@ -30,6 +32,7 @@ fn main() {
         Command::Convert(a) => cli::convert::run(a),
         Command::Render(a) => report(render_cli::run_render(&a)),
         Command::Compare(a) => report(render_cli::run_compare(&a)),
+        Command::Stats(a) => cli::stats::run(a),
     };
     std::process::exit(code);
 }
