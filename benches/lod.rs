@@ -24,7 +24,7 @@ fn main() {
     );
     let _ = writeln!(
         md,
-        "| scene | merge | level | tiles | splats | % of input | kept vs level below | bytes | mean geo. error | parent vs children SSIM (mean / min) | cut vs leaves SSIM (mean / min) |"
+        "| scene | merge | level | tiles | splats | % of input | parents: splats / children's splats (kept) | bytes | mean geo. error | parent vs children SSIM (mean / min) | cut vs leaves SSIM (mean / min) |"
     );
     let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|");
     let mut timing = String::new();
@@ -52,8 +52,7 @@ fn main() {
             );
             let q = evaluate(&out.join("tileset.json"), &EvalOptions::default()).expect("eval");
             let input = r.splats_in as f64;
-            for (i, l) in q.iter().enumerate().rev() {
-                let below = q.get(i + 1).map(|b| b.row.splats as f64);
+            for l in q.iter().rev() {
                 let f = |v: Option<f64>, m: Option<f64>| match (v, m) {
                     (Some(v), Some(m)) => format!("{v:.3} / {m:.3}"),
                     _ => "-".into(),
@@ -67,9 +66,17 @@ fn main() {
                     l.row.leaves,
                     l.row.splats,
                     100.0 * l.row.splats as f64 / input,
-                    below
-                        .map(|b| format!("{:.1}%", 100.0 * l.row.splats as f64 / b))
-                        .unwrap_or_else(|| "-".into()),
+                    if l.row.parent_tiles > 0 {
+                        format!(
+                            "{} / {} ({:.2}%)",
+                            l.row.parent_splats,
+                            l.row.children_splats,
+                            100.0 * l.row.parent_splats as f64
+                                / l.row.children_splats.max(1) as f64
+                        )
+                    } else {
+                        "-".into()
+                    },
                     l.row.bytes,
                     l.row.mean_geometric_error,
                     f(l.parent_ssim, l.parent_ssim_min),

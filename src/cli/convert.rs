@@ -53,7 +53,7 @@ pub struct ConvertArgs {
     #[arg(long, value_enum, default_value_t = MergeRule::Moment)]
     pub lod_merge: MergeRule,
     /// Leaf clustering radius r in scene units (parents k levels above their deepest leaf cluster
-    /// within r*2^k) [default: 1/32 of the deepest leaf tile's edge, at least the median spacing].
+    /// within r*2^k) [default: 1/16 of the deepest leaf tile's edge, at least the median spacing].
     #[arg(long, value_parser = positive_f64)]
     pub lod_radius: Option<f64>,
     /// Print the summary as JSON on stdout.

@@ -48,6 +48,12 @@ pub struct LevelRow {
     pub bytes: u64,
     /// Mean geometric error of the level's content tiles.
     pub mean_geometric_error: f64,
+    /// Parent (non-leaf) content tiles at this level.
+    pub parent_tiles: usize,
+    /// Splats over those parents.
+    pub parent_splats: u64,
+    /// Splats over those parents' children (what they were clustered from).
+    pub children_splats: u64,
 }
 
 /// Keys of the tiles that have children.
@@ -60,6 +66,7 @@ fn parents_of(ts: &LoadedTileset) -> HashSet<TileKey> {
 pub fn level_table(ts: &LoadedTileset) -> anyhow::Result<Vec<LevelRow>> {
     let parents = parents_of(ts);
     let mut rows: BTreeMap<u32, LevelRow> = BTreeMap::new();
+    let mut counts: HashMap<TileKey, u64> = HashMap::new();
     for t in &ts.tiles {
         let Some(path) = &t.content else { continue };
         let row = rows.entry(t.key.level).or_insert_with(|| LevelRow {
@@ -72,14 +79,28 @@ pub fn level_table(ts: &LoadedTileset) -> anyhow::Result<Vec<LevelRow>> {
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
             .len();
         row.bytes += bytes;
-        row.splats += match t.splat_count {
+        let n = match t.splat_count {
             Some(n) => n as u64,
             None => {
                 let b = std::fs::read(path)?;
                 read_tile_glb(&b)?.splats.len() as u64
             }
         };
+        row.splats += n;
+        counts.insert(t.key, n);
+        if parents.contains(&t.key) {
+            row.parent_tiles += 1;
+            row.parent_splats += n;
+        }
         row.mean_geometric_error += t.geometric_error;
+    }
+    for (k, n) in &counts {
+        if let Some(p) = k.parent()
+            && counts.contains_key(&p)
+            && let Some(row) = rows.get_mut(&p.level)
+        {
+            row.children_splats += n;
+        }
     }
     for r in rows.values_mut() {
         r.mean_geometric_error /= r.tiles.max(1) as f64;
@@ -96,6 +117,8 @@ pub struct EvalOptions {
     pub height: u32,
     /// Viewpoints per measurement (taken evenly from the 8 automatic views).
     pub views: usize,
+    /// Also measure every parent against its children (one render pair per parent and view).
+    pub parent_pairs: bool,
 }
 
 impl Default for EvalOptions {
@@ -104,6 +127,7 @@ impl Default for EvalOptions {
             width: 256,
             height: 192,
             views: 4,
+            parent_pairs: true,
         }
     }
 }
@@ -228,7 +252,11 @@ pub fn evaluate(tileset: &Path, opts: &EvalOptions) -> anyhow::Result<Vec<LevelQ
         let level = row.level;
         // Parent vs children, each parent at its own switching distance.
         let mut pv = Vec::new();
-        for t in ts.tiles.iter().filter(|t| t.key.level == level) {
+        for t in ts
+            .tiles
+            .iter()
+            .filter(|t| opts.parent_pairs && t.key.level == level)
+        {
             if !parents.contains(&t.key) || !tiles.contains_key(&t.key) {
                 continue;
             }

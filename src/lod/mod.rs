@@ -22,7 +22,7 @@ use std::collections::{BTreeMap, HashMap};
 
 /// Divisor of the deepest leaf tile's size giving the default leaf radius `r` (see
 /// [`default_leaf_radius`]).
-pub const LEAF_SIZE_DIVISOR: f64 = 32.0;
+pub const LEAF_SIZE_DIVISOR: f64 = 16.0;
 
 /// Settings of the LOD build.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,7 +96,7 @@ pub fn median_nn_spacing(positions: &[[f64; 3]]) -> Option<f64> {
 /// The default leaf radius `r`: the deepest leaf tile's edge (`root_size / 2^deepest_level`)
 /// divided by [`LEAF_SIZE_DIVISOR`], but never below the median nearest-neighbour spacing (so the
 /// first parent level always merges neighbours). Parents at `k` levels above their deepest leaf
-/// then cluster within `r * 2^k`, i.e. about 1/32 of their own edge.
+/// then cluster within `r * 2^k`, i.e. about 1/16 of their own edge.
 pub fn default_leaf_radius(positions: &[[f64; 3]], root_size: f64, deepest_level: u32) -> f64 {
     let from_tiles = root_size / 2f64.powi(deepest_level as i32) / LEAF_SIZE_DIVISOR;
     let nn = median_nn_spacing(positions).unwrap_or(0.0);
