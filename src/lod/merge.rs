@@ -1,5 +1,6 @@
 //! One cluster of Gaussians -> one representative Gaussian (TileSplat eq. 2): opacity-weighted
 //! means of centre and SH, alpha* = sum(a^2)/sum(a), and a shape by moment matching or axis cover.
+#![allow(clippy::needless_range_loop)] // dense small-matrix maths reads best indexed
 
 use super::math::{covariance, decompose_covariance, markley_average, mat_to_quat, quat_to_mat};
 use crate::splat::{Splat, Splats};
