@@ -5,7 +5,9 @@ use crate::encode::tile::write_tile_glb;
 use crate::frame::geo::{Geodetic, mercator_unit};
 use crate::frame::{UpAxis, node_matrix, source_to_tileset};
 use crate::io::{self, ReadError, Scene};
+use crate::lod::{LodOptions, ParentTile, build_parents, default_leaf_radius};
 use crate::splat::Splats;
+use crate::splat::importance::sort_indices_by_importance;
 use crate::tiling::subtree::{self, Column, SubtreeData, Table};
 use crate::tiling::tileset::{self, Asset, BoundingVolume, Content, ImplicitTiling, Tile, Tileset};
 use crate::tiling::{Partition, Scheme, TileKey, partition};
@@ -59,6 +61,8 @@ pub struct ConvertOptions {
     pub keep_index_map: bool,
     /// Draw progress bars (they hide themselves when stderr is not a terminal).
     pub progress: bool,
+    /// Level of detail: parents by weighted clustering of their children.
+    pub lod: LodOptions,
 }
 
 impl Default for ConvertOptions {
@@ -74,6 +78,7 @@ impl Default for ConvertOptions {
             subtree_levels: None,
             keep_index_map: false,
             progress: false,
+            lod: LodOptions::default(),
         }
     }
 }
@@ -109,6 +114,12 @@ pub struct ConvertReport {
     pub seconds: f64,
     /// Per leaf: key and the indices of its splats in the (finite) input, in tile order.
     pub leaves: Vec<(TileKey, Vec<usize>)>,
+    /// Leaf clustering radius `r` used by the LOD build (0 without LOD).
+    pub lod_radius: f64,
+    /// Splats over all parent (LOD) tiles.
+    pub parent_splats: usize,
+    /// Wall-clock seconds of the LOD build (clustering and writing parents).
+    pub lod_seconds: f64,
 }
 
 /// Why a conversion failed. Nothing is left at the output path when it does.
@@ -245,12 +256,40 @@ pub fn convert_scene(
     );
     report.scheme = layout.scheme.as_str().to_string();
     report.levels = part.levels;
+    let mut part = part;
+    // Importance order inside every leaf (SGSS eq. 7); the index map follows it.
+    part.leaves
+        .par_iter_mut()
+        .for_each(|l| sort_indices_by_importance(&splats, &mut l.indices));
 
     let tiles = write_leaves(&splats, &layout, &part, staging.path(), opts.progress)?;
     report.content_tiles = tiles.len();
     report.splats_out = tiles.values().map(|t| t.splat_count as usize).sum();
     report.bytes = tiles.values().map(|t| t.bytes).sum();
-    let tree = build_tree(tiles);
+    let mut tree = build_tree(tiles);
+    if opts.lod.enabled {
+        let t0 = Instant::now();
+        let r = opts.lod.radius.unwrap_or_else(|| {
+            default_leaf_radius(
+                &splats.positions,
+                layout.tile_edge(0, opts.origin),
+                part.levels.saturating_sub(1),
+            )
+        });
+        let parents = write_parents(&splats, &layout, &part, r, opts, staging.path())?;
+        for (key, p) in parents {
+            let t = tree.get_mut(&key).expect("parents are tree tiles");
+            t.splat_count = p.splat_count;
+            t.bytes = p.bytes;
+            t.has_content = true;
+            t.error = p.error;
+            report.content_tiles += 1;
+            report.parent_splats += p.splat_count as usize;
+            report.bytes += p.bytes;
+        }
+        report.lod_radius = r;
+        report.lod_seconds = t0.elapsed().as_secs_f64();
+    }
     report.tiles = tree.len();
 
     let subtree_levels = opts
@@ -300,6 +339,24 @@ struct Layout {
 }
 
 impl Layout {
+    /// Edge length of a tile at `level`: the root box's largest (horizontal for quadtrees) edge
+    /// halved per level; for georeferenced scenes the Web-Mercator tile width at the origin.
+    fn tile_edge(&self, level: u32, origin: Option<Geodetic>) -> f64 {
+        let root = match (origin, &self.root_volume.box_) {
+            (Some(o), _) => 2.0 * std::f64::consts::PI * 6_378_137.0 * o.lat.to_radians().cos(),
+            (None, Some(b)) => {
+                let z = if self.scheme == Scheme::Octree {
+                    b[11]
+                } else {
+                    0.0
+                };
+                2.0 * b[3].max(b[7]).max(z)
+            }
+            (None, None) => 1.0,
+        };
+        root / 2f64.powi(level as i32)
+    }
+
     fn new(splats: &Splats, a: DMat3, opts: &ConvertOptions) -> Layout {
         let pos_t: Vec<DVec3> = splats
             .positions
@@ -406,6 +463,8 @@ struct TreeTile {
     bytes: u64,
     has_content: bool,
     is_leaf: bool,
+    /// Geometric error of a parent with content (its clustering radius).
+    error: f64,
 }
 
 fn write_leaves(
@@ -441,6 +500,7 @@ fn write_leaves(
                     bytes: glb.len() as u64,
                     has_content: true,
                     is_leaf: true,
+                    error: 0.0,
                 },
             ))
         })
@@ -464,6 +524,7 @@ fn build_tree(leaves: HashMap<TileKey, TreeTile>) -> BTreeMap<TileKey, TreeTile>
                 bytes: 0,
                 has_content: false,
                 is_leaf: false,
+                error: 0.0,
             });
             t.lo = t.lo.min(lo);
             t.hi = t.hi.max(hi);
@@ -473,14 +534,75 @@ fn build_tree(leaves: HashMap<TileKey, TreeTile>) -> BTreeMap<TileKey, TreeTile>
     tree
 }
 
-/// Geometric error of a tile: 0 for leaves (full detail); for tiles without content, the
-/// diagonal of their box (rendering nothing misses everything below).
+/// Geometric error of a tile: 0 for leaves (full detail); for LOD parents, the clustering radius
+/// they were built with (no merged splat moved further than that from its members' reach); for
+/// tiles without content, the diagonal of their box (rendering nothing misses everything below).
 fn geometric_error(t: &TreeTile) -> f64 {
     if t.is_leaf {
         0.0
+    } else if t.has_content {
+        t.error.max(1e-9)
     } else {
         (t.hi - t.lo).length().max(1e-6)
     }
+}
+
+/// What the tree keeps of a written parent tile.
+struct WrittenParent {
+    splat_count: u32,
+    bytes: u64,
+    error: f64,
+}
+
+/// Builds every parent tile by clustering its children's splats (see [`crate::lod`]) and writes
+/// each with `write_tile_glb`, centred on its merged splats.
+fn write_parents(
+    splats: &Splats,
+    layout: &Layout,
+    part: &Partition,
+    r: f64,
+    opts: &ConvertOptions,
+    dir: &Path,
+) -> Result<BTreeMap<TileKey, WrittenParent>, ConvertError> {
+    let index: HashMap<TileKey, &[usize]> = part
+        .leaves
+        .iter()
+        .map(|l| (l.key, l.indices.as_slice()))
+        .collect();
+    let keys: Vec<TileKey> = part.leaves.iter().map(|l| l.key).collect();
+    build_parents(
+        &keys,
+        splats.sh_degree,
+        r,
+        opts.max_splats_per_tile,
+        opts.lod.merge,
+        |k| splats.select(index[&k]),
+        |p: &ParentTile| {
+            let pts: Vec<DVec3> = p
+                .splats
+                .positions
+                .iter()
+                .map(|q| layout.a * DVec3::from_array(*q))
+                .collect();
+            let (lo, hi) = bounds(&pts);
+            let centre_s = layout.a.transpose() * ((lo + hi) * 0.5);
+            let glb = write_tile_glb(
+                &p.splats,
+                centre_s.to_array(),
+                node_matrix(layout.a, centre_s),
+            );
+            let path = dir.join(content_path(part.scheme, p.key));
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent).map_err(io_err(parent, "creating folder"))?;
+            }
+            std::fs::write(&path, &glb).map_err(io_err(&path, "writing"))?;
+            Ok(WrittenParent {
+                splat_count: p.splats.len() as u32,
+                bytes: glb.len() as u64,
+                error: p.radius,
+            })
+        },
+    )
 }
 
 fn content_path(scheme: Scheme, k: TileKey) -> String {

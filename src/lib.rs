@@ -6,6 +6,7 @@ pub mod convert;
 pub mod encode;
 pub mod frame;
 pub mod io;
+pub mod lod;
 pub mod render;
 pub mod sim;
 pub mod splat;

@@ -24,6 +24,8 @@ enum Command {
     Compare(render_cli::CompareArgs),
     /// Run the streaming experiments (trace-driven client simulator) and write tables and plots.
     Simulate(cli::simulate::SimulateArgs),
+    /// Print a tileset's per-level table: tiles, splats, bytes, mean geometric error.
+    Stats(cli::stats::StatsArgs),
 }
 
 fn main() {
@@ -33,6 +35,7 @@ fn main() {
         Command::Render(a) => report(render_cli::run_render(&a)),
         Command::Compare(a) => report(render_cli::run_compare(&a)),
         Command::Simulate(a) => report(cli::simulate::run(&a)),
+        Command::Stats(a) => cli::stats::run(a),
     };
     std::process::exit(code);
 }

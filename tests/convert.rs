@@ -46,17 +46,20 @@ fn shared_scenes_keep_every_splat() {
         assert!(ts.tiles.len() > 1, "{name}: more than one tile");
         let subtrees = walk(&out.join("subtrees"), "subtree");
         assert!(!subtrees.is_empty(), "{name}: subtree files written");
+        let parents: std::collections::HashSet<_> =
+            ts.tiles.iter().filter_map(|t| t.key.parent()).collect();
         let from_metadata: u64 = ts
             .tiles
             .iter()
+            .filter(|t| !parents.contains(&t.key))
             .filter_map(|t| t.splat_count)
             .map(u64::from)
             .sum();
         assert_eq!(from_metadata as usize, count, "{name}: splatCount metadata");
-        let decoded = decode_tileset(&out.join("tileset.json"));
+        let decoded = decode_leaves(&out.join("tileset.json"));
         let total: usize = decoded.values().map(|d| d.splats.len()).sum();
         assert_eq!(total, count, "{name}: splats over all leaf tiles");
-        // Leaves only hold content in this layout, and each respects the budget.
+        // Every content tile (leaves and LOD parents) respects the budget.
         for t in &ts.tiles {
             if let Some(n) = t.splat_count {
                 assert!(n <= 20_000, "{name}: leaf {:?} holds {n}", t.key);
@@ -208,7 +211,7 @@ fn georeferenced_scene_is_a_mercator_quadtree_with_ecef_root() {
         assert_eq!((z, x), (key.level, key.x));
         assert_eq!(y, (1u32 << key.level) - 1 - key.y);
     }
-    let total: usize = decode_tileset(&out.join("tileset.json"))
+    let total: usize = decode_leaves(&out.join("tileset.json"))
         .values()
         .map(|d| d.splats.len())
         .sum();
@@ -376,7 +379,7 @@ fn nan_fails_with_offset_when_asked_and_is_dropped_by_default() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains("dropped 1 splats"), "{stdout}");
-    let total: usize = decode_tileset(&out.join("tileset.json"))
+    let total: usize = decode_leaves(&out.join("tileset.json"))
         .values()
         .map(|d| d.splats.len())
         .sum();

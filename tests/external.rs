@@ -126,7 +126,7 @@ fn compare_with_splat_transform(name: &str, count: usize, rot_tol: f64, sh0_tol:
 
     let out = tmp.path().join("ours");
     convert_to(&input, &out, &["--max-splats", "15000"]);
-    let ours = decode_tileset(&out.join("tileset.json"));
+    let ours = decode_leaves(&out.join("tileset.json"));
     assert!(ours.len() >= 4, "several tiles");
 
     // Index their splats by position (in our source frame) on a fine grid.

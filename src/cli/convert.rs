@@ -4,6 +4,7 @@
 use crate::convert::{ConvertOptions, NonFinitePolicy, SchemeChoice, convert};
 use crate::frame::UpAxis;
 use crate::frame::geo::Geodetic;
+use crate::lod::{LodOptions, MergeRule};
 use clap::Args;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -45,6 +46,16 @@ pub struct ConvertArgs {
     /// Levels per subtree file [default: 6 for quadtrees, 4 for octrees].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
     pub subtree_levels: Option<u32>,
+    /// Do not build level-of-detail parents (parent tiles stay empty).
+    #[arg(long)]
+    pub no_lod: bool,
+    /// How merged LOD splats get their shape: covariance moment matching or TileSplat's axis cover.
+    #[arg(long, value_enum, default_value_t = MergeRule::Moment)]
+    pub lod_merge: MergeRule,
+    /// Leaf clustering radius r in scene units (parents k levels above their deepest leaf cluster
+    /// within r*2^k) [default: 1/16 of the deepest leaf tile's edge, at least the median spacing].
+    #[arg(long, value_parser = positive_f64)]
+    pub lod_radius: Option<f64>,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -70,6 +81,11 @@ pub fn run(args: ConvertArgs) -> i32 {
         subtree_levels: args.subtree_levels,
         keep_index_map: false,
         progress: !args.quiet && std::io::stderr().is_terminal(),
+        lod: LodOptions {
+            enabled: !args.no_lod,
+            merge: args.lod_merge,
+            radius: args.lod_radius,
+        },
     };
     crate::convert::remove_staging_on_interrupt();
     match convert(&args.input, &args.output, &opts) {
@@ -83,6 +99,8 @@ pub fn run(args: ConvertArgs) -> i32 {
                     "shDegree": r.sh_degree, "upAxis": r.up_axis, "scheme": r.scheme,
                     "tiles": r.tiles, "contentTiles": r.content_tiles, "levels": r.levels,
                     "subtrees": r.subtrees, "bytes": r.bytes, "seconds": r.seconds,
+                    "parentSplats": r.parent_splats, "lodRadius": r.lod_radius,
+                    "lodSeconds": r.lod_seconds,
                     "peakRssMiB": peak_rss_mib(),
                 });
                 println!("{v}");
@@ -118,6 +136,12 @@ pub fn run(args: ConvertArgs) -> i32 {
                     r.bytes as f64 / 1e6,
                     r.seconds
                 );
+                if r.parent_splats > 0 {
+                    println!(
+                        "  LOD: {} splats in parent tiles (leaf radius {:.4}, {:.2} s)",
+                        r.parent_splats, r.lod_radius, r.lod_seconds
+                    );
+                }
                 println!("  tileset: {}", tileset.display());
                 println!(
                     "  look at it: splat2tiles render {} --auto-view 0 -o view.png",
@@ -139,4 +163,11 @@ pub fn peak_rss_mib() -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib / 1024.0)
+}
+
+fn positive_f64(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}': expected a positive number")),
+    }
 }

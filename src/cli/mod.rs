@@ -3,6 +3,7 @@
 
 pub mod convert;
 pub mod simulate;
+pub mod stats;
 
 /// Exit code when the command could not do its work (bad input, I/O failure).
 pub const EXIT_FAILURE: i32 = 2;

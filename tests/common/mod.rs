@@ -128,3 +128,14 @@ pub fn decode_tileset(tileset: &Path) -> HashMap<TileKey, DecodedLeaf> {
     }
     out
 }
+
+/// Decodes the leaf tiles only (tiles without children): with LOD parents holding merged splats,
+/// the leaves are where every input splat lives.
+pub fn decode_leaves(tileset: &Path) -> HashMap<TileKey, DecodedLeaf> {
+    let ts = load_tileset(tileset).expect("load tileset");
+    let parents: std::collections::HashSet<TileKey> =
+        ts.tiles.iter().filter_map(|t| t.key.parent()).collect();
+    let mut all = decode_tileset(tileset);
+    all.retain(|k, _| !parents.contains(k));
+    all
+}

@@ -1,0 +1,82 @@
+//! `splat2tiles stats`: the per-level table of a tileset (tiles, splats, bytes, geometric error),
+//! read from `tileset.json`, its subtrees and the content files' sizes only.
+
+use crate::lod::eval::level_table;
+use crate::tiling::load::load_tileset;
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `stats`.
+#[derive(Debug, Args)]
+pub struct StatsArgs {
+    /// The tileset's `tileset.json`.
+    pub tileset: PathBuf,
+    /// Print the table as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `stats`: prints the per-level table; returns the process exit code.
+pub fn run(args: StatsArgs) -> i32 {
+    match table(&args) {
+        Ok(s) => {
+            print!("{s}");
+            0
+        }
+        Err(e) => {
+            eprintln!("splat2tiles: {}: {e:#}", args.tileset.display());
+            super::EXIT_FAILURE
+        }
+    }
+}
+
+/// The text (or JSON) that `stats` prints.
+pub fn table(args: &StatsArgs) -> anyhow::Result<String> {
+    let ts = load_tileset(&args.tileset)?;
+    let rows = level_table(&ts)?;
+    let total: u64 = rows.iter().map(|r| r.splats).sum();
+    let parents: std::collections::HashSet<_> =
+        ts.tiles.iter().filter_map(|t| t.key.parent()).collect();
+    let leaf_splats: u64 = ts
+        .tiles
+        .iter()
+        .filter(|t| !parents.contains(&t.key))
+        .filter_map(|t| t.splat_count)
+        .map(u64::from)
+        .sum();
+    if args.json {
+        let levels: Vec<serde_json::Value> = rows
+            .iter()
+            .map(|r| {
+                serde_json::json!({
+                    "level": r.level, "tiles": r.tiles, "leaves": r.leaves,
+                    "splats": r.splats, "bytes": r.bytes,
+                    "meanGeometricError": r.mean_geometric_error,
+                })
+            })
+            .collect();
+        let v = serde_json::json!({"levels": levels, "splats": total, "leafSplats": leaf_splats});
+        return Ok(format!("{v}\n"));
+    }
+    let mut s = format!(
+        "{:>5} {:>6} {:>6} {:>10} {:>8} {:>12} {:>14}\n",
+        "level", "tiles", "leaves", "splats", "% leaves", "bytes", "mean geo error"
+    );
+    for r in &rows {
+        s += &format!(
+            "{:>5} {:>6} {:>6} {:>10} {:>7.2}% {:>12} {:>14.6}\n",
+            r.level,
+            r.tiles,
+            r.leaves,
+            r.splats,
+            100.0 * r.splats as f64 / leaf_splats.max(1) as f64,
+            r.bytes,
+            r.mean_geometric_error
+        );
+    }
+    s += &format!(
+        "total: {total} splats in content tiles, {leaf_splats} in leaves, {} bytes\n",
+        rows.iter().map(|r| r.bytes).sum::<u64>()
+    );
+    Ok(s)
+}

@@ -1,0 +1,211 @@
+//! Level of detail: parent tiles built bottom-up by opacity-weighted clustering of their children's
+//! splats (TileSplat sec. 3.1.2, eq. 2), with the radius doubling per level above the leaves.
+//!
+//! A parent at level `L` whose subtree's deepest leaf sits at level `Ld` clusters the union of its
+//! children's splats within `d = r * 2^(Ld - L)` (and at least its children's radii), doubling
+//! `d` until the result fits the tile budget. Its geometric error is the radius `d` it used.
+
+pub mod cluster;
+pub mod eval;
+pub mod math;
+pub mod merge;
+
+pub use cluster::{Clustered, cluster, cluster_to_budget};
+pub use merge::{MergeRule, merge_all, merge_into};
+
+use crate::splat::Splats;
+use crate::splat::importance::importance_order;
+use crate::tiling::TileKey;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+use std::collections::{BTreeMap, HashMap};
+
+/// Divisor of the deepest leaf tile's size giving the default leaf radius `r` (see
+/// [`default_leaf_radius`]).
+pub const LEAF_SIZE_DIVISOR: f64 = 16.0;
+
+/// Settings of the LOD build.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LodOptions {
+    /// Build parents at all (off: parents stay empty, as before LOD existed).
+    pub enabled: bool,
+    /// Shape rule for merged splats.
+    pub merge: MergeRule,
+    /// Leaf clustering radius `r` in scene units; `None` derives it from the data.
+    pub radius: Option<f64>,
+}
+
+impl Default for LodOptions {
+    fn default() -> Self {
+        LodOptions {
+            enabled: true,
+            merge: MergeRule::default(),
+            radius: None,
+        }
+    }
+}
+
+/// One built parent tile.
+#[derive(Debug, Clone)]
+pub struct ParentTile {
+    /// Its key.
+    pub key: TileKey,
+    /// Merged splats, in descending importance order.
+    pub splats: Splats,
+    /// Clustering radius used (its geometric error).
+    pub radius: f64,
+    /// Mean displacement of the merged input splats.
+    pub mean_displacement: f64,
+    /// Splats gathered from the children.
+    pub input: usize,
+}
+
+/// Median distance from a splat centre to its nearest other centre, over a deterministic sample
+/// of at most 4096 splats; `None` when fewer than two distinct centres exist.
+pub fn median_nn_spacing(positions: &[[f64; 3]]) -> Option<f64> {
+    if positions.len() < 2 {
+        return None;
+    }
+    let o = positions[0];
+    let pts: Vec<[f64; 3]> = positions
+        .iter()
+        .map(|p| [p[0] - o[0], p[1] - o[1], p[2] - o[2]])
+        .collect();
+    let tree = ImmutableKdTree::<f64, 3>::new_from_slice(&pts).ok()?;
+    let step = (pts.len() / 4096).max(1);
+    let mut d: Vec<f64> = (0..pts.len())
+        .step_by(step)
+        .filter_map(|i| {
+            tree.query(&pts[i])
+                .nearest_n::<SquaredEuclidean<f64>>(std::num::NonZero::new(2).unwrap())
+                .execute()
+                .into_iter()
+                .map(|r| r.distance)
+                .find(|&d2| d2 > 0.0)
+                .map(f64::sqrt)
+        })
+        .collect();
+    if d.is_empty() {
+        return None;
+    }
+    let mid = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    Some(*m)
+}
+
+/// The default leaf radius `r`: the deepest leaf tile's edge (`root_size / 2^deepest_level`)
+/// divided by [`LEAF_SIZE_DIVISOR`], but never below the median nearest-neighbour spacing (so the
+/// first parent level always merges neighbours). Parents at `k` levels above their deepest leaf
+/// then cluster within `r * 2^k`, i.e. about 1/16 of their own edge.
+pub fn default_leaf_radius(positions: &[[f64; 3]], root_size: f64, deepest_level: u32) -> f64 {
+    let from_tiles = root_size / 2f64.powi(deepest_level as i32) / LEAF_SIZE_DIVISOR;
+    let nn = median_nn_spacing(positions).unwrap_or(0.0);
+    let r = from_tiles.max(nn);
+    if r.is_finite() && r > 0.0 {
+        r
+    } else {
+        1e-6_f64.max(root_size * 1e-6)
+    }
+}
+
+/// Appends every splat of `b` to `a` (same SH degree).
+pub fn append(a: &mut Splats, b: &Splats) {
+    assert_eq!(a.sh_degree, b.sh_degree, "SH degrees differ");
+    a.positions.extend_from_slice(&b.positions);
+    a.scales.extend_from_slice(&b.scales);
+    a.rotations.extend_from_slice(&b.rotations);
+    a.opacities.extend_from_slice(&b.opacities);
+    a.sh0.extend_from_slice(&b.sh0);
+    a.sh_rest.extend_from_slice(&b.sh_rest);
+}
+
+/// Builds every ancestor of `leaves` bottom-up. `leaf_splats(key)` gives a leaf's splats;
+/// `sink` receives each parent as soon as it is built (in parallel within a level) and returns
+/// what the caller wants to keep per tile. Returns those values keyed by tile.
+pub fn build_parents<T, E, L, S>(
+    leaves: &[TileKey],
+    sh_degree: u8,
+    r: f64,
+    budget: usize,
+    rule: MergeRule,
+    leaf_splats: L,
+    sink: S,
+) -> Result<BTreeMap<TileKey, T>, E>
+where
+    T: Send,
+    E: Send,
+    L: Fn(TileKey) -> Splats + Sync,
+    S: Fn(&ParentTile) -> Result<T, E> + Sync,
+{
+    // Deepest leaf level under every tile, and each tile's children.
+    let mut deepest: HashMap<TileKey, u32> = HashMap::new();
+    let mut children: BTreeMap<TileKey, Vec<TileKey>> = BTreeMap::new();
+    let is_leaf: std::collections::HashSet<TileKey> = leaves.iter().copied().collect();
+    for &leaf in leaves {
+        deepest.insert(leaf, leaf.level);
+        let mut k = leaf;
+        while let Some(p) = k.parent() {
+            let e = deepest.entry(p).or_insert(leaf.level);
+            *e = (*e).max(leaf.level);
+            let kids = children.entry(p).or_default();
+            if !kids.contains(&k) {
+                kids.push(k);
+            }
+            k = p;
+        }
+    }
+    let max_level = children.keys().map(|k| k.level).max();
+    let mut built: HashMap<TileKey, ParentTile> = HashMap::new();
+    let mut out = BTreeMap::new();
+    let Some(max_level) = max_level else {
+        return Ok(out);
+    };
+    for level in (0..=max_level).rev() {
+        let keys: Vec<TileKey> = children
+            .keys()
+            .filter(|k| k.level == level && !is_leaf.contains(k))
+            .copied()
+            .collect();
+        let made: Vec<Result<(ParentTile, T), E>> = keys
+            .par_iter()
+            .map(|&key| {
+                let kids = &children[&key];
+                let mut input = Splats::new(sh_degree);
+                let mut child_radius = 0.0f64;
+                for &c in kids {
+                    match built.get(&c) {
+                        Some(p) => {
+                            append(&mut input, &p.splats);
+                            child_radius = child_radius.max(p.radius);
+                        }
+                        None => append(&mut input, &leaf_splats(c)),
+                    }
+                }
+                let above = deepest[&key] - key.level;
+                let d = (r * 2f64.powi(above as i32)).max(child_radius);
+                let c = cluster_to_budget(&input, d, budget, rule);
+                let order = importance_order(&c.splats);
+                let tile = ParentTile {
+                    key,
+                    splats: c.splats.select(&order),
+                    radius: c.radius,
+                    mean_displacement: c.mean_displacement,
+                    input: input.len(),
+                };
+                let v = sink(&tile)?;
+                Ok((tile, v))
+            })
+            .collect();
+        for k in &keys {
+            for c in &children[k] {
+                built.remove(c);
+            }
+        }
+        for m in made {
+            let (tile, v) = m?;
+            out.insert(tile.key, v);
+            built.insert(tile.key, tile);
+        }
+    }
+    Ok(out)
+}
