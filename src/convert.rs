@@ -1,7 +1,7 @@
 //! The conversion pipeline: read a scene, move it into the tileset frame, partition it, write one
 //! glb per leaf, the subtrees and `tileset.json` into a temporary folder, then rename it into place.
 
-use crate::encode::tile::write_tile_glb;
+use crate::variants::{self, ContentError, ContentFacts, VariantOptions, write_tile_contents};
 use crate::frame::geo::{Geodetic, mercator_unit};
 use crate::frame::{UpAxis, node_matrix, source_to_tileset};
 use crate::io::{self, ReadError, Scene};
@@ -59,6 +59,8 @@ pub struct ConvertOptions {
     pub keep_index_map: bool,
     /// Draw progress bars (they hide themselves when stderr is not a terminal).
     pub progress: bool,
+    /// Quality variants per tile, target profile, utility measurement.
+    pub variants: VariantOptions,
 }
 
 impl Default for ConvertOptions {
@@ -74,6 +76,7 @@ impl Default for ConvertOptions {
             subtree_levels: None,
             keep_index_map: false,
             progress: false,
+            variants: VariantOptions::default(),
         }
     }
 }
@@ -109,6 +112,8 @@ pub struct ConvertReport {
     pub seconds: f64,
     /// Per leaf: key and the indices of its splats in the (finite) input, in tile order.
     pub leaves: Vec<(TileKey, Vec<usize>)>,
+    /// Per content tile: what its variants cost and are worth.
+    pub contents: Vec<(TileKey, ContentFacts)>,
 }
 
 /// Why a conversion failed. Nothing is left at the output path when it does.
@@ -148,6 +153,9 @@ pub enum ConvertError {
         /// The OS error.
         source: std::io::Error,
     },
+    /// A tile's contents could not be written.
+    #[error(transparent)]
+    Content(#[from] ContentError),
     /// The output path is not something we may replace.
     #[error("{path}: {why}")]
     Output {
@@ -246,8 +254,13 @@ pub fn convert_scene(
     report.scheme = layout.scheme.as_str().to_string();
     report.levels = part.levels;
 
-    let tiles = write_leaves(&splats, &layout, &part, staging.path(), opts.progress)?;
+    let tiles = write_leaves(&splats, &layout, &part, staging.path(), opts)?;
     report.content_tiles = tiles.len();
+    report.contents = tiles
+        .iter()
+        .filter_map(|(k, t)| t.facts.clone().map(|f| (*k, f)))
+        .collect();
+    report.contents.sort_by_key(|(k, _)| *k);
     report.splats_out = tiles.values().map(|t| t.splat_count as usize).sum();
     report.bytes = tiles.values().map(|t| t.bytes).sum();
     let tree = build_tree(tiles);
@@ -265,7 +278,15 @@ pub fn convert_scene(
     report.subtrees = subtrees;
     report.bytes += subtree_bytes;
 
-    let tileset = tileset_json(&tree, &layout, &part, subtree_levels, &report, name);
+    let tileset = tileset_json(
+        &tree,
+        &layout,
+        &part,
+        subtree_levels,
+        &report,
+        name,
+        &opts.variants,
+    );
     let json = serde_json::to_vec_pretty(&tileset).expect("tileset serialises");
     let path = staging.path().join("tileset.json");
     std::fs::write(&path, &json).map_err(io_err(&path, "writing"))?;
@@ -406,6 +427,8 @@ struct TreeTile {
     bytes: u64,
     has_content: bool,
     is_leaf: bool,
+    /// Per-variant facts of the content, when the tile has content.
+    facts: Option<ContentFacts>,
 }
 
 fn write_leaves(
@@ -413,9 +436,9 @@ fn write_leaves(
     layout: &Layout,
     part: &Partition,
     dir: &Path,
-    progress: bool,
+    opts: &ConvertOptions,
 ) -> Result<HashMap<TileKey, TreeTile>, ConvertError> {
-    let bar = bar(progress, part.leaves.len() as u64, "writing tiles");
+    let bar = bar(opts.progress, part.leaves.len() as u64, "writing tiles");
     let tiles: Result<Vec<(TileKey, TreeTile)>, ConvertError> = part
         .leaves
         .par_iter()
@@ -425,22 +448,26 @@ fn write_leaves(
             let (lo, hi) = bounds(&pts);
             let centre_t = (lo + hi) * 0.5;
             let centre_s = layout.a.transpose() * centre_t;
-            let glb = write_tile_glb(&tile, centre_s.to_array(), node_matrix(layout.a, centre_s));
-            let path = dir.join(content_path(part.scheme, leaf.key));
-            if let Some(parent) = path.parent() {
-                std::fs::create_dir_all(parent).map_err(io_err(parent, "creating folder"))?;
-            }
-            std::fs::write(&path, &glb).map_err(io_err(&path, "writing"))?;
+            let facts = write_tile_contents(
+                dir,
+                part.scheme,
+                leaf.key,
+                &tile,
+                centre_s.to_array(),
+                node_matrix(layout.a, centre_s),
+                &opts.variants,
+            )?;
             bar.inc(1);
             Ok((
                 leaf.key,
                 TreeTile {
                     lo,
                     hi,
-                    splat_count: tile.len() as u32,
-                    bytes: glb.len() as u64,
+                    splat_count: facts.splat_count,
+                    bytes: facts.bytes,
                     has_content: true,
                     is_leaf: true,
+                    facts: Some(facts),
                 },
             ))
         })
@@ -464,6 +491,7 @@ fn build_tree(leaves: HashMap<TileKey, TreeTile>) -> BTreeMap<TileKey, TreeTile>
                 bytes: 0,
                 has_content: false,
                 is_leaf: false,
+                facts: None,
             });
             t.lo = t.lo.min(lo);
             t.hi = t.hi.max(hi);
@@ -480,13 +508,6 @@ fn geometric_error(t: &TreeTile) -> f64 {
         0.0
     } else {
         (t.hi - t.lo).length().max(1e-6)
-    }
-}
-
-fn content_path(scheme: Scheme, k: TileKey) -> String {
-    match scheme {
-        Scheme::Octree => format!("tiles/{}/{}/{}/{}.glb", k.level, k.x, k.y, k.z),
-        Scheme::Quadtree => format!("tiles/{}/{}/{}.glb", k.level, k.x, k.y),
     }
 }
 
@@ -558,10 +579,22 @@ fn write_subtrees(
             .iter()
             .map(|(_, k)| geometric_error(&tree[k]))
             .collect();
-        let counts: Vec<u32> = rows
+        let with_content: Vec<&TreeTile> = rows
             .iter()
-            .filter(|(_, k)| tree[k].has_content)
-            .map(|(_, k)| tree[k].splat_count)
+            .map(|(_, k)| &tree[k])
+            .filter(|t| t.has_content)
+            .collect();
+        let counts: Vec<u32> = with_content.iter().map(|t| t.splat_count).collect();
+        let facts = |f: &dyn Fn(&ContentFacts) -> [u32; 4]| -> Vec<u32> {
+            with_content
+                .iter()
+                .flat_map(|t| t.facts.as_ref().map_or([0; 4], f))
+                .collect()
+        };
+        let variant_bytes = facts(&|f| f.variant_bytes);
+        let variant_utility: Vec<f32> = facts(&|f| f.variant_utility.map(f32::to_bits))
+            .into_iter()
+            .map(f32::from_bits)
             .collect();
         let data = SubtreeData {
             tiles,
@@ -578,7 +611,11 @@ fn write_subtrees(
             content_metadata: (!counts.is_empty()).then(|| Table {
                 class: tileset::CONTENT_CLASS.into(),
                 count: counts.len() as u64,
-                columns: vec![("splatCount".into(), Column::U32(counts))],
+                columns: vec![
+                    ("splatCount".into(), Column::U32(counts)),
+                    ("variantBytes".into(), Column::U32(variant_bytes)),
+                    ("variantUtility".into(), Column::F32(variant_utility)),
+                ],
             }),
         };
         let encoded = subtree::write_subtree(&data);
@@ -600,6 +637,7 @@ fn tileset_json(
     subtree_levels: u32,
     report: &ConvertReport,
     name: &str,
+    variant_opts: &VariantOptions,
 ) -> Tileset {
     let root = &tree[&TileKey::ROOT];
     let root_error = geometric_error(root);
@@ -625,7 +663,7 @@ fn tileset_json(
             refine: Some("REPLACE".into()),
             transform: layout.transform.map(|t| t.to_vec()),
             content: Some(Content {
-                uri: template("tiles", "glb"),
+                uri: variants::uri_template(scheme, variant_opts.profile.default_variant()),
             }),
             implicit_tiling: Some(ImplicitTiling {
                 subdivision_scheme: scheme.as_str().into(),
@@ -638,9 +676,16 @@ fn tileset_json(
             children: vec![],
         },
         schema: Some(tileset::schema()),
-        extensions_used: vec![],
+        metadata: Some(variants::tileset_metadata(scheme, variant_opts)),
+        extensions_used: match variant_opts.profile {
+            variants::Profile::Cesium => vec!["3DTILES_content_gltf".into()],
+            variants::Profile::Default => vec![],
+        },
         extensions_required: vec![],
-        extensions: None,
+        extensions: match variant_opts.profile {
+            variants::Profile::Cesium => Some(variants::cesium_content_gltf()),
+            variants::Profile::Default => None,
+        },
         extras: Some(serde_json::json!({
             "splat2tiles": {
                 "input": input_name,
