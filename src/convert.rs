@@ -1,7 +1,6 @@
 //! The conversion pipeline: read a scene, move it into the tileset frame, partition it, write one
 //! glb per leaf, the subtrees and `tileset.json` into a temporary folder, then rename it into place.
 
-use crate::variants::{self, ContentError, ContentFacts, VariantOptions, write_tile_contents};
 use crate::frame::geo::{Geodetic, mercator_unit};
 use crate::frame::{UpAxis, node_matrix, source_to_tileset};
 use crate::io::{self, ReadError, Scene};
@@ -9,6 +8,7 @@ use crate::splat::Splats;
 use crate::tiling::subtree::{self, Column, SubtreeData, Table};
 use crate::tiling::tileset::{self, Asset, BoundingVolume, Content, ImplicitTiling, Tile, Tileset};
 use crate::tiling::{Partition, Scheme, TileKey, partition};
+use crate::variants::{self, ContentError, ContentFacts, VariantOptions, write_tile_contents};
 use glam::{DMat3, DVec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;

@@ -71,15 +71,17 @@ fn check(name: &str, scene: Scene) -> [(f64, f64); 4] {
             let (s, _) = decode_variant(&glb).unwrap();
             assert_eq!(Some(s.len() as u32), t.splat_count, "{}", path.display());
         }
-        assert!(
-            t.content
-                .as_ref()
-                .unwrap()
-                .ends_with(content_uri(ts.scheme, t.key, Variant::Best))
-        );
+        assert!(t.content.as_ref().unwrap().ends_with(content_uri(
+            ts.scheme,
+            t.key,
+            Variant::Best
+        )));
     }
     for w in res.windows(2) {
-        assert!(w[0].0 > w[1].0, "{name}: bytes/splat not decreasing: {res:?}");
+        assert!(
+            w[0].0 > w[1].0,
+            "{name}: bytes/splat not decreasing: {res:?}"
+        );
     }
     assert_eq!(res[0].1, 1.0);
     assert!(res[2].1 >= 0.95, "{name}: Medium utility {}", res[2].1);
@@ -89,7 +91,10 @@ fn check(name: &str, scene: Scene) -> [(f64, f64); 4] {
 
 #[test]
 fn plant_variants() {
-    check("plant", splat2tiles::io::read_path(&scene("plant.splat")).unwrap());
+    check(
+        "plant",
+        splat2tiles::io::read_path(&scene("plant.splat")).unwrap(),
+    );
 }
 
 #[test]
@@ -143,7 +148,10 @@ fn cesium_profile_points_at_spz_tiles() {
     convert_scene(scene_of(s), "sh3", &out, &opts).unwrap();
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("tileset.json")).unwrap()).unwrap();
-    assert_eq!(json["extensionsUsed"], serde_json::json!(["3DTILES_content_gltf"]));
+    assert_eq!(
+        json["extensionsUsed"],
+        serde_json::json!(["3DTILES_content_gltf"])
+    );
     assert!(json.get("extensionsRequired").is_none());
     let both = serde_json::json!([
         "KHR_gaussian_splatting",
@@ -152,7 +160,12 @@ fn cesium_profile_points_at_spz_tiles() {
     let ext = &json["extensions"]["3DTILES_content_gltf"];
     assert_eq!(ext["extensionsRequired"], both);
     assert_eq!(ext["extensionsUsed"], both);
-    assert!(json["root"]["content"]["uri"].as_str().unwrap().starts_with("tiles/low/"));
+    assert!(
+        json["root"]["content"]["uri"]
+            .as_str()
+            .unwrap()
+            .starts_with("tiles/low/")
+    );
     assert_eq!(json["metadata"]["properties"]["defaultVariant"], 3);
     let ts = load_tileset(&out.join("tileset.json")).unwrap();
     for t in ts.tiles.iter().filter(|t| t.content.is_some()) {
@@ -163,8 +176,44 @@ fn cesium_profile_points_at_spz_tiles() {
         assert!(attrs.contains_key("COLOR_0"));
         let sh = attrs.keys().filter(|k| k.contains("SH_DEGREE_")).count();
         assert_eq!(sh, 3, "SH degree 1 only, no SH_DEGREE_0_COEF_0: {attrs:?}");
-        assert_eq!(doc.extensions_required, both.as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect::<Vec<_>>());
+        assert_eq!(
+            doc.extensions_required,
+            both.as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_str().unwrap().to_string())
+                .collect::<Vec<_>>()
+        );
         let (s, _) = decode_variant(&glb).unwrap();
         assert_eq!(Some(s.len() as u32), t.splat_count);
     }
+}
+
+#[test]
+fn utility_sees_real_damage() {
+    use glam::DVec3;
+    use splat2tiles::variants::utilities;
+    let s = common::splat_file::read_splat("plant.splat");
+    let idx: Vec<usize> = (0..s.len()).step_by(8).collect();
+    let tile = s.select(&idx);
+    let (lo, hi) = tile.bounds().unwrap();
+    let size = DVec3::from_array(hi) - DVec3::from_array(lo);
+    // Half the splats gone, or every splat moved by 2% of the box: clearly visible.
+    let half = tile.select(&(0..tile.len()).step_by(2).collect::<Vec<_>>());
+    let mut moved = tile.clone();
+    let mut r = Rng(3);
+    for p in &mut moved.positions {
+        for a in 0..3 {
+            p[a] += r.range(-0.02, 0.02) * size[a];
+        }
+    }
+    // SSIM over 128x96 views with a black background is lenient (documented in
+    // spec/quality-variants.md): visible damage costs a few hundredths, not tenths.
+    let u = utilities(&tile, &[&tile, &half, &moved], DVec3::NEG_Y, (128, 96));
+    eprintln!(
+        "utilities: same {:.4}, half {:.4}, moved {:.4}",
+        u[0], u[1], u[2]
+    );
+    assert_eq!(u[0], 1.0);
+    assert!(u[1] < 0.985 && u[2] < 0.985, "{u:?}");
 }

@@ -3,8 +3,8 @@
 
 use crate::convert::{ConvertOptions, NonFinitePolicy, SchemeChoice, convert};
 use crate::frame::UpAxis;
-use crate::variants::{ALL, Profile, Variant, VariantOptions};
 use crate::frame::geo::Geodetic;
+use crate::variants::{ALL, Profile, Variant, VariantOptions};
 use clap::Args;
 use std::io::IsTerminal;
 use std::path::PathBuf;

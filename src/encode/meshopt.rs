@@ -11,8 +11,8 @@ use super::gltf::{
     KHR_GAUSSIAN_SPLATTING, TARGET_ARRAY_BUFFER,
 };
 use super::tile::{
-    ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, check_writable,
-    columns, sh_attribute, splat_document,
+    ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, check_writable, columns,
+    sh_attribute, splat_document,
 };
 use crate::splat::Splats;
 use meshopt::EncodeExpMode;
@@ -55,7 +55,7 @@ pub const MEDIUM: MeshoptLevel = MeshoptLevel {
     opacity_bits: 6,
     sh0_bits: 7,
     sh_rest_bits: 4,
-    max_sh_degree: 3,
+    max_sh_degree: 2,
 };
 
 /// One compressed stream: its decoded bytes (already filtered), stride, filter, accessors.
@@ -339,10 +339,7 @@ pub fn write_meshopt_glb(
     }
     bin.resize(bin.len().next_multiple_of(4), 0);
     let mut fallback = Map::new();
-    fallback.insert(
-        EXT_MESHOPT_COMPRESSION.into(),
-        json!({ "fallback": true }),
-    );
+    fallback.insert(EXT_MESHOPT_COMPRESSION.into(), json!({ "fallback": true }));
     let buffers = vec![
         Buffer {
             byte_length: bin.len() as u64,
@@ -361,7 +358,10 @@ pub fn write_meshopt_glb(
         buffers,
         node_matrix,
         None,
-        vec![KHR_GAUSSIAN_SPLATTING.into(), EXT_MESHOPT_COMPRESSION.into()],
+        vec![
+            KHR_GAUSSIAN_SPLATTING.into(),
+            EXT_MESHOPT_COMPRESSION.into(),
+        ],
         vec![EXT_MESHOPT_COMPRESSION.into()],
     );
     write_gltf_glb(&doc, Some(&bin))
@@ -373,7 +373,11 @@ pub fn write_meshopt_glb(
 pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
     let chunks = read_glb(bytes)?;
     let mut doc: Gltf = parse_json(&chunks)?;
-    if !doc.extensions_used.iter().any(|e| e == EXT_MESHOPT_COMPRESSION) {
+    if !doc
+        .extensions_used
+        .iter()
+        .any(|e| e == EXT_MESHOPT_COMPRESSION)
+    {
         return Ok(bytes.to_vec());
     }
     let bin = chunks.bin.unwrap_or(&[]);
@@ -394,7 +398,10 @@ pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
                     field("byteStride"),
                     field("count"),
                 ) else {
-                    return Err(GlbError::invalid(path, "missing byteLength/byteStride/count"));
+                    return Err(GlbError::invalid(
+                        path,
+                        "missing byteLength/byteStride/count",
+                    ));
                 };
                 if field("buffer") != Some(0) || ext.get("mode") != Some(&json!("ATTRIBUTES")) {
                     return Err(GlbError::unsupported(
@@ -406,7 +413,10 @@ pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
                     .get(off as usize..(off + len) as usize)
                     .ok_or_else(|| GlbError::invalid(&path, "stream runs past the BIN chunk"))?;
                 if count * stride > bytes.len() as u64 * 1032 + 4096 {
-                    return Err(GlbError::invalid(&path, "count * byteStride is implausible"));
+                    return Err(GlbError::invalid(
+                        &path,
+                        "count * byteStride is implausible",
+                    ));
                 }
                 let mut data = decode_attributes(src, count as usize, stride as usize)
                     .ok_or_else(|| GlbError::invalid(&path, "meshopt stream does not decode"))?;
@@ -433,6 +443,7 @@ pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
         ..Default::default()
     }];
     doc.extensions_used.retain(|e| e != EXT_MESHOPT_COMPRESSION);
-    doc.extensions_required.retain(|e| e != EXT_MESHOPT_COMPRESSION);
+    doc.extensions_required
+        .retain(|e| e != EXT_MESHOPT_COMPRESSION);
     write_gltf_glb(&doc, Some(&out))
 }

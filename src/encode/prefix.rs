@@ -71,9 +71,15 @@ pub fn prefix_layout(prefix: &[u8]) -> Result<Option<PrefixLayout>, GlbError> {
         ));
     }
     let view = &doc.buffer_views[0];
-    let stride = view.byte_stride.ok_or_else(|| not_prefix("bufferView 0 has no byteStride"))?;
+    let stride = view
+        .byte_stride
+        .ok_or_else(|| not_prefix("bufferView 0 has no byteStride"))?;
     let count = doc.accessors.first().map_or(0, |a| a.count) as usize;
-    if doc.accessors.iter().any(|a| a.buffer_view != Some(0) || a.count as usize != count) {
+    if doc
+        .accessors
+        .iter()
+        .any(|a| a.buffer_view != Some(0) || a.count as usize != count)
+    {
         return Err(not_prefix("accessors outside the interleaved bufferView"));
     }
     Ok(Some(PrefixLayout {

@@ -12,8 +12,8 @@ use super::gltf::{
     KHR_GAUSSIAN_SPLATTING_SPZ_2,
 };
 use super::tile::{
-    ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, IDENTITY,
-    check_writable, sh_attribute, splat_document,
+    ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, IDENTITY, check_writable,
+    sh_attribute, splat_document,
 };
 use crate::splat::{Splats, normalize_quat, sh_rest_count};
 
@@ -74,7 +74,9 @@ pub fn encode_spz_v2_raw(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -
     let scale = (1u64 << fb) as f64;
     for p in &rel {
         for v in p {
-            let f = (v * scale).round().clamp(-(1 << 23) as f64, ((1 << 23) - 1) as f64) as i32;
+            let f = (v * scale)
+                .round()
+                .clamp(-(1 << 23) as f64, ((1 << 23) - 1) as f64) as i32;
             out.extend_from_slice(&f.to_le_bytes()[..3]);
         }
     }
@@ -99,7 +101,11 @@ pub fn encode_spz_v2_raw(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -
     };
     for i in 0..n {
         for (j, t) in splats.sh_rest[i * k_in..i * k_in + k].iter().enumerate() {
-            let bits = if j < 3 { opts.sh1_bits } else { opts.sh_rest_bits };
+            let bits = if j < 3 {
+                opts.sh1_bits
+            } else {
+                opts.sh_rest_bits
+            };
             out.extend(t.iter().map(|&v| bucket(v, bits)));
         }
     }

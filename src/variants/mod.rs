@@ -77,7 +77,9 @@ impl Variant {
         node_matrix: [f64; 16],
     ) -> Result<Vec<u8>, GlbError> {
         match self {
-            Variant::Best => try_write_tile_glb(splats, centre, node_matrix, TileLayout::Interleaved),
+            Variant::Best => {
+                try_write_tile_glb(splats, centre, node_matrix, TileLayout::Interleaved)
+            }
             Variant::High => write_meshopt_glb(splats, centre, node_matrix, &HIGH),
             Variant::Medium => write_meshopt_glb(splats, centre, node_matrix, &MEDIUM),
             Variant::Low => write_spz2_glb(splats, centre, node_matrix, &LOW_SPZ),
@@ -213,13 +215,13 @@ pub fn write_tile_contents(
     let mut decoded: Vec<(Variant, Splats)> = vec![];
     for v in opts.written() {
         let t = Instant::now();
-        let glb = v
-            .encode(splats, centre_s, node_matrix)
-            .map_err(|source| ContentError::Encode {
-                key,
-                variant: v.name(),
-                source,
-            })?;
+        let glb =
+            v.encode(splats, centre_s, node_matrix)
+                .map_err(|source| ContentError::Encode {
+                    key,
+                    variant: v.name(),
+                    source,
+                })?;
         facts.encode_seconds[v.index()] = t.elapsed().as_secs_f64();
         let path = dir.join(content_uri(scheme, key, v));
         if let Some(parent) = path.parent() {
@@ -330,7 +332,11 @@ pub fn is_meshopt(glb: &[u8]) -> bool {
     crate::encode::glb::read_glb(glb)
         .ok()
         .and_then(|c| crate::encode::glb::parse_json(&c).ok())
-        .is_some_and(|d| d.extensions_used.iter().any(|e| e == EXT_MESHOPT_COMPRESSION))
+        .is_some_and(|d| {
+            d.extensions_used
+                .iter()
+                .any(|e| e == EXT_MESHOPT_COMPRESSION)
+        })
 }
 
 /// Name of the tileset-level metadata class describing the variants.
@@ -443,9 +449,7 @@ impl VariantRow {
 
 /// Per-tile variant metadata of a tileset: key -> (splat count, bytes, utilities), read from
 /// the subtrees' content property tables.
-pub fn content_variant_metadata(
-    ts: &LoadedTileset,
-) -> HashMap<TileKey, (u32, [u32; 4], [f32; 4])> {
+pub fn content_variant_metadata(ts: &LoadedTileset) -> HashMap<TileKey, (u32, [u32; 4], [f32; 4])> {
     let mut out = HashMap::new();
     let Some(implicit) = &ts.tileset.root.implicit_tiling else {
         return out;
