@@ -585,16 +585,13 @@ fn write_subtrees(
             .filter(|t| t.has_content)
             .collect();
         let counts: Vec<u32> = with_content.iter().map(|t| t.splat_count).collect();
-        let facts = |f: &dyn Fn(&ContentFacts) -> [u32; 4]| -> Vec<u32> {
-            with_content
-                .iter()
-                .flat_map(|t| t.facts.as_ref().map_or([0; 4], f))
-                .collect()
-        };
-        let variant_bytes = facts(&|f| f.variant_bytes);
-        let variant_utility: Vec<f32> = facts(&|f| f.variant_utility.map(f32::to_bits))
-            .into_iter()
-            .map(f32::from_bits)
+        let variant_bytes: Vec<u32> = with_content
+            .iter()
+            .flat_map(|t| t.facts.as_ref().map_or([0; 4], |f| f.variant_bytes))
+            .collect();
+        let variant_utility: Vec<f32> = with_content
+            .iter()
+            .flat_map(|t| t.facts.as_ref().map_or([-1.0; 4], |f| f.variant_utility))
             .collect();
         let data = SubtreeData {
             tiles,

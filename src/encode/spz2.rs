@@ -40,7 +40,7 @@ impl Default for SpzOptions {
 
 /// Fractional bits of the 24-bit fixed-point positions: the most that keep `max_abs` in range.
 pub fn fractional_bits(max_abs: f64) -> u8 {
-    if !(max_abs > 0.0) {
+    if max_abs.is_nan() || max_abs <= 0.0 {
         return 12;
     }
     let limit = ((1u32 << 23) - 1) as f64;
