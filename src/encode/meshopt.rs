@@ -447,3 +447,46 @@ pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
         .retain(|e| e != EXT_MESHOPT_COMPRESSION);
     write_gltf_glb(&doc, Some(&out))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encode::tile::{IDENTITY, read_tile_glb};
+    use crate::splat::{Splat, normalize_quat};
+
+    #[test]
+    fn high_and_medium_decode_within_their_bit_depths() {
+        let mut s = Splats::new(3);
+        for i in 0..300 {
+            let f = i as f32 / 300.0;
+            s.push(
+                Splat {
+                    position: [f as f64 * 4.0 - 2.0, (f * 7.0).sin() as f64, 0.3],
+                    scale: [0.01 + f * 0.1, 0.02, 0.5],
+                    rotation: normalize_quat([f - 0.5, 0.3, -0.2, 0.7 - f]),
+                    opacity: f,
+                    sh0: [f - 0.5, 1.0, -1.2],
+                },
+                &[[0.1 * f, -0.2, 0.3]; 15],
+            );
+        }
+        for (level, tol) in [(HIGH, 1e-4), (MEDIUM, 1e-3)] {
+            let glb = write_meshopt_glb(&s, [0.0; 3], IDENTITY, &level).unwrap();
+            let plain = decompress_meshopt_glb(&glb).unwrap();
+            let d = read_tile_glb(&plain).unwrap().splats;
+            assert_eq!(d.len(), 300);
+            assert_eq!(d.sh_degree, level.max_sh_degree.min(3));
+            for i in 0..300 {
+                let (a, b) = (s.get(i), d.get(i));
+                for k in 0..3 {
+                    assert!((a.position[k] - b.position[k]).abs() < 2.0 * 2.0 * tol);
+                    let rel = (a.scale[k] - b.scale[k]).abs() / a.scale[k];
+                    assert!(rel < 0.05, "scale {i} {k}: {rel}");
+                }
+                let dot: f32 = (0..4).map(|k| a.rotation[k] * b.rotation[k]).sum();
+                assert!(dot.abs() > 0.99, "rotation {i}: {dot}");
+                assert!((a.opacity - b.opacity).abs() < 0.05);
+            }
+        }
+    }
+}

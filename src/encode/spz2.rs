@@ -255,3 +255,78 @@ pub fn read_spz2_glb(bytes: &[u8]) -> Result<(Splats, [f64; 16]), GlbError> {
     let m = doc.nodes.first().and_then(|n| n.matrix).unwrap_or(IDENTITY);
     Ok((splats, m))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::splat::Splat;
+
+    fn scene() -> Splats {
+        let mut s = Splats::new(3);
+        for i in 0..50 {
+            let f = i as f32 / 50.0;
+            s.push(
+                Splat {
+                    position: [10.0 + f as f64, -3.0 * f as f64, 2.0],
+                    scale: [0.01 + f * 0.1, 0.02, 0.5],
+                    rotation: normalize_quat([f - 0.5, 0.3, -0.2, 0.7 - f]),
+                    opacity: f,
+                    sh0: [f - 0.5, 1.0, -1.2],
+                },
+                &[[0.1 * f, -0.2, 0.3]; 15],
+            );
+        }
+        s
+    }
+
+    #[test]
+    fn spz_v2_round_trips_through_the_reader() {
+        let s = scene();
+        let centre = [10.5, -1.0, 2.0];
+        let opts = SpzOptions::default();
+        let bytes = encode_spz_v2(&s, centre, &opts);
+        let d = crate::io::read_bytes("t.spz", &bytes).unwrap().splats;
+        assert_eq!((d.len(), d.sh_degree), (50, 3));
+        let step = 0.5f64.powi(fractional_bits(1.5) as i32);
+        for i in 0..50 {
+            let (a, b) = (s.get(i), d.get(i));
+            for k in 0..3 {
+                assert!((a.position[k] - centre[k] - b.position[k]).abs() <= step);
+                assert!((a.sh0[k] - b.sh0[k]).abs() <= 0.5 / (0.15 * 255.0) + 1e-6);
+                let r = (b.scale[k] / a.scale[k]).ln().abs();
+                assert!(r <= 0.5 / 16.0 + 1e-5, "scale {i}");
+            }
+            assert!((a.opacity - b.opacity).abs() <= 0.5 / 255.0 + 1e-6);
+            let dot: f32 = (0..4).map(|k| a.rotation[k] * b.rotation[k]).sum();
+            assert!(dot.abs() > 0.995, "rotation {i}: {dot}");
+            for (x, y) in s.rest_of(i).iter().zip(d.rest_of(i)) {
+                for k in 0..3 {
+                    // 4 significant bits: buckets of 16/128.
+                    assert!((x[k] - y[k]).abs() <= 8.5 / 128.0 + 1e-6, "{x:?} {y:?}");
+                }
+            }
+        }
+        let low = encode_spz_v2_raw(
+            &s,
+            centre,
+            &SpzOptions {
+                max_sh_degree: 1,
+                ..opts
+            },
+        );
+        assert_eq!(low.len(), 16 + 50 * (19 + 9));
+    }
+
+    #[test]
+    fn spz2_tile_decodes_and_declares_cesium_attributes() {
+        let s = scene();
+        let glb = write_spz2_glb(&s, [10.0, 0.0, 2.0], IDENTITY, &SpzOptions::default()).unwrap();
+        let (d, m) = read_spz2_glb(&glb).unwrap();
+        assert_eq!((d.len(), m), (50, IDENTITY));
+        let doc = parse_json(&read_glb(&glb).unwrap()).unwrap();
+        let a = &doc.meshes[0].primitives[0].attributes;
+        assert!(!a.contains_key(&sh_attribute(0, 0)));
+        assert_eq!(a.keys().filter(|k| k.contains("SH_DEGREE_")).count(), 15);
+        assert!(doc.accessors.iter().all(|x| x.buffer_view.is_none()));
+    }
+}
