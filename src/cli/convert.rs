@@ -136,6 +136,16 @@ pub fn run(args: ConvertArgs) -> i32 {
                     r.bytes as f64 / 1e6,
                     r.seconds
                 );
+                if let Some(v) = variant_summary(&r).as_object().filter(|v| v.len() > 1) {
+                    for (name, row) in v {
+                        println!(
+                            "  variant {name:<6}: {:7.2} B/splat, utility mean {} worst {}",
+                            row["bytesPerSplat"].as_f64().unwrap_or(0.0),
+                            fmt_utility(&row["meanUtility"]),
+                            fmt_utility(&row["worstUtility"])
+                        );
+                    }
+                }
                 println!("  tileset: {}", tileset.display());
                 println!(
                     "  look at it: splat2tiles render {} --auto-view 0 -o view.png",
@@ -184,6 +194,11 @@ fn variant_summary(r: &crate::convert::ConvertReport) -> serde_json::Value {
         );
     }
     out.into()
+}
+
+fn fmt_utility(v: &serde_json::Value) -> String {
+    v.as_f64()
+        .map_or_else(|| "-".to_string(), |u| format!("{u:.4}"))
 }
 
 /// Parses one `--variants` item: a variant name or `all`.
