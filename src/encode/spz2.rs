@@ -288,6 +288,7 @@ mod tests {
         let d = crate::io::read_bytes("t.spz", &bytes).unwrap().splats;
         assert_eq!((d.len(), d.sh_degree), (50, 3));
         let step = 0.5f64.powi(fractional_bits(1.5) as i32);
+        #[allow(clippy::needless_range_loop)] // k indexes five arrays at once
         for i in 0..50 {
             let (a, b) = (s.get(i), d.get(i));
             for k in 0..3 {
