@@ -1,7 +1,6 @@
 //! The conversion pipeline: read a scene, move it into the tileset frame, partition it, write one
 //! glb per leaf, the subtrees and `tileset.json` into a temporary folder, then rename it into place.
 
-use crate::encode::tile::write_tile_glb;
 use crate::frame::geo::{Geodetic, mercator_unit};
 use crate::frame::{UpAxis, node_matrix, source_to_tileset};
 use crate::io::{self, ReadError, Scene};
@@ -11,6 +10,7 @@ use crate::splat::importance::sort_indices_by_importance;
 use crate::tiling::subtree::{self, Column, SubtreeData, Table};
 use crate::tiling::tileset::{self, Asset, BoundingVolume, Content, ImplicitTiling, Tile, Tileset};
 use crate::tiling::{Partition, Scheme, TileKey, partition};
+use crate::variants::{self, ContentError, ContentFacts, VariantOptions, write_tile_contents};
 use glam::{DMat3, DVec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -63,6 +63,8 @@ pub struct ConvertOptions {
     pub progress: bool,
     /// Level of detail: parents by weighted clustering of their children.
     pub lod: LodOptions,
+    /// Quality variants per tile, target profile, utility measurement.
+    pub variants: VariantOptions,
 }
 
 impl Default for ConvertOptions {
@@ -79,6 +81,7 @@ impl Default for ConvertOptions {
             keep_index_map: false,
             progress: false,
             lod: LodOptions::default(),
+            variants: VariantOptions::default(),
         }
     }
 }
@@ -120,6 +123,8 @@ pub struct ConvertReport {
     pub parent_splats: usize,
     /// Wall-clock seconds of the LOD build (clustering and writing parents).
     pub lod_seconds: f64,
+    /// Per content tile: what its variants cost and are worth.
+    pub contents: Vec<(TileKey, ContentFacts)>,
 }
 
 /// Why a conversion failed. Nothing is left at the output path when it does.
@@ -159,6 +164,9 @@ pub enum ConvertError {
         /// The OS error.
         source: std::io::Error,
     },
+    /// A tile's contents could not be written.
+    #[error(transparent)]
+    Content(#[from] ContentError),
     /// The output path is not something we may replace.
     #[error("{path}: {why}")]
     Output {
@@ -262,8 +270,13 @@ pub fn convert_scene(
         .par_iter_mut()
         .for_each(|l| sort_indices_by_importance(&splats, &mut l.indices));
 
-    let tiles = write_leaves(&splats, &layout, &part, staging.path(), opts.progress)?;
+    let tiles = write_leaves(&splats, &layout, &part, staging.path(), opts)?;
     report.content_tiles = tiles.len();
+    report.contents = tiles
+        .iter()
+        .filter_map(|(k, t)| t.facts.clone().map(|f| (*k, f)))
+        .collect();
+    report.contents.sort_by_key(|(k, _)| *k);
     report.splats_out = tiles.values().map(|t| t.splat_count as usize).sum();
     report.bytes = tiles.values().map(|t| t.bytes).sum();
     let mut tree = build_tree(tiles);
@@ -279,14 +292,17 @@ pub fn convert_scene(
         let parents = write_parents(&splats, &layout, &part, r, opts, staging.path())?;
         for (key, p) in parents {
             let t = tree.get_mut(&key).expect("parents are tree tiles");
-            t.splat_count = p.splat_count;
-            t.bytes = p.bytes;
+            t.splat_count = p.facts.splat_count;
+            t.bytes = p.facts.bytes;
             t.has_content = true;
             t.error = p.error;
             report.content_tiles += 1;
-            report.parent_splats += p.splat_count as usize;
-            report.bytes += p.bytes;
+            report.parent_splats += p.facts.splat_count as usize;
+            report.bytes += p.facts.bytes;
+            report.contents.push((key, p.facts.clone()));
+            t.facts = Some(p.facts);
         }
+        report.contents.sort_by_key(|(k, _)| *k);
         report.lod_radius = r;
         report.lod_seconds = t0.elapsed().as_secs_f64();
     }
@@ -304,7 +320,15 @@ pub fn convert_scene(
     report.subtrees = subtrees;
     report.bytes += subtree_bytes;
 
-    let tileset = tileset_json(&tree, &layout, &part, subtree_levels, &report, name);
+    let tileset = tileset_json(
+        &tree,
+        &layout,
+        &part,
+        subtree_levels,
+        &report,
+        name,
+        &opts.variants,
+    );
     let json = serde_json::to_vec_pretty(&tileset).expect("tileset serialises");
     let path = staging.path().join("tileset.json");
     std::fs::write(&path, &json).map_err(io_err(&path, "writing"))?;
@@ -465,6 +489,8 @@ struct TreeTile {
     is_leaf: bool,
     /// Geometric error of a parent with content (its clustering radius).
     error: f64,
+    /// Per-variant facts of the content, when the tile has content.
+    facts: Option<ContentFacts>,
 }
 
 fn write_leaves(
@@ -472,9 +498,9 @@ fn write_leaves(
     layout: &Layout,
     part: &Partition,
     dir: &Path,
-    progress: bool,
+    opts: &ConvertOptions,
 ) -> Result<HashMap<TileKey, TreeTile>, ConvertError> {
-    let bar = bar(progress, part.leaves.len() as u64, "writing tiles");
+    let bar = bar(opts.progress, part.leaves.len() as u64, "writing tiles");
     let tiles: Result<Vec<(TileKey, TreeTile)>, ConvertError> = part
         .leaves
         .par_iter()
@@ -484,23 +510,27 @@ fn write_leaves(
             let (lo, hi) = bounds(&pts);
             let centre_t = (lo + hi) * 0.5;
             let centre_s = layout.a.transpose() * centre_t;
-            let glb = write_tile_glb(&tile, centre_s.to_array(), node_matrix(layout.a, centre_s));
-            let path = dir.join(content_path(part.scheme, leaf.key));
-            if let Some(parent) = path.parent() {
-                std::fs::create_dir_all(parent).map_err(io_err(parent, "creating folder"))?;
-            }
-            std::fs::write(&path, &glb).map_err(io_err(&path, "writing"))?;
+            let facts = write_tile_contents(
+                dir,
+                part.scheme,
+                leaf.key,
+                &tile,
+                centre_s.to_array(),
+                node_matrix(layout.a, centre_s),
+                &opts.variants,
+            )?;
             bar.inc(1);
             Ok((
                 leaf.key,
                 TreeTile {
                     lo,
                     hi,
-                    splat_count: tile.len() as u32,
-                    bytes: glb.len() as u64,
+                    splat_count: facts.splat_count,
+                    bytes: facts.bytes,
                     has_content: true,
                     is_leaf: true,
                     error: 0.0,
+                    facts: Some(facts),
                 },
             ))
         })
@@ -525,6 +555,7 @@ fn build_tree(leaves: HashMap<TileKey, TreeTile>) -> BTreeMap<TileKey, TreeTile>
                 has_content: false,
                 is_leaf: false,
                 error: 0.0,
+                facts: None,
             });
             t.lo = t.lo.min(lo);
             t.hi = t.hi.max(hi);
@@ -549,13 +580,13 @@ fn geometric_error(t: &TreeTile) -> f64 {
 
 /// What the tree keeps of a written parent tile.
 struct WrittenParent {
-    splat_count: u32,
-    bytes: u64,
+    facts: ContentFacts,
     error: f64,
 }
 
 /// Builds every parent tile by clustering its children's splats (see [`crate::lod`]) and writes
-/// each with `write_tile_glb`, centred on its merged splats.
+/// each through the same per-tile writer as the leaves (every requested quality variant),
+/// centred on its merged splats.
 fn write_parents(
     splats: &Splats,
     layout: &Layout,
@@ -586,30 +617,21 @@ fn write_parents(
                 .collect();
             let (lo, hi) = bounds(&pts);
             let centre_s = layout.a.transpose() * ((lo + hi) * 0.5);
-            let glb = write_tile_glb(
+            let facts = write_tile_contents(
+                dir,
+                part.scheme,
+                p.key,
                 &p.splats,
                 centre_s.to_array(),
                 node_matrix(layout.a, centre_s),
-            );
-            let path = dir.join(content_path(part.scheme, p.key));
-            if let Some(parent) = path.parent() {
-                std::fs::create_dir_all(parent).map_err(io_err(parent, "creating folder"))?;
-            }
-            std::fs::write(&path, &glb).map_err(io_err(&path, "writing"))?;
+                &opts.variants,
+            )?;
             Ok(WrittenParent {
-                splat_count: p.splats.len() as u32,
-                bytes: glb.len() as u64,
+                facts,
                 error: p.radius,
             })
         },
     )
-}
-
-fn content_path(scheme: Scheme, k: TileKey) -> String {
-    match scheme {
-        Scheme::Octree => format!("tiles/{}/{}/{}/{}.glb", k.level, k.x, k.y, k.z),
-        Scheme::Quadtree => format!("tiles/{}/{}/{}.glb", k.level, k.x, k.y),
-    }
 }
 
 fn subtree_path(scheme: Scheme, k: TileKey) -> String {
@@ -680,10 +702,19 @@ fn write_subtrees(
             .iter()
             .map(|(_, k)| geometric_error(&tree[k]))
             .collect();
-        let counts: Vec<u32> = rows
+        let with_content: Vec<&TreeTile> = rows
             .iter()
-            .filter(|(_, k)| tree[k].has_content)
-            .map(|(_, k)| tree[k].splat_count)
+            .map(|(_, k)| &tree[k])
+            .filter(|t| t.has_content)
+            .collect();
+        let counts: Vec<u32> = with_content.iter().map(|t| t.splat_count).collect();
+        let variant_bytes: Vec<u32> = with_content
+            .iter()
+            .flat_map(|t| t.facts.as_ref().map_or([0; 4], |f| f.variant_bytes))
+            .collect();
+        let variant_utility: Vec<f32> = with_content
+            .iter()
+            .flat_map(|t| t.facts.as_ref().map_or([-1.0; 4], |f| f.variant_utility))
             .collect();
         let data = SubtreeData {
             tiles,
@@ -700,7 +731,11 @@ fn write_subtrees(
             content_metadata: (!counts.is_empty()).then(|| Table {
                 class: tileset::CONTENT_CLASS.into(),
                 count: counts.len() as u64,
-                columns: vec![("splatCount".into(), Column::U32(counts))],
+                columns: vec![
+                    ("splatCount".into(), Column::U32(counts)),
+                    ("variantBytes".into(), Column::U32(variant_bytes)),
+                    ("variantUtility".into(), Column::F32(variant_utility)),
+                ],
             }),
         };
         let encoded = subtree::write_subtree(&data);
@@ -722,6 +757,7 @@ fn tileset_json(
     subtree_levels: u32,
     report: &ConvertReport,
     name: &str,
+    variant_opts: &VariantOptions,
 ) -> Tileset {
     let root = &tree[&TileKey::ROOT];
     let root_error = geometric_error(root);
@@ -747,7 +783,7 @@ fn tileset_json(
             refine: Some("REPLACE".into()),
             transform: layout.transform.map(|t| t.to_vec()),
             content: Some(Content {
-                uri: template("tiles", "glb"),
+                uri: variants::uri_template(scheme, variant_opts.profile.default_variant()),
             }),
             implicit_tiling: Some(ImplicitTiling {
                 subdivision_scheme: scheme.as_str().into(),
@@ -760,9 +796,16 @@ fn tileset_json(
             children: vec![],
         },
         schema: Some(tileset::schema()),
-        extensions_used: vec![],
+        metadata: Some(variants::tileset_metadata(scheme, variant_opts)),
+        extensions_used: match variant_opts.profile {
+            variants::Profile::Cesium => vec!["3DTILES_content_gltf".into()],
+            variants::Profile::Default => vec![],
+        },
         extensions_required: vec![],
-        extensions: None,
+        extensions: match variant_opts.profile {
+            variants::Profile::Cesium => Some(variants::cesium_content_gltf()),
+            variants::Profile::Default => None,
+        },
         extras: Some(serde_json::json!({
             "splat2tiles": {
                 "input": input_name,

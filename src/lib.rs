@@ -12,3 +12,4 @@ pub mod sim;
 pub mod splat;
 pub mod stream;
 pub mod tiling;
+pub mod variants;

@@ -411,8 +411,7 @@ fn reads_strided_quantised_layouts() {
         ],
         buffers: vec![Buffer {
             byte_length: bin.len() as u64,
-            uri: None,
-            name: None,
+            ..Default::default()
         }],
         extensions_used: vec!["KHR_gaussian_splatting".into()],
         ..Default::default()

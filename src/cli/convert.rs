@@ -5,6 +5,7 @@ use crate::convert::{ConvertOptions, NonFinitePolicy, SchemeChoice, convert};
 use crate::frame::UpAxis;
 use crate::frame::geo::Geodetic;
 use crate::lod::{LodOptions, MergeRule};
+use crate::variants::{ALL, Profile, Variant, VariantOptions};
 use clap::Args;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -56,6 +57,17 @@ pub struct ConvertArgs {
     /// within r*2^k) [default: 1/16 of the deepest leaf tile's edge, at least the median spacing].
     #[arg(long, value_parser = positive_f64)]
     pub lod_radius: Option<f64>,
+    /// Target clients: `default` (content.uri -> Best, lossless float) or `cesium` (content.uri ->
+    /// Low, SPZ_2, plus the 3DTILES_content_gltf declaration CesiumJS needs to render splats).
+    #[arg(long, value_enum, default_value_t = Profile::Default)]
+    pub profile: Profile,
+    /// Quality variants to write per tile: comma list of best, high, medium, low, or `all`
+    /// [default: the profile's default variant only]. Sizes and utilities go into the metadata.
+    #[arg(long, value_delimiter = ',', value_parser = parse_variant)]
+    pub variants: Vec<Vec<Variant>>,
+    /// Do not render tiles to measure variant utilities (stored as -1).
+    #[arg(long)]
+    pub no_utility: bool,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -86,6 +98,12 @@ pub fn run(args: ConvertArgs) -> i32 {
             merge: args.lod_merge,
             radius: args.lod_radius,
         },
+        variants: VariantOptions {
+            profile: args.profile,
+            variants: args.variants.iter().flatten().copied().collect(),
+            measure_utility: !args.no_utility,
+            ..Default::default()
+        },
     };
     crate::convert::remove_staging_on_interrupt();
     match convert(&args.input, &args.output, &opts) {
@@ -101,6 +119,7 @@ pub fn run(args: ConvertArgs) -> i32 {
                     "subtrees": r.subtrees, "bytes": r.bytes, "seconds": r.seconds,
                     "parentSplats": r.parent_splats, "lodRadius": r.lod_radius,
                     "lodSeconds": r.lod_seconds,
+                    "variants": variant_summary(&r),
                     "peakRssMiB": peak_rss_mib(),
                 });
                 println!("{v}");
@@ -142,6 +161,16 @@ pub fn run(args: ConvertArgs) -> i32 {
                         r.parent_splats, r.lod_radius, r.lod_seconds
                     );
                 }
+                if let Some(v) = variant_summary(&r).as_object().filter(|v| v.len() > 1) {
+                    for (name, row) in v {
+                        println!(
+                            "  variant {name:<6}: {:7.2} B/splat, utility mean {} worst {}",
+                            row["bytesPerSplat"].as_f64().unwrap_or(0.0),
+                            fmt_utility(&row["meanUtility"]),
+                            fmt_utility(&row["worstUtility"])
+                        );
+                    }
+                }
                 println!("  tileset: {}", tileset.display());
                 println!(
                     "  look at it: splat2tiles render {} --auto-view 0 -o view.png",
@@ -155,6 +184,56 @@ pub fn run(args: ConvertArgs) -> i32 {
             super::EXIT_FAILURE
         }
     }
+}
+
+/// Per variant: tiles, bytes, bytes per splat, mean and worst utility over the written tiles.
+fn variant_summary(r: &crate::convert::ConvertReport) -> serde_json::Value {
+    let mut out = serde_json::Map::new();
+    for v in ALL {
+        let i = v.index();
+        let tiles: Vec<_> = r
+            .contents
+            .iter()
+            .filter(|(_, f)| f.variant_bytes[i] > 0)
+            .collect();
+        if tiles.is_empty() {
+            continue;
+        }
+        let bytes: u64 = tiles.iter().map(|(_, f)| f.variant_bytes[i] as u64).sum();
+        let splats: u64 = tiles.iter().map(|(_, f)| f.splat_count as u64).sum();
+        let us: Vec<f64> = tiles
+            .iter()
+            .map(|(_, f)| f.variant_utility[i] as f64)
+            .filter(|u| *u >= 0.0)
+            .collect();
+        let mean = (!us.is_empty()).then(|| us.iter().sum::<f64>() / us.len() as f64);
+        let worst = us.iter().copied().reduce(f64::min);
+        out.insert(
+            v.name().into(),
+            serde_json::json!({
+                "tiles": tiles.len(), "bytes": bytes,
+                "bytesPerSplat": bytes as f64 / splats.max(1) as f64,
+                "meanUtility": mean, "worstUtility": worst,
+                "encodeSeconds": tiles.iter().map(|(_, f)| f.encode_seconds[i]).sum::<f64>(),
+            }),
+        );
+    }
+    out.into()
+}
+
+fn fmt_utility(v: &serde_json::Value) -> String {
+    v.as_f64()
+        .map_or_else(|| "-".to_string(), |u| format!("{u:.4}"))
+}
+
+/// Parses one `--variants` item: a variant name or `all`.
+fn parse_variant(s: &str) -> Result<Vec<Variant>, String> {
+    if s.eq_ignore_ascii_case("all") {
+        return Ok(ALL.to_vec());
+    }
+    <Variant as clap::ValueEnum>::from_str(s, true)
+        .map(|v| vec![v])
+        .map_err(|_| format!("unknown variant '{s}' (best, high, medium, low or all)"))
 }
 
 /// Peak resident memory of this process in MiB (Linux `VmHWM`), if the OS tells.

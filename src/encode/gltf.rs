@@ -10,6 +10,8 @@ use serde_json::{Map, Value};
 pub const KHR_GAUSSIAN_SPLATTING: &str = "KHR_gaussian_splatting";
 /// The SPZ v2 compression child extension (decoding it is not this module's job).
 pub const KHR_GAUSSIAN_SPLATTING_SPZ_2: &str = "KHR_gaussian_splatting_compression_spz_2";
+/// Vendor (ratified) bufferView compression extension with filters.
+pub const EXT_MESHOPT_COMPRESSION: &str = "EXT_meshopt_compression";
 /// Core glTF quantized vertex attributes extension.
 pub const KHR_MESH_QUANTIZATION: &str = "KHR_mesh_quantization";
 /// `bufferView.target` for vertex attribute data.
@@ -336,6 +338,9 @@ pub struct BufferView {
     /// Name.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
+    /// Extensions (e.g. `EXT_meshopt_compression`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extensions: Option<Map<String, Value>>,
 }
 
 /// A buffer; without `uri` in a glb it is the BIN chunk.
@@ -350,6 +355,9 @@ pub struct Buffer {
     /// Name.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
+    /// Extensions (e.g. the `EXT_meshopt_compression` fallback flag).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extensions: Option<Map<String, Value>>,
 }
 
 #[cfg(test)]

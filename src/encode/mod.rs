@@ -1,9 +1,13 @@
 //! glTF 2.0 / glb encoding of splat tiles with `KHR_gaussian_splatting`: own JSON structs,
-//! GLB framing, and the tile writer and reader (layout in ARCHITECTURE.md "glb tile layout").
+//! GLB framing, tile writers (float, interleaved, meshopt, SPZ_2) and their readers.
 
 pub mod glb;
 pub mod gltf;
+pub mod meshopt;
+pub mod prefix;
+pub mod spz2;
 pub mod tile;
 
 pub use glb::GlbError;
+pub use prefix::decode_prefix;
 pub use tile::{DecodedTile, TileLayout, read_tile_glb, try_write_tile_glb, write_tile_glb};

@@ -46,6 +46,9 @@ pub enum TileLayout {
     /// One tightly packed, 4-byte aligned bufferView per attribute.
     #[default]
     Separate,
+    /// One strided bufferView holding every attribute of a splat contiguously (splat order kept),
+    /// so any byte prefix of the BIN chunk holds complete leading splats (`spec/prefix-layout.md`).
+    Interleaved,
 }
 
 /// A tile decoded from a glb.
@@ -68,12 +71,12 @@ pub struct DecodedTile {
 }
 
 /// One attribute's data, ready to be laid out.
-struct Column {
-    semantic: String,
+pub(crate) struct Column {
+    pub(crate) semantic: String,
     kind: AccessorType,
     component: ComponentType,
     normalized: bool,
-    data: Vec<u8>,
+    pub(crate) data: Vec<u8>,
     min_max: Option<(Vec<f64>, Vec<f64>)>,
 }
 
@@ -103,7 +106,7 @@ fn round_unorm8(v: f32) -> u8 {
 }
 
 /// The attribute columns of a tile, in accessor order.
-fn columns(splats: &Splats, centre: [f64; 3]) -> Vec<Column> {
+pub(crate) fn columns(splats: &Splats, centre: [f64; 3]) -> Vec<Column> {
     let n = splats.len();
     let rel: Vec<[f32; 3]> = splats
         .positions
@@ -196,7 +199,7 @@ fn layout_separate(cols: &[Column], count: usize) -> (Vec<BufferView>, Vec<Acces
             byte_length: c.data.len() as u64,
             byte_stride: None,
             target: Some(TARGET_ARRAY_BUFFER),
-            name: None,
+            ..Default::default()
         });
         bin.extend_from_slice(&c.data);
         accessors.push(Accessor {
@@ -216,55 +219,58 @@ fn layout_separate(cols: &[Column], count: usize) -> (Vec<BufferView>, Vec<Acces
     (views, accessors, bin)
 }
 
-/// Writes a splat tile as glb: `POSITION` = splat centre - `centre` (subtracted in f64), one node
-/// with `node_matrix` (column-major; omitted when identity), all attributes float plus `COLOR_0`.
-///
-/// # Panics
-/// When [`try_write_tile_glb`] refuses: no splat, a non-finite value, or more than 4 GiB.
-pub fn write_tile_glb(splats: &Splats, centre: [f64; 3], node_matrix: [f64; 16]) -> Vec<u8> {
-    try_write_tile_glb(splats, centre, node_matrix, TileLayout::Separate)
-        .unwrap_or_else(|e| panic!("write_tile_glb: {e}"))
+/// Lays the columns out as one strided bufferView (all element sizes are multiples of 4, so
+/// every accessor offset and the stride are too, as glTF requires of vertex attributes).
+fn layout_interleaved(cols: &[Column], count: usize) -> (Vec<BufferView>, Vec<Accessor>, Vec<u8>) {
+    let stride: usize = cols.iter().map(Column::element_bytes).sum();
+    debug_assert!(cols.iter().all(|c| c.element_bytes() % 4 == 0) && stride <= 252);
+    let mut bin = vec![0u8; stride * count];
+    let mut accessors = Vec::with_capacity(cols.len());
+    let mut offset = 0;
+    for c in cols {
+        let e = c.element_bytes();
+        for (i, src) in c.data.chunks_exact(e).enumerate() {
+            bin[i * stride + offset..i * stride + offset + e].copy_from_slice(src);
+        }
+        accessors.push(Accessor {
+            buffer_view: Some(0),
+            byte_offset: offset as u64,
+            component_type: c.component.code(),
+            normalized: c.normalized,
+            count: count as u64,
+            kind: c.kind,
+            min: c.min_max.as_ref().map(|m| m.0.clone()),
+            max: c.min_max.as_ref().map(|m| m.1.clone()),
+            sparse: None,
+            name: None,
+        });
+        offset += e;
+    }
+    let views = vec![BufferView {
+        buffer: 0,
+        byte_length: bin.len() as u64,
+        byte_stride: Some(stride as u32),
+        target: Some(TARGET_ARRAY_BUFFER),
+        name: Some("splats (interleaved, prefix-renderable)".into()),
+        ..Default::default()
+    }];
+    (views, accessors, bin)
 }
 
-/// [`write_tile_glb`] with a chosen layout, refusing empty tiles, non-finite values (including a
-/// relative position that overflows f32) and glbs over 4 GiB instead of panicking.
-pub fn try_write_tile_glb(
-    splats: &Splats,
-    centre: [f64; 3],
+/// The one-node, one-mesh, one-POINTS-primitive document every splat tile shares; `children`
+/// are child extensions of `KHR_gaussian_splatting` (compression), `buffers` the buffers.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn splat_document(
+    attributes: std::collections::BTreeMap<String, u32>,
+    accessors: Vec<Accessor>,
+    buffer_views: Vec<BufferView>,
+    buffers: Vec<Buffer>,
     node_matrix: [f64; 16],
-    layout: TileLayout,
-) -> Result<Vec<u8>, GlbError> {
-    splats.check_lengths();
-    if splats.is_empty() {
-        return Err(GlbError::EmptyTile);
-    }
-    if let Some(index) = splats.first_non_finite() {
-        return Err(GlbError::NonFinite { index });
-    }
-    if let Some(index) = splats
-        .positions
-        .iter()
-        .position(|p| (0..3).any(|a| !((p[a] - centre[a]) as f32).is_finite()))
-    {
-        return Err(GlbError::NonFinite { index });
-    }
-    let n = splats.len();
-    // Per splat: 12 + 16 + 12 + 4 + 12 * (1 + rest) + 4 bytes; refuse before allocating.
-    let per_splat = 60 + 12 * sh_rest_count(splats.sh_degree) as u64;
-    let bytes = per_splat.saturating_mul(n as u64);
-    if bytes > u32::MAX as u64 {
-        return Err(GlbError::TooLarge { bytes });
-    }
-    let cols = columns(splats, centre);
-    let (buffer_views, accessors, bin) = match layout {
-        TileLayout::Separate => layout_separate(&cols, n),
-    };
-    let attributes = cols
-        .iter()
-        .enumerate()
-        .map(|(i, c)| (c.semantic.clone(), i as u32))
-        .collect();
-    let doc = Gltf {
+    children: Option<serde_json::Map<String, serde_json::Value>>,
+    extensions_used: Vec<String>,
+    extensions_required: Vec<String>,
+) -> Gltf {
+    Gltf {
         asset: Asset {
             version: "2.0".into(),
             generator: Some(GENERATOR.into()),
@@ -288,6 +294,7 @@ pub fn try_write_tile_glb(
                     gaussian_splatting: Some(KhrGaussianSplatting {
                         kernel: Some(KERNEL_ELLIPSE.into()),
                         color_space: Some(COLOR_SPACE_SRGB.into()),
+                        extensions: children,
                         ..Default::default()
                     }),
                     other: Default::default(),
@@ -298,14 +305,82 @@ pub fn try_write_tile_glb(
         }],
         accessors,
         buffer_views,
-        buffers: vec![Buffer {
-            byte_length: bin.len() as u64,
-            uri: None,
-            name: None,
-        }],
-        extensions_used: vec![KHR_GAUSSIAN_SPLATTING.into()],
+        buffers,
+        extensions_used,
+        extensions_required,
         ..Default::default()
+    }
+}
+
+/// Refuses what no tile writer can store: no splat, non-finite values, relative positions that
+/// overflow f32.
+pub(crate) fn check_writable(splats: &Splats, centre: [f64; 3]) -> Result<(), GlbError> {
+    splats.check_lengths();
+    if splats.is_empty() {
+        return Err(GlbError::EmptyTile);
+    }
+    if let Some(index) = splats.first_non_finite() {
+        return Err(GlbError::NonFinite { index });
+    }
+    if let Some(index) = splats
+        .positions
+        .iter()
+        .position(|p| (0..3).any(|a| !((p[a] - centre[a]) as f32).is_finite()))
+    {
+        return Err(GlbError::NonFinite { index });
+    }
+    Ok(())
+}
+
+/// Writes a splat tile as glb: `POSITION` = splat centre - `centre` (subtracted in f64), one node
+/// with `node_matrix` (column-major; omitted when identity), all attributes float plus `COLOR_0`.
+///
+/// # Panics
+/// When [`try_write_tile_glb`] refuses: no splat, a non-finite value, or more than 4 GiB.
+pub fn write_tile_glb(splats: &Splats, centre: [f64; 3], node_matrix: [f64; 16]) -> Vec<u8> {
+    try_write_tile_glb(splats, centre, node_matrix, TileLayout::Separate)
+        .unwrap_or_else(|e| panic!("write_tile_glb: {e}"))
+}
+
+/// [`write_tile_glb`] with a chosen layout, refusing empty tiles, non-finite values (including a
+/// relative position that overflows f32) and glbs over 4 GiB instead of panicking.
+pub fn try_write_tile_glb(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    layout: TileLayout,
+) -> Result<Vec<u8>, GlbError> {
+    check_writable(splats, centre)?;
+    let n = splats.len();
+    // Per splat: 12 + 16 + 12 + 4 + 12 * (1 + rest) + 4 bytes; refuse before allocating.
+    let per_splat = 60 + 12 * sh_rest_count(splats.sh_degree) as u64;
+    let bytes = per_splat.saturating_mul(n as u64);
+    if bytes > u32::MAX as u64 {
+        return Err(GlbError::TooLarge { bytes });
+    }
+    let cols = columns(splats, centre);
+    let (buffer_views, accessors, bin) = match layout {
+        TileLayout::Separate => layout_separate(&cols, n),
+        TileLayout::Interleaved => layout_interleaved(&cols, n),
     };
+    let attributes = cols
+        .iter()
+        .enumerate()
+        .map(|(i, c)| (c.semantic.clone(), i as u32))
+        .collect();
+    let doc = splat_document(
+        attributes,
+        accessors,
+        buffer_views,
+        vec![Buffer {
+            byte_length: bin.len() as u64,
+            ..Default::default()
+        }],
+        node_matrix,
+        None,
+        vec![KHR_GAUSSIAN_SPLATTING.into()],
+        vec![],
+    );
     write_gltf_glb(&doc, Some(&bin))
 }
 

@@ -200,9 +200,10 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         for path in &picked {
             let bytes =
                 std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-            let tile = crate::encode::tile::read_tile_glb(&bytes)
+            // Any variant: plain, EXT_meshopt_compression or SPZ_2 compressed.
+            let (splats, node) = crate::variants::decode_variant(&bytes)
                 .with_context(|| format!("{}", path.display()))?;
-            instances.push((tile.splats, content_model(&ts, &tile.node_matrix)));
+            instances.push((splats, content_model(&ts, &node)));
         }
         let note = format!("{} of {} tiles, ", picked.len(), ts.tiles.len());
         (instances, cam, note)

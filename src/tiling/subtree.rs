@@ -106,6 +106,8 @@ pub enum Column {
     F64(Vec<f64>),
     /// UINT32 values.
     U32(Vec<u32>),
+    /// FLOAT32 values.
+    F32(Vec<f32>),
     /// UINT64 values.
     U64(Vec<u64>),
 }
@@ -115,6 +117,7 @@ impl Column {
         match self {
             Column::F64(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
             Column::U32(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            Column::F32(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
             Column::U64(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
         }
     }

@@ -17,6 +17,9 @@ pub struct Tileset {
     /// Metadata schema (classes of tile and content metadata).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub schema: Option<Value>,
+    /// Tileset-level metadata entity (`class` + `properties`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metadata: Option<Value>,
     /// Extensions used.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub extensions_used: Vec<String>,
@@ -113,8 +116,21 @@ pub const TILE_CLASS: &str = "tile";
 pub const CONTENT_CLASS: &str = "splatContent";
 
 /// The metadata schema our tilesets declare: tight tile boxes and geometric errors (standard
-/// semantics that override the implicit ones), and per-content splat counts.
+/// semantics that override the implicit ones), per-content splat counts and quality variants.
 pub fn schema() -> Value {
+    let mut s = base_schema();
+    let (variants_class, content_props) = crate::variants::schema_properties();
+    s["classes"][crate::variants::VARIANTS_CLASS] = variants_class;
+    if let (Some(props), Some(extra)) = (
+        s["classes"][CONTENT_CLASS]["properties"].as_object_mut(),
+        content_props.as_object(),
+    ) {
+        props.extend(extra.clone());
+    }
+    s
+}
+
+fn base_schema() -> Value {
     json!({
         "id": "splat2tiles",
         "classes": {

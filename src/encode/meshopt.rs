@@ -1,0 +1,492 @@
+//! Quantized splat tiles through `EXT_meshopt_compression` (High / Medium variants): float
+//! attributes through its EXPONENTIAL filter, rotations through QUATERNION; reference decoder.
+
+use std::collections::BTreeMap;
+
+use serde_json::{Map, Value, json};
+
+use super::glb::{GlbError, parse_json, read_glb, write_gltf_glb};
+use super::gltf::{
+    Accessor, AccessorType, Buffer, BufferView, ComponentType, EXT_MESHOPT_COMPRESSION, Gltf,
+    KHR_GAUSSIAN_SPLATTING, TARGET_ARRAY_BUFFER,
+};
+use super::tile::{
+    ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, check_writable, columns,
+    sh_attribute, splat_document,
+};
+use crate::splat::Splats;
+use meshopt::EncodeExpMode;
+
+/// Mantissa bits (EXPONENTIAL filter) and quaternion bits (QUATERNION filter) of one level.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MeshoptLevel {
+    /// POSITION mantissa bits, exponent shared by the three components.
+    pub position_bits: i32,
+    /// ROTATION bits per component (4..=16), stored as normalized i16.
+    pub rotation_bits: i32,
+    /// SCALE mantissa bits, one exponent per component.
+    pub scale_bits: i32,
+    /// OPACITY mantissa bits.
+    pub opacity_bits: i32,
+    /// SH degree 0 mantissa bits, exponent shared by RGB.
+    pub sh0_bits: i32,
+    /// Higher SH mantissa bits, exponent shared by RGB of each coefficient.
+    pub sh_rest_bits: i32,
+    /// Highest SH degree kept (lower of this and the input's).
+    pub max_sh_degree: u8,
+}
+
+/// The High variant's bit depths.
+pub const HIGH: MeshoptLevel = MeshoptLevel {
+    position_bits: 16,
+    rotation_bits: 12,
+    scale_bits: 9,
+    opacity_bits: 8,
+    sh0_bits: 9,
+    sh_rest_bits: 6,
+    max_sh_degree: 3,
+};
+
+/// The Medium variant's bit depths.
+pub const MEDIUM: MeshoptLevel = MeshoptLevel {
+    position_bits: 13,
+    rotation_bits: 9,
+    scale_bits: 6,
+    opacity_bits: 6,
+    sh0_bits: 7,
+    sh_rest_bits: 4,
+    max_sh_degree: 2,
+};
+
+/// One compressed stream: its decoded bytes (already filtered), stride, filter, accessors.
+struct Stream {
+    data: Vec<u8>,
+    stride: usize,
+    filter: &'static str,
+    /// (semantic, type, component, normalized, byte offset in the element, min/max)
+    accessors: Vec<AccSpec>,
+}
+
+struct AccSpec {
+    semantic: String,
+    kind: AccessorType,
+    component: ComponentType,
+    normalized: bool,
+    offset: usize,
+    min_max: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+fn spec(semantic: String, kind: AccessorType, component: ComponentType, offset: usize) -> AccSpec {
+    AccSpec {
+        semantic,
+        kind,
+        component,
+        normalized: false,
+        offset,
+        min_max: None,
+    }
+}
+
+fn words<const N: usize>(v: &[[u32; N]]) -> Vec<u8> {
+    v.iter().flatten().flat_map(|w| w.to_le_bytes()).collect()
+}
+
+/// Encodes floats with the EXPONENTIAL filter; returns the filtered bytes and decoded values.
+fn exp3(v: &[[f32; 3]], bits: i32, mode: EncodeExpMode) -> (Vec<u8>, Vec<f32>) {
+    let enc = meshopt::encode_filter_exp::<3>(v, bits, mode);
+    let bytes = words(&enc);
+    (bytes.clone(), unfilter_exp(bytes))
+}
+
+/// Applies the EXPONENTIAL filter's decoding to a copy (what a client will see).
+fn unfilter_exp(mut bytes: Vec<u8>) -> Vec<f32> {
+    filter_in_place(&mut bytes, 4, "EXPONENTIAL");
+    bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect()
+}
+
+/// Runs a meshopt decode filter over `data` (elements of `stride` bytes) in place.
+fn filter_in_place(data: &mut [u8], stride: usize, filter: &str) {
+    let count = data.len() / stride;
+    if count == 0 {
+        return;
+    }
+    // SAFETY: `data` holds exactly `count * stride` bytes; the filters read and write only
+    // within `count` elements of `stride` bytes, and accept any alignment.
+    unsafe {
+        match filter {
+            "EXPONENTIAL" => meshopt::ffi::meshopt_decodeFilterExp(
+                data.as_mut_ptr().cast(),
+                count * stride / 4,
+                4,
+            ),
+            "QUATERNION" => {
+                meshopt::ffi::meshopt_decodeFilterQuat(data.as_mut_ptr().cast(), count, stride)
+            }
+            _ => {}
+        }
+    }
+}
+
+fn min_max3(v: &[f32]) -> (Vec<f64>, Vec<f64>) {
+    let mut lo = [f32::MAX; 3];
+    let mut hi = [f32::MIN; 3];
+    for p in v.chunks_exact(3) {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    (lo.map(f64::from).to_vec(), hi.map(f64::from).to_vec())
+}
+
+/// Encodes a meshopt ATTRIBUTES stream (bitstream version 0, the one EXT_meshopt_compression
+/// allows).
+fn encode_attributes(data: &[u8], stride: usize) -> Vec<u8> {
+    let count = data.len() / stride;
+    // SAFETY: the bound is computed for this count and stride; the encoder writes at most
+    // `bound` bytes into `out` and reads `count * stride` bytes of `data`.
+    unsafe {
+        let bound = meshopt::ffi::meshopt_encodeVertexBufferBound(count, stride);
+        let mut out = vec![0u8; bound];
+        let n = meshopt::ffi::meshopt_encodeVertexBufferLevel(
+            out.as_mut_ptr(),
+            out.len(),
+            data.as_ptr().cast(),
+            count,
+            stride,
+            2,
+            0,
+        );
+        out.truncate(n);
+        out
+    }
+}
+
+/// Decodes a meshopt ATTRIBUTES stream into `count * stride` bytes.
+fn decode_attributes(src: &[u8], count: usize, stride: usize) -> Option<Vec<u8>> {
+    let mut out = vec![0u8; count.checked_mul(stride)?];
+    // SAFETY: `out` holds `count * stride` bytes; the decoder validates `src` (any content is
+    // safe to decode) and writes only within `out`.
+    let rc = unsafe {
+        meshopt::ffi::meshopt_decodeVertexBuffer(
+            out.as_mut_ptr().cast(),
+            count,
+            stride,
+            src.as_ptr(),
+            src.len(),
+        )
+    };
+    (rc == 0).then_some(out)
+}
+
+/// The streams of a tile at `level`.
+fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Stream> {
+    let n = splats.len();
+    use AccessorType::{Scalar, Vec3, Vec4};
+    use ComponentType::{F32, I16, U8};
+    let rel: Vec<[f32; 3]> = splats
+        .positions
+        .iter()
+        .map(|p| [0, 1, 2].map(|a| (p[a] - centre[a]) as f32))
+        .collect();
+    let (pos_bytes, pos_dec) = exp3(&rel, level.position_bits, EncodeExpMode::SharedVector);
+    let mut pos = spec(ATTR_POSITION.into(), Vec3, F32, 0);
+    pos.min_max = Some(min_max3(&pos_dec));
+
+    let quats = meshopt::encode_filter_quat(&splats.rotations, level.rotation_bits);
+    let rot_bytes: Vec<u8> = quats
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let mut rot = spec(ATTR_ROTATION.into(), Vec4, I16, 0);
+    rot.normalized = true;
+
+    let (scale_bytes, _) = exp3(&splats.scales, level.scale_bits, EncodeExpMode::Separate);
+    let op: Vec<[f32; 1]> = splats.opacities.iter().map(|&a| [a]).collect();
+    let op_bytes = words(&meshopt::encode_filter_exp::<1>(
+        &op,
+        level.opacity_bits,
+        EncodeExpMode::Separate,
+    ));
+    let (sh0_bytes, _) = exp3(&splats.sh0, level.sh0_bits, EncodeExpMode::SharedVector);
+
+    let mut out = vec![
+        Stream {
+            data: pos_bytes,
+            stride: 12,
+            filter: "EXPONENTIAL",
+            accessors: vec![pos],
+        },
+        Stream {
+            data: rot_bytes,
+            stride: 8,
+            filter: "QUATERNION",
+            accessors: vec![rot],
+        },
+        Stream {
+            data: scale_bytes,
+            stride: 12,
+            filter: "EXPONENTIAL",
+            accessors: vec![spec(ATTR_SCALE.into(), Vec3, F32, 0)],
+        },
+        Stream {
+            data: op_bytes,
+            stride: 4,
+            filter: "EXPONENTIAL",
+            accessors: vec![spec(ATTR_OPACITY.into(), Scalar, F32, 0)],
+        },
+        Stream {
+            data: sh0_bytes,
+            stride: 12,
+            filter: "EXPONENTIAL",
+            accessors: vec![spec(sh_attribute(0, 0), Vec3, F32, 0)],
+        },
+    ];
+    let degree = splats.sh_degree.min(level.max_sh_degree);
+    if degree > 0 {
+        let k_in = splats.rest_per_splat();
+        let k = crate::splat::sh_rest_count(degree);
+        let kept: Vec<[f32; 3]> = (0..n)
+            .flat_map(|i| splats.sh_rest[i * k_in..i * k_in + k].iter().copied())
+            .collect();
+        let (bytes, _) = exp3(&kept, level.sh_rest_bits, EncodeExpMode::SharedVector);
+        let mut accs = vec![];
+        for l in 1..=degree {
+            for c in 0..=2 * l {
+                let j = (l as usize).pow(2) - 1 + c as usize;
+                accs.push(spec(sh_attribute(l, c), Vec3, F32, j * 12));
+            }
+        }
+        out.push(Stream {
+            data: bytes,
+            stride: 12 * k,
+            filter: "EXPONENTIAL",
+            accessors: accs,
+        });
+    }
+    let color = columns(splats, centre)
+        .into_iter()
+        .find(|c| c.semantic == ATTR_COLOR_0)
+        .expect("columns always hold COLOR_0");
+    let mut c = spec(ATTR_COLOR_0.into(), Vec4, U8, 0);
+    c.normalized = true;
+    out.push(Stream {
+        data: color.data,
+        stride: 4,
+        filter: "NONE",
+        accessors: vec![c],
+    });
+    out
+}
+
+/// Writes a splat tile compressed with `EXT_meshopt_compression` (required; the uncompressed
+/// layout lives in a fallback buffer without data) at the bit depths of `level`.
+pub fn write_meshopt_glb(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    level: &MeshoptLevel,
+) -> Result<Vec<u8>, GlbError> {
+    check_writable(splats, centre)?;
+    let n = splats.len();
+    let mut bin = Vec::new();
+    let mut views = Vec::new();
+    let mut accessors = Vec::new();
+    let mut attributes = BTreeMap::new();
+    let mut fallback_len = 0u64;
+    for (vi, s) in streams(splats, centre, level).into_iter().enumerate() {
+        let compressed = encode_attributes(&s.data, s.stride);
+        bin.resize(bin.len().next_multiple_of(4), 0);
+        let mut ext = Map::new();
+        let mut obj = json!({
+            "buffer": 0, "byteOffset": bin.len(), "byteLength": compressed.len(),
+            "byteStride": s.stride, "count": n, "mode": "ATTRIBUTES",
+        });
+        if s.filter != "NONE" {
+            obj["filter"] = Value::from(s.filter);
+        }
+        ext.insert(EXT_MESHOPT_COMPRESSION.into(), obj);
+        bin.extend_from_slice(&compressed);
+        views.push(BufferView {
+            buffer: 1,
+            byte_offset: fallback_len,
+            byte_length: s.data.len() as u64,
+            byte_stride: Some(s.stride as u32),
+            target: Some(TARGET_ARRAY_BUFFER),
+            extensions: Some(ext),
+            ..Default::default()
+        });
+        fallback_len += s.data.len().next_multiple_of(4) as u64;
+        for a in s.accessors {
+            attributes.insert(a.semantic.clone(), accessors.len() as u32);
+            accessors.push(Accessor {
+                buffer_view: Some(vi as u32),
+                byte_offset: a.offset as u64,
+                component_type: a.component.code(),
+                normalized: a.normalized,
+                count: n as u64,
+                kind: a.kind,
+                min: a.min_max.as_ref().map(|m| m.0.clone()),
+                max: a.min_max.map(|m| m.1),
+                sparse: None,
+                name: None,
+            });
+        }
+    }
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let mut fallback = Map::new();
+    fallback.insert(EXT_MESHOPT_COMPRESSION.into(), json!({ "fallback": true }));
+    let buffers = vec![
+        Buffer {
+            byte_length: bin.len() as u64,
+            ..Default::default()
+        },
+        Buffer {
+            byte_length: fallback_len,
+            extensions: Some(fallback),
+            ..Default::default()
+        },
+    ];
+    let doc = splat_document(
+        attributes,
+        accessors,
+        views,
+        buffers,
+        node_matrix,
+        None,
+        vec![
+            KHR_GAUSSIAN_SPLATTING.into(),
+            EXT_MESHOPT_COMPRESSION.into(),
+        ],
+        vec![EXT_MESHOPT_COMPRESSION.into()],
+    );
+    write_gltf_glb(&doc, Some(&bin))
+}
+
+/// Reference decoder: turns an `EXT_meshopt_compression` glb into a plain glb (every compressed
+/// bufferView decoded and unfiltered into one BIN chunk) that [`super::read_tile_glb`] reads.
+/// A glb without the extension is returned unchanged.
+pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
+    let chunks = read_glb(bytes)?;
+    let mut doc: Gltf = parse_json(&chunks)?;
+    if !doc
+        .extensions_used
+        .iter()
+        .any(|e| e == EXT_MESHOPT_COMPRESSION)
+    {
+        return Ok(bytes.to_vec());
+    }
+    let bin = chunks.bin.unwrap_or(&[]);
+    let mut out = Vec::new();
+    for (i, view) in doc.buffer_views.iter_mut().enumerate() {
+        let path = format!("/bufferViews/{i}/extensions/{EXT_MESHOPT_COMPRESSION}");
+        let ext = view
+            .extensions
+            .as_mut()
+            .and_then(|e| e.remove(EXT_MESHOPT_COMPRESSION));
+        out.resize(out.len().next_multiple_of(4), 0);
+        let data = match ext {
+            Some(ext) => {
+                let field = |k: &str| ext.get(k).and_then(Value::as_u64);
+                let (Some(off), Some(len), Some(stride), Some(count)) = (
+                    field("byteOffset").or(Some(0)),
+                    field("byteLength"),
+                    field("byteStride"),
+                    field("count"),
+                ) else {
+                    return Err(GlbError::invalid(
+                        path,
+                        "missing byteLength/byteStride/count",
+                    ));
+                };
+                if field("buffer") != Some(0) || ext.get("mode") != Some(&json!("ATTRIBUTES")) {
+                    return Err(GlbError::unsupported(
+                        path,
+                        "only ATTRIBUTES streams in the BIN chunk",
+                    ));
+                }
+                let src = bin
+                    .get(off as usize..(off + len) as usize)
+                    .ok_or_else(|| GlbError::invalid(&path, "stream runs past the BIN chunk"))?;
+                if count * stride > bytes.len() as u64 * 1032 + 4096 {
+                    return Err(GlbError::invalid(
+                        &path,
+                        "count * byteStride is implausible",
+                    ));
+                }
+                let mut data = decode_attributes(src, count as usize, stride as usize)
+                    .ok_or_else(|| GlbError::invalid(&path, "meshopt stream does not decode"))?;
+                let filter = ext.get("filter").and_then(Value::as_str).unwrap_or("NONE");
+                filter_in_place(&mut data, stride as usize, filter);
+                data
+            }
+            None => {
+                let b = if view.buffer == 0 { bin } else { &[][..] };
+                b.get(view.byte_offset as usize..(view.byte_offset + view.byte_length) as usize)
+                    .ok_or_else(|| GlbError::invalid(format!("/bufferViews/{i}"), "out of range"))?
+                    .to_vec()
+            }
+        };
+        view.buffer = 0;
+        view.byte_offset = out.len() as u64;
+        view.byte_length = data.len() as u64;
+        view.extensions = None;
+        out.extend_from_slice(&data);
+    }
+    out.resize(out.len().next_multiple_of(4), 0);
+    doc.buffers = vec![Buffer {
+        byte_length: out.len() as u64,
+        ..Default::default()
+    }];
+    doc.extensions_used.retain(|e| e != EXT_MESHOPT_COMPRESSION);
+    doc.extensions_required
+        .retain(|e| e != EXT_MESHOPT_COMPRESSION);
+    write_gltf_glb(&doc, Some(&out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encode::tile::{IDENTITY, read_tile_glb};
+    use crate::splat::{Splat, normalize_quat};
+
+    #[test]
+    fn high_and_medium_decode_within_their_bit_depths() {
+        let mut s = Splats::new(3);
+        for i in 0..300 {
+            let f = i as f32 / 300.0;
+            s.push(
+                Splat {
+                    position: [f as f64 * 4.0 - 2.0, (f * 7.0).sin() as f64, 0.3],
+                    scale: [0.01 + f * 0.1, 0.02, 0.5],
+                    rotation: normalize_quat([f - 0.5, 0.3, -0.2, 0.7 - f]),
+                    opacity: f,
+                    sh0: [f - 0.5, 1.0, -1.2],
+                },
+                &[[0.1 * f, -0.2, 0.3]; 15],
+            );
+        }
+        for (level, tol) in [(HIGH, 1e-4), (MEDIUM, 1e-3)] {
+            let glb = write_meshopt_glb(&s, [0.0; 3], IDENTITY, &level).unwrap();
+            let plain = decompress_meshopt_glb(&glb).unwrap();
+            let d = read_tile_glb(&plain).unwrap().splats;
+            assert_eq!(d.len(), 300);
+            assert_eq!(d.sh_degree, level.max_sh_degree.min(3));
+            for i in 0..300 {
+                let (a, b) = (s.get(i), d.get(i));
+                for k in 0..3 {
+                    assert!((a.position[k] - b.position[k]).abs() < 2.0 * 2.0 * tol);
+                    let rel = (a.scale[k] - b.scale[k]).abs() / a.scale[k];
+                    assert!(rel < 0.05, "scale {i} {k}: {rel}");
+                }
+                let dot: f32 = (0..4).map(|k| a.rotation[k] * b.rotation[k]).sum();
+                assert!(dot.abs() > 0.99, "rotation {i}: {dot}");
+                assert!((a.opacity - b.opacity).abs() < 0.05);
+            }
+        }
+    }
+}

@@ -1,0 +1,333 @@
+//! SPZ v2 encoder (Niantic layout, CesiumJS conventions) and `KHR_gaussian_splatting_compression_spz_2`
+//! tiles: the SPZ payload in the BIN chunk, accessors without bufferView; reference decoder.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+
+use serde_json::{Map, json};
+
+use super::glb::{GlbError, parse_json, read_glb, write_gltf_glb};
+use super::gltf::{
+    Accessor, AccessorType, Buffer, BufferView, ComponentType, KHR_GAUSSIAN_SPLATTING,
+    KHR_GAUSSIAN_SPLATTING_SPZ_2,
+};
+use super::tile::{
+    ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, IDENTITY, check_writable,
+    sh_attribute, splat_document,
+};
+use crate::splat::{Splats, normalize_quat, sh_rest_count};
+
+/// Settings of the SPZ v2 encoder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SpzOptions {
+    /// Highest SH degree written (lower of this and the input's).
+    pub max_sh_degree: u8,
+    /// Significant bits of degree-1 SH bytes (upstream default 5).
+    pub sh1_bits: u8,
+    /// Significant bits of degree-2/3 SH bytes (upstream default 4).
+    pub sh_rest_bits: u8,
+}
+
+impl Default for SpzOptions {
+    fn default() -> Self {
+        SpzOptions {
+            max_sh_degree: 3,
+            sh1_bits: 5,
+            sh_rest_bits: 4,
+        }
+    }
+}
+
+/// Fractional bits of the 24-bit fixed-point positions: the most that keep `max_abs` in range.
+pub fn fractional_bits(max_abs: f64) -> u8 {
+    if max_abs.is_nan() || max_abs <= 0.0 {
+        return 12;
+    }
+    let limit = ((1u32 << 23) - 1) as f64;
+    (limit / max_abs).log2().floor().clamp(0.0, 23.0) as u8
+}
+
+fn q8(v: f32) -> u8 {
+    v.round().clamp(0.0, 255.0) as u8
+}
+
+/// The SPZ v2 stream before gzip: 16-byte header (`NGSP`, version 2, count, SH degree,
+/// fractional bits, flags 0, reserved 0) then positions, alphas, colours, scales, rotations, SH.
+/// Positions are `position - centre` (no axis change: CesiumJS uses them as glTF coordinates).
+pub fn encode_spz_v2_raw(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -> Vec<u8> {
+    let n = splats.len();
+    let degree = splats.sh_degree.min(opts.max_sh_degree);
+    let k = sh_rest_count(degree);
+    let k_in = splats.rest_per_splat();
+    let rel: Vec<[f64; 3]> = splats
+        .positions
+        .iter()
+        .map(|p| [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]])
+        .collect();
+    let max_abs = rel.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let fb = fractional_bits(max_abs);
+    let mut out = Vec::with_capacity(16 + n * (19 + 3 * k));
+    out.extend_from_slice(b"NGSP");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(n as u32).to_le_bytes());
+    out.extend_from_slice(&[degree, fb, 0, 0]);
+    let scale = (1u64 << fb) as f64;
+    for p in &rel {
+        for v in p {
+            let f = (v * scale)
+                .round()
+                .clamp(-(1 << 23) as f64, ((1 << 23) - 1) as f64) as i32;
+            out.extend_from_slice(&f.to_le_bytes()[..3]);
+        }
+    }
+    out.extend(splats.opacities.iter().map(|&a| q8(a * 255.0)));
+    for c in &splats.sh0 {
+        out.extend(c.iter().map(|&d| q8(d * 0.15 * 255.0 + 127.5)));
+    }
+    for s in &splats.scales {
+        out.extend(s.iter().map(|&v| q8((v.max(1e-30).ln() + 10.0) * 16.0)));
+    }
+    for q in &splats.rotations {
+        let mut q = normalize_quat(*q);
+        if q[3] < 0.0 {
+            q = q.map(|v| -v);
+        }
+        out.extend(q[..3].iter().map(|&v| q8(v * 127.5 + 127.5)));
+    }
+    let bucket = |v: f32, bits: u8| -> u8 {
+        let q = (v * 128.0 + 128.0).round().clamp(0.0, 255.0) as u32;
+        let b = 1u32 << (8 - bits.clamp(1, 8));
+        (((q + b / 2) / b) * b).min(255) as u8
+    };
+    for i in 0..n {
+        for (j, t) in splats.sh_rest[i * k_in..i * k_in + k].iter().enumerate() {
+            let bits = if j < 3 {
+                opts.sh1_bits
+            } else {
+                opts.sh_rest_bits
+            };
+            out.extend(t.iter().map(|&v| bucket(v, bits)));
+        }
+    }
+    out
+}
+
+/// Gzips `raw` (the SPZ v2 container is a gzip stream).
+pub fn gzip(raw: &[u8]) -> Vec<u8> {
+    let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    enc.write_all(raw).expect("writing to memory");
+    enc.finish().expect("writing to memory")
+}
+
+/// The SPZ v2 file of `splats` (gzip of [`encode_spz_v2_raw`]).
+pub fn encode_spz_v2(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -> Vec<u8> {
+    gzip(&encode_spz_v2_raw(splats, centre, opts))
+}
+
+fn float_acc(kind: AccessorType, n: usize) -> Accessor {
+    Accessor {
+        buffer_view: None,
+        byte_offset: 0,
+        component_type: ComponentType::F32.code(),
+        normalized: false,
+        count: n as u64,
+        kind,
+        min: None,
+        max: None,
+        sparse: None,
+        name: None,
+    }
+}
+
+/// Writes a `KHR_gaussian_splatting_compression_spz_2` tile: the SPZ v2 payload as bufferView 0,
+/// accessors (no bufferView) for POSITION, COLOR_0 (DC colour, opacity in alpha), ROTATION,
+/// SCALE, OPACITY and SH degrees 1..=d; no `SH_DEGREE_0_COEF_0` (CesiumJS counts `SH_DEGREE_`
+/// attributes to find the degree). POSITION min/max are the decoded payload's.
+pub fn write_spz2_glb(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    opts: &SpzOptions,
+) -> Result<Vec<u8>, GlbError> {
+    check_writable(splats, centre)?;
+    let n = splats.len();
+    let raw = encode_spz_v2_raw(splats, centre, opts);
+    let payload = gzip(&raw);
+    if payload.len() as u64 > u32::MAX as u64 {
+        return Err(GlbError::TooLarge {
+            bytes: payload.len() as u64,
+        });
+    }
+    let decoded = crate::io::read_bytes("tile.spz", &payload)
+        .map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))?
+        .splats;
+    let (lo, hi) = decoded.bounds().expect("at least one splat");
+    let degree = decoded.sh_degree;
+    let mut accessors = vec![];
+    let mut attributes = BTreeMap::new();
+    let mut add = |name: String, acc: Accessor| {
+        attributes.insert(name, accessors.len() as u32);
+        accessors.push(acc);
+    };
+    let mut pos = float_acc(AccessorType::Vec3, n);
+    pos.min = Some(lo.to_vec());
+    pos.max = Some(hi.to_vec());
+    add(ATTR_POSITION.into(), pos);
+    add(ATTR_COLOR_0.into(), float_acc(AccessorType::Vec4, n));
+    add(ATTR_ROTATION.into(), float_acc(AccessorType::Vec4, n));
+    add(ATTR_SCALE.into(), float_acc(AccessorType::Vec3, n));
+    add(ATTR_OPACITY.into(), float_acc(AccessorType::Scalar, n));
+    for l in 1..=degree {
+        for c in 0..=2 * l {
+            add(sh_attribute(l, c), float_acc(AccessorType::Vec3, n));
+        }
+    }
+    let mut children = Map::new();
+    children.insert(
+        KHR_GAUSSIAN_SPLATTING_SPZ_2.into(),
+        json!({ "bufferView": 0 }),
+    );
+    let mut bin = payload;
+    let len = bin.len();
+    bin.resize(len.next_multiple_of(4), 0);
+    let exts = vec![
+        KHR_GAUSSIAN_SPLATTING.to_string(),
+        KHR_GAUSSIAN_SPLATTING_SPZ_2.to_string(),
+    ];
+    let doc = splat_document(
+        attributes,
+        accessors,
+        vec![BufferView {
+            buffer: 0,
+            byte_length: len as u64,
+            ..Default::default()
+        }],
+        vec![Buffer {
+            byte_length: bin.len() as u64,
+            ..Default::default()
+        }],
+        node_matrix,
+        Some(children),
+        exts.clone(),
+        exts,
+    );
+    write_gltf_glb(&doc, Some(&bin))
+}
+
+/// The SPZ payload of a `KHR_gaussian_splatting_compression_spz_2` glb, if it is one.
+pub fn spz2_payload(bytes: &[u8]) -> Result<Option<Vec<u8>>, GlbError> {
+    let chunks = read_glb(bytes)?;
+    let doc = parse_json(&chunks)?;
+    let view = doc
+        .meshes
+        .first()
+        .and_then(|m| m.primitives.first())
+        .and_then(|p| p.extensions.as_ref())
+        .and_then(|e| e.gaussian_splatting.as_ref())
+        .and_then(|g| g.extensions.as_ref())
+        .and_then(|c| c.get(KHR_GAUSSIAN_SPLATTING_SPZ_2))
+        .and_then(|o| o.get("bufferView"))
+        .and_then(|v| v.as_u64());
+    let Some(v) = view else { return Ok(None) };
+    let bv = doc
+        .buffer_views
+        .get(v as usize)
+        .ok_or_else(|| GlbError::invalid("/bufferViews", format!("bufferView {v} missing")))?;
+    let bin = chunks
+        .bin
+        .ok_or_else(|| GlbError::invalid("/buffers/0", "no BIN chunk"))?;
+    let range = bv.byte_offset as usize..(bv.byte_offset + bv.byte_length) as usize;
+    Ok(Some(
+        bin.get(range)
+            .ok_or_else(|| GlbError::invalid(format!("/bufferViews/{v}"), "past the BIN chunk"))?
+            .to_vec(),
+    ))
+}
+
+/// Reference decoder of our SPZ_2 tiles: splats (tile-relative, as stored) and node matrix.
+pub fn read_spz2_glb(bytes: &[u8]) -> Result<(Splats, [f64; 16]), GlbError> {
+    let payload = spz2_payload(bytes)?
+        .ok_or_else(|| GlbError::invalid("/meshes/0/primitives/0", "no SPZ_2 extension"))?;
+    let splats = crate::io::read_bytes("tile.spz", &payload)
+        .map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))?
+        .splats;
+    let doc = parse_json(&read_glb(bytes)?)?;
+    let m = doc.nodes.first().and_then(|n| n.matrix).unwrap_or(IDENTITY);
+    Ok((splats, m))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::splat::Splat;
+
+    fn scene() -> Splats {
+        let mut s = Splats::new(3);
+        for i in 0..50 {
+            let f = i as f32 / 50.0;
+            s.push(
+                Splat {
+                    position: [10.0 + f as f64, -3.0 * f as f64, 2.0],
+                    scale: [0.01 + f * 0.1, 0.02, 0.5],
+                    rotation: normalize_quat([f - 0.5, 0.3, -0.2, 0.7 - f]),
+                    opacity: f,
+                    sh0: [f - 0.5, 1.0, -1.2],
+                },
+                &[[0.1 * f, -0.2, 0.3]; 15],
+            );
+        }
+        s
+    }
+
+    #[test]
+    fn spz_v2_round_trips_through_the_reader() {
+        let s = scene();
+        let centre = [10.5, -1.0, 2.0];
+        let opts = SpzOptions::default();
+        let bytes = encode_spz_v2(&s, centre, &opts);
+        let d = crate::io::read_bytes("t.spz", &bytes).unwrap().splats;
+        assert_eq!((d.len(), d.sh_degree), (50, 3));
+        let step = 0.5f64.powi(fractional_bits(1.5) as i32);
+        #[allow(clippy::needless_range_loop)] // k indexes five arrays at once
+        for i in 0..50 {
+            let (a, b) = (s.get(i), d.get(i));
+            for k in 0..3 {
+                assert!((a.position[k] - centre[k] - b.position[k]).abs() <= step);
+                assert!((a.sh0[k] - b.sh0[k]).abs() <= 0.5 / (0.15 * 255.0) + 1e-6);
+                let r = (b.scale[k] / a.scale[k]).ln().abs();
+                assert!(r <= 0.5 / 16.0 + 1e-5, "scale {i}");
+            }
+            assert!((a.opacity - b.opacity).abs() <= 0.5 / 255.0 + 1e-6);
+            let dot: f32 = (0..4).map(|k| a.rotation[k] * b.rotation[k]).sum();
+            assert!(dot.abs() > 0.995, "rotation {i}: {dot}");
+            for (x, y) in s.rest_of(i).iter().zip(d.rest_of(i)) {
+                for k in 0..3 {
+                    // 4 significant bits: buckets of 16/128.
+                    assert!((x[k] - y[k]).abs() <= 8.5 / 128.0 + 1e-6, "{x:?} {y:?}");
+                }
+            }
+        }
+        let low = encode_spz_v2_raw(
+            &s,
+            centre,
+            &SpzOptions {
+                max_sh_degree: 1,
+                ..opts
+            },
+        );
+        assert_eq!(low.len(), 16 + 50 * (19 + 9));
+    }
+
+    #[test]
+    fn spz2_tile_decodes_and_declares_cesium_attributes() {
+        let s = scene();
+        let glb = write_spz2_glb(&s, [10.0, 0.0, 2.0], IDENTITY, &SpzOptions::default()).unwrap();
+        let (d, m) = read_spz2_glb(&glb).unwrap();
+        assert_eq!((d.len(), m), (50, IDENTITY));
+        let doc = parse_json(&read_glb(&glb).unwrap()).unwrap();
+        let a = &doc.meshes[0].primitives[0].attributes;
+        assert!(!a.contains_key(&sh_attribute(0, 0)));
+        assert_eq!(a.keys().filter(|k| k.contains("SH_DEGREE_")).count(), 15);
+        assert!(doc.accessors.iter().all(|x| x.buffer_view.is_none()));
+    }
+}

@@ -1,0 +1,565 @@
+//! Quality variants of a tile (Best / High / Medium / Low, TileSplat Table 6): the per-tile
+//! writer shared by leaves and LOD parents, their decoders, measured utilities and metadata.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::{DMat3, DMat4, DVec3};
+use serde_json::{Value, json};
+
+use crate::encode::GlbError;
+use crate::encode::gltf::EXT_MESHOPT_COMPRESSION;
+use crate::encode::meshopt::{HIGH, MEDIUM, decompress_meshopt_glb, write_meshopt_glb};
+use crate::encode::spz2::{SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb};
+use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
+use crate::render::camera::DEFAULT_FOV_Y_DEG;
+use crate::render::{RenderOptions, auto_views_with, render_splats, ssim};
+use crate::splat::Splats;
+use crate::tiling::load::{LoadedTileset, expand_template, resolve_inside};
+use crate::tiling::subtree::{self, read_subtree};
+use crate::tiling::{Scheme, TileKey};
+
+/// One quality level of a tile.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, clap::ValueEnum)]
+pub enum Variant {
+    /// Lossless float, interleaved prefix-renderable layout (`KHR_gaussian_splatting` only).
+    Best,
+    /// `EXT_meshopt_compression`, fine quantization (filters EXPONENTIAL / QUATERNION).
+    High,
+    /// `EXT_meshopt_compression`, coarse quantization.
+    Medium,
+    /// `KHR_gaussian_splatting_compression_spz_2` (SPZ v2), SH up to degree 1.
+    Low,
+}
+
+/// Every variant, in metadata array order.
+pub const ALL: [Variant; 4] = [Variant::Best, Variant::High, Variant::Medium, Variant::Low];
+
+/// SPZ settings of the Low variant: SH degree at most 1 (at SH3 input: 28 B/splat before gzip).
+pub const LOW_SPZ: SpzOptions = SpzOptions {
+    max_sh_degree: 1,
+    sh1_bits: 5,
+    sh_rest_bits: 4,
+};
+
+impl Variant {
+    /// Lower-case name, used in URIs (`tiles/{name}/...`) and metadata.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::Best => "best",
+            Variant::High => "high",
+            Variant::Medium => "medium",
+            Variant::Low => "low",
+        }
+    }
+
+    /// Index in the metadata arrays.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The container format, in words (tileset metadata `variantFormats`).
+    pub fn format(self) -> &'static str {
+        match self {
+            Variant::Best => "KHR_gaussian_splatting float32, interleaved (spec/prefix-layout.md)",
+            Variant::High => "KHR_gaussian_splatting + EXT_meshopt_compression (high bit depths)",
+            Variant::Medium => "KHR_gaussian_splatting + EXT_meshopt_compression (low bit depths)",
+            Variant::Low => "KHR_gaussian_splatting_compression_spz_2 (SPZ v2, SH <= 1)",
+        }
+    }
+
+    /// Encodes `splats` (positions in S, made relative to `centre`) as this variant's glb.
+    pub fn encode(
+        self,
+        splats: &Splats,
+        centre: [f64; 3],
+        node_matrix: [f64; 16],
+    ) -> Result<Vec<u8>, GlbError> {
+        match self {
+            Variant::Best => {
+                try_write_tile_glb(splats, centre, node_matrix, TileLayout::Interleaved)
+            }
+            Variant::High => write_meshopt_glb(splats, centre, node_matrix, &HIGH),
+            Variant::Medium => write_meshopt_glb(splats, centre, node_matrix, &MEDIUM),
+            Variant::Low => write_spz2_glb(splats, centre, node_matrix, &LOW_SPZ),
+        }
+    }
+}
+
+/// Which clients the tileset is written for.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Profile {
+    /// Standards first: default content Best (needs only `KHR_gaussian_splatting`).
+    #[default]
+    Default,
+    /// CesiumJS: default content SPZ_2 (Low) and the `3DTILES_content_gltf` declaration.
+    Cesium,
+}
+
+impl Profile {
+    /// The variant a tile's `content.uri` points at.
+    pub fn default_variant(self) -> Variant {
+        match self {
+            Profile::Default => Variant::Best,
+            Profile::Cesium => Variant::Low,
+        }
+    }
+}
+
+/// What to write per tile.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VariantOptions {
+    /// Target clients.
+    pub profile: Profile,
+    /// Variants to write (the profile's default is always added).
+    pub variants: Vec<Variant>,
+    /// Measure utilities (8 renders per variant and tile); otherwise they are stored as -1.
+    pub measure_utility: bool,
+    /// Size of the utility renders.
+    pub view_size: (u32, u32),
+}
+
+impl Default for VariantOptions {
+    fn default() -> Self {
+        VariantOptions {
+            profile: Profile::Default,
+            variants: vec![Variant::Best],
+            measure_utility: true,
+            view_size: (128, 96),
+        }
+    }
+}
+
+impl VariantOptions {
+    /// The variants written, in metadata order, the default one included.
+    pub fn written(&self) -> Vec<Variant> {
+        let d = self.profile.default_variant();
+        ALL.into_iter()
+            .filter(|v| *v == d || self.variants.contains(v))
+            .collect()
+    }
+}
+
+/// What the per-tile writer reports for the subtree metadata and the conversion report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContentFacts {
+    /// Splats in the tile.
+    pub splat_count: u32,
+    /// Bytes of each variant's glb (0: not written), in [`ALL`] order.
+    pub variant_bytes: [u32; 4],
+    /// Utility of each variant (mean SSIM against Best over 8 views; -1: not measured).
+    pub variant_utility: [f32; 4],
+    /// Seconds spent encoding each variant.
+    pub encode_seconds: [f64; 4],
+    /// Bytes of all files written for the tile.
+    pub bytes: u64,
+}
+
+/// Why a tile's contents could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ContentError {
+    /// A file could not be written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A variant could not be encoded.
+    #[error("tile {key:?}, variant {variant}: {source}")]
+    Encode {
+        /// The tile.
+        key: TileKey,
+        /// The variant.
+        variant: &'static str,
+        /// Why.
+        source: GlbError,
+    },
+}
+
+/// URI (relative to the tileset) of a variant's content: `tiles/{variant}/{level}/{x}/{y}[/{z}].glb`.
+pub fn content_uri(scheme: Scheme, key: TileKey, variant: Variant) -> String {
+    expand_template(&uri_template(scheme, variant), key)
+}
+
+/// URI template of a variant's contents (implicit tiling variables).
+pub fn uri_template(scheme: Scheme, variant: Variant) -> String {
+    match scheme {
+        Scheme::Octree => format!("tiles/{}/{{level}}/{{x}}/{{y}}/{{z}}.glb", variant.name()),
+        Scheme::Quadtree => format!("tiles/{}/{{level}}/{{x}}/{{y}}.glb", variant.name()),
+    }
+}
+
+/// Writes every requested variant of one tile under `dir` and measures their utilities.
+///
+/// `splats` hold positions in the source frame S; `centre_s` is subtracted (in f64) and
+/// `node_matrix` maps the tile-relative S frame into glTF's y-up frame.
+pub fn write_tile_contents(
+    dir: &Path,
+    scheme: Scheme,
+    key: TileKey,
+    splats: &Splats,
+    centre_s: [f64; 3],
+    node_matrix: [f64; 16],
+    opts: &VariantOptions,
+) -> Result<ContentFacts, ContentError> {
+    let mut facts = ContentFacts {
+        splat_count: splats.len() as u32,
+        variant_bytes: [0; 4],
+        variant_utility: [-1.0; 4],
+        encode_seconds: [0.0; 4],
+        bytes: 0,
+    };
+    let mut decoded: Vec<(Variant, Splats)> = vec![];
+    for v in opts.written() {
+        let t = Instant::now();
+        let glb =
+            v.encode(splats, centre_s, node_matrix)
+                .map_err(|source| ContentError::Encode {
+                    key,
+                    variant: v.name(),
+                    source,
+                })?;
+        facts.encode_seconds[v.index()] = t.elapsed().as_secs_f64();
+        let path = dir.join(content_uri(scheme, key, v));
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).map_err(|source| ContentError::Io {
+                path: parent.to_path_buf(),
+                source,
+            })?;
+        }
+        std::fs::write(&path, &glb).map_err(|source| ContentError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        facts.variant_bytes[v.index()] = glb.len() as u32;
+        facts.bytes += glb.len() as u64;
+        if opts.measure_utility && v != Variant::Best {
+            let s = decode_variant(&glb)
+                .map_err(|source| ContentError::Encode {
+                    key,
+                    variant: v.name(),
+                    source,
+                })?
+                .0;
+            decoded.push((v, s));
+        }
+    }
+    if opts.measure_utility {
+        facts.variant_utility[Variant::Best.index()] = 1.0;
+        if !decoded.is_empty() {
+            let reference = relative(splats, centre_s);
+            let up = up_in_source(node_matrix);
+            let refs: Vec<&Splats> = decoded.iter().map(|(_, s)| s).collect();
+            let u = utilities(&reference, &refs, up, opts.view_size);
+            for ((v, _), u) in decoded.iter().zip(u) {
+                facts.variant_utility[v.index()] = u as f32;
+            }
+        }
+    }
+    Ok(facts)
+}
+
+/// `splats` with `centre` subtracted from the positions (the tile-relative frame).
+pub fn relative(splats: &Splats, centre: [f64; 3]) -> Splats {
+    let mut s = splats.clone();
+    for p in &mut s.positions {
+        for a in 0..3 {
+            p[a] = (p[a] - centre[a]) as f32 as f64;
+        }
+    }
+    s
+}
+
+/// The source-frame direction that the node matrix maps onto glTF's +y (3D Tiles' up).
+pub fn up_in_source(node_matrix: [f64; 16]) -> DVec3 {
+    let m = DMat3::from_mat4(DMat4::from_cols_array(&node_matrix));
+    (m.transpose() * DVec3::Y).normalize_or(DVec3::Y)
+}
+
+/// TileSplat eq. 3: for each candidate, the mean SSIM of its renders against `reference`'s over
+/// the 8 automatic views (`auto_views_with`, 50 deg fov) around the reference's bounds.
+pub fn utilities(
+    reference: &Splats,
+    candidates: &[&Splats],
+    up: DVec3,
+    (w, h): (u32, u32),
+) -> Vec<f64> {
+    let Some((lo, hi)) = reference.bounds() else {
+        return vec![1.0; candidates.len()];
+    };
+    let views = auto_views_with(
+        DVec3::from_array(lo),
+        DVec3::from_array(hi),
+        up,
+        w,
+        h,
+        DEFAULT_FOV_Y_DEG,
+    );
+    let opts = RenderOptions::default();
+    let base: Vec<_> = views
+        .iter()
+        .map(|c| render_splats(reference, c, &opts))
+        .collect();
+    candidates
+        .iter()
+        .map(|s| {
+            let total: f64 = views
+                .iter()
+                .zip(&base)
+                .map(|(c, b)| ssim(b, &render_splats(s, c, &opts)).unwrap_or(0.0))
+                .sum();
+            total / views.len() as f64
+        })
+        .collect()
+}
+
+/// Decodes any variant's glb (plain, interleaved, meshopt or SPZ_2) into tile-relative splats
+/// and the node matrix.
+pub fn decode_variant(glb: &[u8]) -> Result<(Splats, [f64; 16]), GlbError> {
+    if spz2_payload(glb)?.is_some() {
+        return read_spz2_glb(glb);
+    }
+    let plain = decompress_meshopt_glb(glb)?;
+    let t = read_tile_glb(&plain)?;
+    Ok((t.splats, t.node_matrix))
+}
+
+/// Whether a glb uses `EXT_meshopt_compression` (High / Medium).
+pub fn is_meshopt(glb: &[u8]) -> bool {
+    crate::encode::glb::read_glb(glb)
+        .ok()
+        .and_then(|c| crate::encode::glb::parse_json(&c).ok())
+        .is_some_and(|d| {
+            d.extensions_used
+                .iter()
+                .any(|e| e == EXT_MESHOPT_COMPRESSION)
+        })
+}
+
+/// Name of the tileset-level metadata class describing the variants.
+pub const VARIANTS_CLASS: &str = "splatVariants";
+
+/// Schema classes this module adds: the tileset-level `splatVariants` class and the
+/// per-content properties (merged into the content class by `tiling::tileset::schema`).
+pub fn schema_properties() -> (Value, Value) {
+    let tileset_class = json!({
+        "description": "Quality variants of every tile content (spec/quality-variants.md).",
+        "properties": {
+            "variantNames": {
+                "description": "Variant names, in the order of the per-content variant arrays.",
+                "type": "STRING", "array": true, "count": 4, "required": true
+            },
+            "variantUris": {
+                "description": "Content URI template of each variant (implicit tiling variables); empty when not written.",
+                "type": "STRING", "array": true, "count": 4, "required": true
+            },
+            "variantFormats": {
+                "description": "Container format of each variant.",
+                "type": "STRING", "array": true, "count": 4, "required": true
+            },
+            "defaultVariant": {
+                "description": "Index of the variant that content.uri points at.",
+                "type": "SCALAR", "componentType": "UINT8", "required": true
+            },
+            "utilityMethod": {
+                "description": "How variantUtility was measured.",
+                "type": "STRING", "required": true
+            }
+        }
+    });
+    let content_props = json!({
+        "variantBytes": {
+            "description": "Byte size of each variant's glb (0: not written), in variantNames order.",
+            "type": "SCALAR", "componentType": "UINT32", "array": true, "count": 4
+        },
+        "variantUtility": {
+            "description": "Mean SSIM of each variant against Best over 8 views (TileSplat eq. 3); -1: not measured.",
+            "type": "SCALAR", "componentType": "FLOAT32", "array": true, "count": 4,
+            "noData": [-1.0, -1.0, -1.0, -1.0]
+        }
+    });
+    (tileset_class, content_props)
+}
+
+/// The tileset-level metadata entity (`tileset.metadata`) for these options.
+pub fn tileset_metadata(scheme: Scheme, opts: &VariantOptions) -> Value {
+    let written = opts.written();
+    let uris: Vec<String> = ALL
+        .iter()
+        .map(|&v| {
+            if written.contains(&v) {
+                uri_template(scheme, v)
+            } else {
+                String::new()
+            }
+        })
+        .collect();
+    json!({
+        "class": VARIANTS_CLASS,
+        "properties": {
+            "variantNames": ALL.iter().map(|v| v.name()).collect::<Vec<_>>(),
+            "variantUris": uris,
+            "variantFormats": ALL.iter().map(|v| v.format()).collect::<Vec<_>>(),
+            "defaultVariant": opts.profile.default_variant().index(),
+            "utilityMethod": format!(
+                "mean SSIM vs Best over the 8 auto views (30 deg elevation, 45 deg steps, {} deg \
+                 vertical fov) around the tile's splat-centre box, {}x{} px, black background, \
+                 reference CPU renderer",
+                DEFAULT_FOV_Y_DEG, opts.view_size.0, opts.view_size.1
+            ),
+        }
+    })
+}
+
+/// `3DTILES_content_gltf` of the Cesium profile: both splat extensions used and required.
+pub fn cesium_content_gltf() -> Value {
+    let exts = [
+        crate::encode::gltf::KHR_GAUSSIAN_SPLATTING,
+        crate::encode::gltf::KHR_GAUSSIAN_SPLATTING_SPZ_2,
+    ];
+    json!({ "3DTILES_content_gltf": { "extensionsUsed": exts, "extensionsRequired": exts } })
+}
+
+/// One row of the per-variant table: totals over every content tile of a tileset.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VariantRow {
+    /// The variant.
+    pub variant: Variant,
+    /// Tiles holding this variant.
+    pub tiles: usize,
+    /// Splats over those tiles.
+    pub splats: u64,
+    /// Bytes over those tiles (from the metadata).
+    pub bytes: u64,
+    /// Mean utility over the tiles where it was measured (NaN if none).
+    pub mean_utility: f64,
+    /// Worst utility (NaN if none).
+    pub worst_utility: f64,
+}
+
+impl VariantRow {
+    /// Bytes per splat.
+    pub fn bytes_per_splat(&self) -> f64 {
+        self.bytes as f64 / self.splats.max(1) as f64
+    }
+}
+
+/// Per-tile variant metadata of a tileset: key -> (splat count, bytes, utilities), read from
+/// the subtrees' content property tables.
+pub fn content_variant_metadata(ts: &LoadedTileset) -> HashMap<TileKey, (u32, [u32; 4], [f32; 4])> {
+    let mut out = HashMap::new();
+    let Some(implicit) = &ts.tileset.root.implicit_tiling else {
+        return out;
+    };
+    let levels = implicit.subtree_levels;
+    let arity = ts.scheme.arity();
+    let n_tiles = subtree::tile_count(arity, levels) as usize;
+    let roots: Vec<TileKey> = ts
+        .tiles
+        .iter()
+        .map(|t| t.key)
+        .filter(|k| k.level % levels == 0)
+        .collect();
+    for root in roots {
+        let uri = expand_template(&implicit.subtrees.uri, root);
+        let Some(path) = resolve_inside(&ts.dir, &uri) else {
+            continue;
+        };
+        let Ok(bytes) = std::fs::read(&path) else {
+            continue;
+        };
+        let Ok(s) = read_subtree(&bytes) else {
+            continue;
+        };
+        let Some(content) = s
+            .json
+            .content_availability
+            .first()
+            .and_then(|a| s.bits(a, n_tiles))
+        else {
+            continue;
+        };
+        let Some(table) = s
+            .json
+            .content_metadata
+            .as_ref()
+            .and_then(|v| v.first())
+            .and_then(|&t| s.json.property_tables.get(t as usize))
+        else {
+            continue;
+        };
+        let col = |name: &str, width: usize| -> Option<Vec<u8>> {
+            let b = s.view(table.properties.get(name)?.values)?;
+            (b.len() >= table.count as usize * width).then(|| b.to_vec())
+        };
+        let (Some(counts), Some(vb), Some(vu)) = (
+            col("splatCount", 4),
+            col("variantBytes", 16),
+            col("variantUtility", 16),
+        ) else {
+            continue;
+        };
+        let word = |b: &[u8], i: usize| [b[i * 4], b[i * 4 + 1], b[i * 4 + 2], b[i * 4 + 3]];
+        let mut row = 0;
+        for rl in 0..levels {
+            let first = subtree::tile_count(arity, rl) as usize;
+            for m in 0..arity.pow(rl) {
+                if !content[first + m as usize] {
+                    continue;
+                }
+                let (x, y, z) = ts.scheme.decode(m);
+                let key = TileKey {
+                    level: root.level + rl,
+                    x: (root.x << rl) + x,
+                    y: (root.y << rl) + y,
+                    z: (root.z << rl) + z,
+                };
+                let count = u32::from_le_bytes(word(&counts, row));
+                let bytes = std::array::from_fn(|i| u32::from_le_bytes(word(&vb, row * 4 + i)));
+                let util = std::array::from_fn(|i| f32::from_le_bytes(word(&vu, row * 4 + i)));
+                out.insert(key, (count, bytes, util));
+                row += 1;
+            }
+        }
+    }
+    out
+}
+
+/// The per-variant table of a tileset (for `splat2tiles stats`): tiles, splats, bytes and
+/// utilities per variant, from the content metadata.
+pub fn variant_table(ts: &LoadedTileset) -> Vec<VariantRow> {
+    let meta = content_variant_metadata(ts);
+    ALL.iter()
+        .map(|&v| {
+            let i = v.index();
+            let mut row = VariantRow {
+                variant: v,
+                tiles: 0,
+                splats: 0,
+                bytes: 0,
+                mean_utility: f64::NAN,
+                worst_utility: f64::NAN,
+            };
+            let mut us = vec![];
+            for (count, bytes, util) in meta.values() {
+                if bytes[i] == 0 {
+                    continue;
+                }
+                row.tiles += 1;
+                row.splats += *count as u64;
+                row.bytes += bytes[i] as u64;
+                if util[i] >= 0.0 {
+                    us.push(util[i] as f64);
+                }
+            }
+            if !us.is_empty() {
+                row.mean_utility = us.iter().sum::<f64>() / us.len() as f64;
+                row.worst_utility = us.iter().copied().fold(f64::INFINITY, f64::min);
+            }
+            row
+        })
+        .collect()
+}
