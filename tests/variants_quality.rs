@@ -54,7 +54,10 @@ fn check(name: &str, scene: Scene) -> [(f64, f64); 4] {
     for row in &table {
         assert_eq!(row.tiles, report.content_tiles, "{name}: {:?}", row.variant);
         // Every content tile: the leaves (all input splats) and the LOD parents.
-        assert_eq!(row.splats as usize, report.splats_out + report.parent_splats);
+        assert_eq!(
+            row.splats as usize,
+            report.splats_out + report.parent_splats
+        );
         res[row.variant.index()] = (row.bytes_per_splat(), row.mean_utility);
         eprintln!(
             "{name} {:>6}: {:7.2} B/splat, utility mean {:.4} worst {:.4}",

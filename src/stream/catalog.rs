@@ -124,6 +124,32 @@ pub struct TileCatalog {
     pub source: VariantSource,
 }
 
+impl TileCatalog {
+    /// Replaces stand-in variants by measured ones (bytes and utility per Best, High, Medium,
+    /// Low, as the converter stores them in content metadata) for every tile that has all four;
+    /// the catalog becomes `Measured` when every content tile got them.
+    pub fn with_measured(mut self, measured: &HashMap<TileKey, ([u32; 4], [f32; 4])>) -> Self {
+        let mut all = true;
+        for t in self.tiles.iter_mut().filter(|t| t.has_content) {
+            match measured.get(&t.key) {
+                Some((bytes, util))
+                    if bytes.iter().all(|b| *b > 0) && util.iter().all(|u| *u >= 0.0) =>
+                {
+                    t.variants = std::array::from_fn(|j| Variant {
+                        bytes: bytes[j] as u64,
+                        utility: util[j] as f64,
+                    });
+                }
+                _ => all = false,
+            }
+        }
+        if all && self.tiles.iter().any(|t| t.has_content) {
+            self.source = VariantSource::Measured;
+        }
+        self
+    }
+}
+
 /// Stand-in variants from the real Best size (Table 6 ratios, paper utilities).
 pub fn stand_in_variants(best_bytes: u64) -> [Variant; LEVELS] {
     std::array::from_fn(|j| Variant {
