@@ -34,6 +34,10 @@ pub fn run(args: StatsArgs) -> i32 {
 pub fn table(args: &StatsArgs) -> anyhow::Result<String> {
     let ts = load_tileset(&args.tileset)?;
     let rows = level_table(&ts)?;
+    let vrows: Vec<_> = crate::variants::variant_table(&ts)
+        .into_iter()
+        .filter(|r| r.tiles > 0)
+        .collect();
     let total: u64 = rows.iter().map(|r| r.splats).sum();
     let parents: std::collections::HashSet<_> =
         ts.tiles.iter().filter_map(|t| t.key.parent()).collect();
@@ -55,7 +59,26 @@ pub fn table(args: &StatsArgs) -> anyhow::Result<String> {
                 })
             })
             .collect();
-        let v = serde_json::json!({"levels": levels, "splats": total, "leafSplats": leaf_splats});
+        let variants: Vec<serde_json::Value> = vrows
+            .iter()
+            .map(|r| {
+                let num = |x: f64| {
+                    if x.is_finite() {
+                        serde_json::json!(x)
+                    } else {
+                        serde_json::Value::Null
+                    }
+                };
+                serde_json::json!({
+                    "variant": r.variant.name(), "tiles": r.tiles, "splats": r.splats,
+                    "bytes": r.bytes, "bytesPerSplat": r.bytes_per_splat(),
+                    "meanUtility": num(r.mean_utility), "worstUtility": num(r.worst_utility),
+                })
+            })
+            .collect();
+        let v = serde_json::json!({
+            "levels": levels, "variants": variants, "splats": total, "leafSplats": leaf_splats,
+        });
         return Ok(format!("{v}\n"));
     }
     let mut s = format!(
@@ -78,5 +101,30 @@ pub fn table(args: &StatsArgs) -> anyhow::Result<String> {
         "total: {total} splats in content tiles, {leaf_splats} in leaves, {} bytes\n",
         rows.iter().map(|r| r.bytes).sum::<u64>()
     );
+    if !vrows.is_empty() {
+        let util = |x: f64| {
+            if x.is_finite() {
+                format!("{x:.4}")
+            } else {
+                "-".into()
+            }
+        };
+        s += &format!(
+            "\n{:>8} {:>6} {:>10} {:>12} {:>8} {:>12} {:>13}\n",
+            "variant", "tiles", "splats", "bytes", "B/splat", "mean utility", "worst utility"
+        );
+        for r in &vrows {
+            s += &format!(
+                "{:>8} {:>6} {:>10} {:>12} {:>8.2} {:>12} {:>13}\n",
+                r.variant.name(),
+                r.tiles,
+                r.splats,
+                r.bytes,
+                r.bytes_per_splat(),
+                util(r.mean_utility),
+                util(r.worst_utility)
+            );
+        }
+    }
     Ok(s)
 }
