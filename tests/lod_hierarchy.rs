@@ -143,7 +143,19 @@ fn stats_prints_the_per_level_table() {
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&text.stdout);
-    assert!(text.contains("mean geo error") && text.lines().count() == levels.len() + 2);
+    let (level_part, variant_part) = text.split_once("\n\n").expect("two tables");
+    assert!(
+        level_part.contains("mean geo error") && level_part.lines().count() == levels.len() + 2
+    );
+    // The default conversion writes the Best variant only: one row after the header.
+    assert!(variant_part.contains("mean utility") && variant_part.lines().count() == 2);
+    let variants = v["variants"].as_array().unwrap();
+    assert_eq!(variants.len(), 1);
+    assert_eq!(variants[0]["variant"], "best");
+    assert_eq!(
+        variants[0]["splats"].as_u64().unwrap() as usize,
+        6000 + r.parent_splats
+    );
 }
 
 #[test]
