@@ -9,3 +9,4 @@ pub mod io;
 pub mod render;
 pub mod splat;
 pub mod tiling;
+pub mod validate;

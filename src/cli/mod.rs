@@ -2,6 +2,7 @@
 //! so that `main.rs` only parses and maps results to exit codes.
 
 pub mod convert;
+pub mod validate;
 
 /// Exit code when the command could not do its work (bad input, I/O failure).
 pub const EXIT_FAILURE: i32 = 2;
