@@ -256,10 +256,13 @@ pub(crate) fn content_file(
     let Some(bytes) = ctx.read(&file, uri) else {
         return;
     };
-    if !bytes.starts_with(b"glTF") {
+    let other_format = [&b"b3dm"[..], b"i3dm", b"pnts", b"cmpt", b"{"]
+        .iter()
+        .any(|m| bytes.starts_with(m));
+    if other_format && !uri.to_ascii_lowercase().ends_with(".glb") {
         ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
             uri,
-            "content is not a glb; only glb contents are validated",
+            "content is not a glb (b3dm, i3dm, pnts, cmpt or JSON); only glb contents are validated",
         ));
         return;
     }
