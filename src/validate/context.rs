@@ -41,6 +41,8 @@ pub(crate) struct Ctx<'a> {
     pub opts: &'a ValidateOptions,
     /// Issues found so far.
     pub issues: Vec<Issue>,
+    /// An in-memory file standing in for the disk (single-file validation and fuzzing).
+    pub memory: Option<(PathBuf, Vec<u8>)>,
 }
 
 /// gzip magic.
@@ -55,6 +57,7 @@ impl<'a> Ctx<'a> {
             dir,
             opts,
             issues: Vec::new(),
+            memory: None,
         }
     }
 
@@ -97,6 +100,12 @@ impl<'a> Ctx<'a> {
 
     /// Reads a file, decompressing gzip/zstd under the limits; `name` is its path in issues.
     pub fn read(&mut self, file: &Path, name: &str) -> Option<Vec<u8>> {
+        if let Some((p, bytes)) = &self.memory
+            && p == file
+        {
+            let bytes = bytes.clone();
+            return self.decompress(bytes, name);
+        }
         match std::fs::read(file) {
             Ok(bytes) => self.decompress(bytes, name),
             Err(e) => {
@@ -104,6 +113,11 @@ impl<'a> Ctx<'a> {
                 None
             }
         }
+    }
+
+    /// Whether `file` exists (in memory or on disk).
+    pub fn exists(&self, file: &Path) -> bool {
+        self.memory.as_ref().is_some_and(|(p, _)| p == file) || file.is_file()
     }
 
     /// Decompresses `bytes` when they start with gzip or zstd magic; other bytes pass through.

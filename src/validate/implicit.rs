@@ -559,7 +559,7 @@ pub(crate) fn validate(
         let Some(file) = ctx.resolve(&uri, &format!("{path}/implicitTiling/subtrees/uri")) else {
             continue;
         };
-        if !file.is_file() {
+        if !ctx.exists(&file) {
             if is_root {
                 ctx.push(Issue::IO_ERROR(uri, "the root subtree file is missing"));
             } else {

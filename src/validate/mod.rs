@@ -84,13 +84,7 @@ pub fn validate_subtree_bytes(
     subtree_levels: u32,
     opts: &ValidateOptions,
 ) -> Report {
-    let dir = std::env::temp_dir().join(format!(
-        "splat2tiles-validate-subtree-{}-{:?}",
-        std::process::id(),
-        std::thread::current().id()
-    ));
-    let _ = std::fs::create_dir_all(&dir);
-    let _ = std::fs::write(dir.join("0.subtree"), bytes);
+    let dir = PathBuf::from("/nonexistent-validate-root");
     let tileset = serde_json::json!({
         "asset": {"version": "1.1"}, "geometricError": 1.0,
         "root": {
@@ -99,16 +93,14 @@ pub fn validate_subtree_bytes(
             "implicitTiling": {
                 "subdivisionScheme": if octree { "OCTREE" } else { "QUADTREE" },
                 "subtreeLevels": subtree_levels, "availableLevels": subtree_levels,
-                "subtrees": {"uri": if octree { "{level}.subtree?{x}{y}{z}" } else { "{level}.subtree?{x}{y}" }}
+                "subtrees": {"uri": "0.subtree"}
             }
         }
     });
     let mut ctx = Ctx::new(dir.clone(), opts);
+    ctx.memory = Some((dir.join("0.subtree"), bytes.to_vec()));
     // Only the root subtree is read: children are not present, templates map to "0.subtree".
-    let mut v = tileset;
-    v["root"]["implicitTiling"]["subtrees"]["uri"] = serde_json::json!("0.subtree");
-    tileset::tileset(&mut ctx, &v);
-    let _ = std::fs::remove_dir_all(&dir);
+    tileset::tileset(&mut ctx, &tileset);
     let issues = ctx
         .issues
         .into_iter()
