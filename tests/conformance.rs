@@ -249,7 +249,7 @@ fn set_availability(
     }
     let off = bin.len();
     bin.extend_from_slice(&packed);
-    while bin.len() % 8 != 0 {
+    while !bin.len().is_multiple_of(8) {
         bin.push(0);
     }
     let views = j["bufferViews"].as_array_mut().unwrap();
@@ -273,7 +273,7 @@ fn read_subtree(p: &Path) -> (Value, Vec<u8>) {
 /// Frames a subtree with `pad` as JSON padding byte up to `align` bytes.
 fn frame_subtree(json: &Value, bin: &[u8], pad: u8, extra_pad: usize) -> Vec<u8> {
     let mut j = serde_json::to_vec(json).unwrap();
-    while j.len() % 8 != 0 {
+    while !j.len().is_multiple_of(8) {
         j.push(pad);
     }
     j.extend(std::iter::repeat_n(pad, extra_pad));

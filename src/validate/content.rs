@@ -671,7 +671,7 @@ pub(crate) fn validate_glb(
                     };
                     for i in 0..v.count {
                         let len = (0..4).map(|j| v.get(i, j).powi(2)).sum::<f64>().sqrt();
-                        if !((len - 1.0).abs() <= tol) {
+                        if (len - 1.0).abs() > tol || len.is_nan() {
                             flag(i, len);
                         }
                     }
