@@ -842,7 +842,17 @@ fn corpus_has_at_least_40_cases_and_every_mutation_is_used() {
 fn every_case_gives_exactly_its_expected_codes() {
     let m = mutations();
     let mut failures = Vec::new();
-    for (name, case) in load_cases() {
+    let cases = load_cases();
+    let valid = cases
+        .iter()
+        .filter(|(n, _)| n.starts_with("valid/"))
+        .count();
+    eprintln!(
+        "running {} cases ({valid} valid, {} invalid)",
+        cases.len(),
+        cases.len() - valid
+    );
+    for (name, case) in cases {
         let dir = scratch().join("cases").join(&name);
         copy_dir(&base(&case.base), &dir);
         let t = Ts { dir: dir.clone() };
