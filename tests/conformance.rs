@@ -766,6 +766,38 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
         let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:SH_DEGREE_0_COEF_0"].as_u64().unwrap() as usize;
         v["accessors"][a]["normalized"] = json!(true);
     }));
+    m.insert("meshopt_marked_view_not_decoded", |t| {
+        t.poke_glb("KHR_gaussian_splatting:OPACITY", 0, 5.0);
+        t.edit_glb(|v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:OPACITY"].as_u64().unwrap() as usize;
+            let bv = v["accessors"][a]["bufferView"].as_u64().unwrap() as usize;
+            v["bufferViews"][bv]["extensions"] = json!({"EXT_meshopt_compression": {"buffer": 0, "byteLength": 4, "count": 1, "byteStride": 4, "mode": "ATTRIBUTES"}});
+            v["extensionsUsed"].as_array_mut().unwrap().push(json!("EXT_meshopt_compression"));
+        })
+    });
+    m.insert("spz2_style_tile_not_decoded", |t| {
+        t.edit_glb(|v| {
+            // SPZ_2 layout: accessors without bufferView, DC colour in COLOR_0 (deviation D1).
+            for a in v["accessors"].as_array_mut().unwrap() {
+                a.as_object_mut().unwrap().remove("bufferView");
+            }
+            let p = &mut v["meshes"][0]["primitives"][0];
+            p["attributes"]
+                .as_object_mut()
+                .unwrap()
+                .remove("KHR_gaussian_splatting:SH_DEGREE_0_COEF_0");
+            p["attributes"]
+                .as_object_mut()
+                .unwrap()
+                .retain(|k, _| !k.contains("SH_DEGREE"));
+            p["extensions"]["KHR_gaussian_splatting"]["extensions"] =
+                json!({"KHR_gaussian_splatting_compression_spz_2": {"bufferView": 0}});
+            v["extensionsUsed"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!("KHR_gaussian_splatting_compression_spz_2"));
+        })
+    });
     m.insert("glb_unknown_splat_attribute", |t| {
         t.edit_glb(|v| {
             let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:OPACITY"]

@@ -146,6 +146,20 @@ pub(crate) fn validate_glb(
         }
     };
     let at = |p: &str| format!("{name}#{p}");
+    // Extension members the typed structs drop: meshopt-compressed bufferViews (their bytes are
+    // not attribute data) and meshopt fallback buffers (which hold no data at all).
+    let raw: serde_json::Value = serde_json::from_slice(chunks.json).unwrap_or_default();
+    let meshopt = |v: &serde_json::Value| {
+        v.get("extensions")
+            .and_then(|e| e.as_object())
+            .is_some_and(|e| e.keys().any(|k| k.contains("meshopt_compression")))
+    };
+    let fallback_buffers: Vec<bool> = (0..doc.buffers.len())
+        .map(|i| meshopt(&raw["buffers"][i]))
+        .collect();
+    let meshopt_views: Vec<bool> = (0..doc.buffer_views.len())
+        .map(|i| meshopt(&raw["bufferViews"][i]))
+        .collect();
 
     // Extensions: required => used; every extension object present => used.
     for (i, ext) in doc.extensions_required.iter().enumerate() {
@@ -161,6 +175,10 @@ pub(crate) fn validate_glb(
     let mut buffers: Vec<Option<Vec<u8>>> = Vec::with_capacity(doc.buffers.len().min(1024));
     for (i, b) in doc.buffers.iter().enumerate() {
         let path = at(&format!("/buffers/{i}"));
+        if fallback_buffers[i] && b.uri.is_none() {
+            buffers.push(None);
+            continue;
+        }
         let data = match (&b.uri, i, chunks.bin) {
             (None, 0, Some(bin)) => {
                 if b.byte_length > bin.len() as u64 || bin.len() as u64 - b.byte_length > 3 {
@@ -492,6 +510,15 @@ pub(crate) fn validate_glb(
                 continue;
             };
             if !views_ok[bv as usize] {
+                continue;
+            }
+            if meshopt_views[bv as usize] {
+                ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
+                    at(&ap),
+                    format!(
+                        "{attr} is in a meshopt-compressed bufferView; values were not decoded"
+                    ),
+                ));
                 continue;
             }
             let elem = comp.size() * n.components();
