@@ -737,6 +737,8 @@ pub(crate) fn validate_glb(
         if worlds.is_empty() {
             worlds.push(DMat4::IDENTITY);
         }
+        // A mesh placed many times is checked in its first 16 placements (memory stays bounded).
+        worlds.truncate(16);
         let rot = get(ROTATION);
         let scale = get(SCALE);
         for w in worlds {

@@ -45,6 +45,9 @@ pub(crate) struct Ctx<'a> {
     pub memory: Option<(PathBuf, Vec<u8>)>,
 }
 
+/// Most issues one report lists (hostile inputs can produce millions).
+pub(crate) const MAX_ISSUES: usize = 10_000;
+
 /// gzip magic.
 const GZIP: [u8; 2] = [0x1f, 0x8b];
 /// zstd frame magic.
@@ -61,9 +64,16 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    /// Records an issue.
+    /// Records an issue; beyond [`MAX_ISSUES`] one ISSUES_TRUNCATED note replaces the rest.
     pub fn push(&mut self, issue: Issue) {
-        self.issues.push(issue);
+        match self.issues.len() {
+            n if n < MAX_ISSUES => self.issues.push(issue),
+            n if n == MAX_ISSUES => self.issues.push(Issue::ISSUES_TRUNCATED(
+                "",
+                format!("more than {MAX_ISSUES} issues; the rest are not listed"),
+            )),
+            _ => {}
+        }
     }
 
     /// Resolves `uri` (found at `path`) inside the tileset folder, reporting why not.

@@ -14,6 +14,9 @@ use glam::DMat4;
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 
+/// Most subtree files one validation walks.
+const MAX_SUBTREES: usize = 1 << 20;
+
 /// Largest number of child-subtree bits walked (N^subtreeLevels); beyond it the walk stops.
 const MAX_CHILD_BITS: u64 = 1 << 24;
 
@@ -555,6 +558,13 @@ pub(crate) fn validate(
     while let Some((root, is_root)) = queue.pop() {
         if !seen.insert(root) {
             continue;
+        }
+        if seen.len() > MAX_SUBTREES {
+            ctx.push(Issue::IMPLICIT_TILING_ERROR(
+                ip.clone(),
+                format!("more than {MAX_SUBTREES} subtrees are available; the walk stopped there"),
+            ));
+            break;
         }
         let uri = expand_template(&subtrees_uri, root);
         let Some(file) = ctx.resolve(&uri, &format!("{path}/implicitTiling/subtrees/uri")) else {

@@ -176,6 +176,8 @@ catalogue! {
     SPLAT_ROTATION_NOT_UNIT => Error,
     /// Attribute data carried by a compression extension was not decoded, so not checked.
     CONTENT_DATA_NOT_CHECKED => Info,
+    /// More issues were found than a report lists (10 000); the rest were dropped.
+    ISSUES_TRUNCATED => Info,
     /// A splat centre lies outside its tile's bounding volume.
     CONTENT_OUTSIDE_BOUNDING_VOLUME => Error,
     /// A splat's 3-sigma ellipsoid reaches outside its tile's bounding volume (--check-extent).
