@@ -72,3 +72,53 @@ fn scene_seeds_and_prefixes_never_panic() {
         }
     }
 }
+
+/// Crash inputs found by fuzzing (`fuzz/regressions/<target>/crash-*`, see RELIABILITY.md).
+#[test]
+fn fuzz_crash_regressions_replay_cleanly() {
+    let opts = ValidateOptions::default();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/regressions");
+    let mut n = 0;
+    for target in ["ply", "spz", "splat", "glb", "subtree"] {
+        for e in std::fs::read_dir(dir.join(target))
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            let bytes = std::fs::read(e.path()).unwrap();
+            n += 1;
+            match target {
+                "glb" => {
+                    let _ = splat2tiles::encode::tile::read_tile_glb(&bytes);
+                    let _ = validate_glb_bytes(&bytes, &opts);
+                }
+                "subtree" => {
+                    let _ = splat2tiles::tiling::subtree::read_subtree(&bytes);
+                    let _ = validate_subtree_bytes(
+                        &bytes,
+                        bytes.first().is_some_and(|b| b & 1 == 1),
+                        1 + u32::from(bytes.get(1).copied().unwrap_or(0) % 4),
+                        &opts,
+                    );
+                }
+                ext => {
+                    let _ = splat2tiles::io::read_bytes(&format!("crash.{ext}"), &bytes);
+                }
+            }
+        }
+    }
+    assert!(
+        n >= 1,
+        "the glb crash of 2026-11-22 must stay in the corpus"
+    );
+}
+
+/// The first fuzz crash: a SCALE accessor typed SCALAR (reported as ACCESSOR_TYPE_INVALID) was
+/// then read as VEC3, past the end of its data (src/validate/content.rs, fixed).
+#[test]
+fn r_fuzz_glb_wrongly_typed_attribute_is_reported_not_read() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/regressions/glb/crash-1cf7a1582a61af25fe3ba96b1504d834a505c333");
+    let r = validate_glb_bytes(&std::fs::read(path).unwrap(), &ValidateOptions::default());
+    assert!(r.num_errors > 0);
+}

@@ -673,7 +673,7 @@ pub(crate) fn validate_glb(
                         ));
                     }
                 }
-                SCALE => {
+                SCALE if v.n == 3 => {
                     for i in 0..v.count {
                         for j in 0..3 {
                             let x = v.get(i, j);
@@ -690,7 +690,7 @@ pub(crate) fn validate_glb(
                         ));
                     }
                 }
-                ROTATION => {
+                ROTATION if v.n == 4 => {
                     let tol = match (v.comp, v.normalized) {
                         (ComponentType::I8, true) => 0.02,
                         (ComponentType::I16, true) => ctx.opts.rotation_tolerance.max(2e-4),
@@ -723,7 +723,7 @@ pub(crate) fn validate_glb(
 
         // Geometry for containment: every placement of this mesh.
         let Some(pos) = get("POSITION") else { continue };
-        if !count_ok {
+        if !count_ok || pos.n != 3 {
             continue;
         }
         let y_to_z = DMat4::from_cols_array(&[
@@ -739,8 +739,9 @@ pub(crate) fn validate_glb(
         }
         // A mesh placed many times is checked in its first 16 placements (memory stays bounded).
         worlds.truncate(16);
-        let rot = get(ROTATION);
-        let scale = get(SCALE);
+        // Wrongly typed attributes were reported above; their values are not used.
+        let rot = get(ROTATION).filter(|r| r.n == 4);
+        let scale = get(SCALE).filter(|s| s.n == 3);
         for w in worlds {
             let full = y_to_z * w;
             let lin = DMat3::from_mat4(full);
