@@ -12,4 +12,5 @@ pub mod sim;
 pub mod splat;
 pub mod stream;
 pub mod tiling;
+pub mod validate;
 pub mod variants;

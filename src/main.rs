@@ -18,6 +18,8 @@ struct Cli {
 enum Command {
     /// Convert a PLY, .splat or .spz scene into an implicit 3D Tiles 1.1 tileset.
     Convert(cli::convert::ConvertArgs),
+    /// Check a tileset (JSON, subtrees, metadata, every KHR_gaussian_splatting glb) and report issues.
+    Validate(cli::validate::ValidateArgs),
     /// Render a scene file or a tileset with the CPU reference renderer to a PNG.
     Render(render_cli::RenderArgs),
     /// Print SSIM and PSNR between two PNG images.
@@ -32,6 +34,7 @@ fn main() {
     let args = Cli::parse();
     let code = match args.command {
         Command::Convert(a) => cli::convert::run(a),
+        Command::Validate(a) => cli::validate::run(a),
         Command::Render(a) => report(render_cli::run_render(&a)),
         Command::Compare(a) => report(render_cli::run_compare(&a)),
         Command::Simulate(a) => report(cli::simulate::run(&a)),

@@ -4,6 +4,7 @@
 pub mod convert;
 pub mod simulate;
 pub mod stats;
+pub mod validate;
 
 /// Exit code when the command could not do its work (bad input, I/O failure).
 pub const EXIT_FAILURE: i32 = 2;

@@ -1,0 +1,21 @@
+//! Fuzz target `glb`: glb bytes through `encode::tile::read_tile_glb` and the validator's glb checks.
+//! Under `cargo fuzz` libFuzzer drives it; a plain build replays one input from stdin.
+#![cfg_attr(fuzzing, no_main)]
+
+fn run(data: &[u8]) {
+    let _ = splat2tiles::encode::tile::read_tile_glb(data);
+    let opts = splat2tiles::validate::ValidateOptions::default();
+    let _ = splat2tiles::validate::validate_glb_bytes(data, &opts);
+}
+
+#[cfg(fuzzing)]
+libfuzzer_sys::fuzz_target!(|data: &[u8]| run(data));
+
+#[cfg(not(fuzzing))]
+fn main() {
+    use std::io::Read;
+    let mut data = Vec::new();
+    std::io::stdin().read_to_end(&mut data).expect("read stdin");
+    run(&data);
+    println!("ok: {} bytes replayed without a crash", data.len());
+}

@@ -1,0 +1,223 @@
+//! The validation context: options, the tileset folder, the issues found so far, and reading of
+//! files named by URIs (inside the folder only; gzip/zstd decompressed under size limits).
+
+use super::issues::Issue;
+use crate::tiling::load::resolve_inside;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// What `validate` checks and how far it trusts its input.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidateOptions {
+    /// Remote URIs become a WARNING (never fetched) instead of an ERROR.
+    pub allow_remote: bool,
+    /// Also check that each splat's 3-sigma ellipsoid stays inside its tile (WARNING).
+    pub check_extent: bool,
+    /// Largest decompressed size of one gzip/zstd file, in bytes.
+    pub max_decompressed_bytes: u64,
+    /// Largest decompressed/compressed ratio of one file (beyond 1 MiB of output).
+    pub max_decompression_ratio: u64,
+    /// Allowed `| |q| - 1 |` of float ROTATION quaternions.
+    pub rotation_tolerance: f64,
+}
+
+impl Default for ValidateOptions {
+    fn default() -> Self {
+        ValidateOptions {
+            allow_remote: false,
+            check_extent: false,
+            max_decompressed_bytes: 1 << 30,
+            max_decompression_ratio: 2048,
+            rotation_tolerance: 1e-3,
+        }
+    }
+}
+
+/// Shared state of one validation run.
+pub(crate) struct Ctx<'a> {
+    /// Folder of `tileset.json`: every URI must resolve inside it.
+    pub dir: PathBuf,
+    /// Options.
+    pub opts: &'a ValidateOptions,
+    /// Issues found so far.
+    pub issues: Vec<Issue>,
+    /// An in-memory file standing in for the disk (single-file validation and fuzzing).
+    pub memory: Option<(PathBuf, Vec<u8>)>,
+}
+
+/// Most issues one report lists (hostile inputs can produce millions).
+pub(crate) const MAX_ISSUES: usize = 10_000;
+
+/// gzip magic.
+const GZIP: [u8; 2] = [0x1f, 0x8b];
+/// zstd frame magic.
+const ZSTD: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
+
+impl<'a> Ctx<'a> {
+    /// A context for the tileset in `dir`.
+    pub fn new(dir: PathBuf, opts: &'a ValidateOptions) -> Self {
+        Ctx {
+            dir,
+            opts,
+            issues: Vec::new(),
+            memory: None,
+        }
+    }
+
+    /// Records an issue; beyond [`MAX_ISSUES`] one ISSUES_TRUNCATED note replaces the rest.
+    pub fn push(&mut self, issue: Issue) {
+        match self.issues.len() {
+            n if n < MAX_ISSUES => self.issues.push(issue),
+            n if n == MAX_ISSUES => self.issues.push(Issue::ISSUES_TRUNCATED(
+                "",
+                format!("more than {MAX_ISSUES} issues; the rest are not listed"),
+            )),
+            _ => {}
+        }
+    }
+
+    /// Resolves `uri` (found at `path`) inside the tileset folder, reporting why not.
+    pub fn resolve(&mut self, uri: &str, path: &str) -> Option<PathBuf> {
+        let lower = uri.to_ascii_lowercase();
+        let remote = lower.contains("://") || lower.starts_with("data:");
+        if remote {
+            if self.opts.allow_remote {
+                self.push(Issue::URI_REMOTE_NOT_VALIDATED(
+                    path,
+                    format!("'{uri}' is remote; it was not fetched"),
+                ));
+            } else {
+                self.push(Issue::URI_REMOTE(
+                    path,
+                    format!(
+                        "'{uri}' is remote; use --allow-remote to accept it (it is never fetched)"
+                    ),
+                ));
+            }
+            return None;
+        }
+        match resolve_inside(&self.dir, uri) {
+            Some(p) => Some(p),
+            None => {
+                self.push(Issue::URI_OUTSIDE_TILESET(
+                    path,
+                    format!("'{uri}' is absolute or climbs out of the tileset folder"),
+                ));
+                None
+            }
+        }
+    }
+
+    /// Reads a file, decompressing gzip/zstd under the limits; `name` is its path in issues.
+    pub fn read(&mut self, file: &Path, name: &str) -> Option<Vec<u8>> {
+        if let Some((p, bytes)) = &self.memory
+            && p == file
+        {
+            let bytes = bytes.clone();
+            return self.decompress(bytes, name);
+        }
+        match std::fs::read(file) {
+            Ok(bytes) => self.decompress(bytes, name),
+            Err(e) => {
+                self.push(Issue::IO_ERROR(name, format!("cannot read: {e}")));
+                None
+            }
+        }
+    }
+
+    /// Whether `file` exists (in memory or on disk).
+    pub fn exists(&self, file: &Path) -> bool {
+        self.memory.as_ref().is_some_and(|(p, _)| p == file) || file.is_file()
+    }
+
+    /// Decompresses `bytes` when they start with gzip or zstd magic; other bytes pass through.
+    pub fn decompress(&mut self, bytes: Vec<u8>, name: &str) -> Option<Vec<u8>> {
+        match decompress_limited(&bytes, self.opts) {
+            Ok(Some(out)) => Some(out),
+            Ok(None) => Some(bytes),
+            Err(DecompressError::Limit(limit)) => {
+                self.push(Issue::DECOMPRESSION_LIMIT_EXCEEDED(
+                    name,
+                    format!(
+                        "{} compressed bytes expand beyond {limit} bytes (limit of --max-decompressed / ratio {})",
+                        bytes.len(),
+                        self.opts.max_decompression_ratio
+                    ),
+                ));
+                None
+            }
+            Err(DecompressError::Corrupt(e)) => {
+                self.push(Issue::IO_ERROR(
+                    name,
+                    format!("corrupt compressed stream: {e}"),
+                ));
+                None
+            }
+        }
+    }
+}
+
+/// Why a compressed input was refused.
+#[derive(Debug)]
+pub(crate) enum DecompressError {
+    /// Output would exceed this many bytes.
+    Limit(u64),
+    /// The stream is malformed.
+    Corrupt(std::io::Error),
+}
+
+/// Decompresses gzip or zstd input under the limits; `Ok(None)` when the input is not compressed.
+pub(crate) fn decompress_limited(
+    bytes: &[u8],
+    opts: &ValidateOptions,
+) -> Result<Option<Vec<u8>>, DecompressError> {
+    let by_ratio = (bytes.len() as u64)
+        .saturating_mul(opts.max_decompression_ratio)
+        .max(1 << 20);
+    let limit = by_ratio.min(opts.max_decompressed_bytes);
+    let reader: Box<dyn Read + '_> = if bytes.starts_with(&GZIP) {
+        Box::new(flate2::read::MultiGzDecoder::new(bytes))
+    } else if bytes.starts_with(&ZSTD) {
+        Box::new(zstd::stream::read::Decoder::new(bytes).map_err(DecompressError::Corrupt)?)
+    } else {
+        return Ok(None);
+    };
+    let mut out = Vec::new();
+    reader
+        .take(limit + 1)
+        .read_to_end(&mut out)
+        .map_err(DecompressError::Corrupt)?;
+    if out.len() as u64 > limit {
+        return Err(DecompressError::Limit(limit));
+    }
+    Ok(Some(out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    #[test]
+    fn zstd_bomb_is_refused_without_expanding_it() {
+        let mut enc = zstd::stream::write::Encoder::new(Vec::new(), 19).unwrap();
+        let zeros = vec![0u8; 1 << 20];
+        for _ in 0..64 {
+            enc.write_all(&zeros).unwrap();
+        }
+        let bomb = enc.finish().unwrap();
+        let opts = ValidateOptions::default();
+        assert!(matches!(
+            decompress_limited(&bomb, &opts),
+            Err(DecompressError::Limit(_))
+        ));
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        gz.write_all(b"{\"a\":1}").unwrap();
+        let small = gz.finish().unwrap();
+        assert_eq!(
+            decompress_limited(&small, &opts).unwrap().unwrap(),
+            b"{\"a\":1}"
+        );
+        assert!(decompress_limited(b"plain", &opts).unwrap().is_none());
+    }
+}

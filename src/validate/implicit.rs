@@ -1,0 +1,813 @@
+//! Implicit tiling (3D Tiles 1.1 "Implicit Tiling"): the implicitTiling object, template URIs,
+//! `.subtree` framing, availability, property tables, and a walk over every reachable subtree
+//! that validates each available tile's content against its volume.
+
+use super::context::Ctx;
+use super::issues::Issue;
+use super::metadata::{Schema, numbers};
+use super::tileset::content_file;
+use super::volume::{Volume, parse_box};
+use crate::tiling::load::expand_template;
+use crate::tiling::subtree::{Availability, SUBTREE_MAGIC, SubtreeJson, bit, tile_count};
+use crate::tiling::{Scheme, TileKey};
+use glam::DMat4;
+use serde_json::Value;
+use std::collections::{HashMap, HashSet};
+
+/// Most subtree files one validation walks.
+const MAX_SUBTREES: usize = 1 << 20;
+
+/// Largest number of child-subtree bits walked (N^subtreeLevels); beyond it the walk stops.
+const MAX_CHILD_BITS: u64 = 1 << 24;
+
+/// Checks the variables of a template URI against the scheme.
+fn template(ctx: &mut Ctx<'_>, uri: &str, path: &str, octree: bool) {
+    let allowed: &[&str] = if octree {
+        &["level", "x", "y", "z"]
+    } else {
+        &["level", "x", "y"]
+    };
+    let mut used = HashSet::new();
+    let mut rest = uri;
+    while let Some(open) = rest.find('{') {
+        let after = &rest[open + 1..];
+        let Some(close) = after.find('}') else { break };
+        let name = &after[..close];
+        if allowed.contains(&name) {
+            used.insert(name.to_string());
+        } else {
+            ctx.push(Issue::TEMPLATE_URI_INVALID_VARIABLE_NAME(
+                path,
+                format!(
+                    "'{{{name}}}' is not one of {allowed:?} ({} scheme)",
+                    if octree { "OCTREE" } else { "QUADTREE" }
+                ),
+            ));
+        }
+        rest = &after[close + 1..];
+    }
+    let missing: Vec<&str> = allowed
+        .iter()
+        .copied()
+        .filter(|a| !used.contains(*a))
+        .collect();
+    if !missing.is_empty() {
+        ctx.push(Issue::TEMPLATE_URI_MISSING_VARIABLE_NAME(
+            path,
+            format!("the template does not use {missing:?}, so different tiles share a URI"),
+        ));
+    }
+}
+
+/// Parses a `.subtree` file (binary, or JSON with external buffers); framing issues recorded.
+fn parse_subtree(ctx: &mut Ctx<'_>, bytes: &[u8], name: &str) -> Option<(SubtreeJson, Vec<u8>)> {
+    let at = |o: u64| format!("{name}@byte {o}");
+    let parse_json = |ctx: &mut Ctx<'_>, json: &[u8], offset: u64| -> Option<SubtreeJson> {
+        match serde_json::from_slice::<SubtreeJson>(json) {
+            Ok(j) => Some(j),
+            Err(e) if e.to_string().starts_with("missing field") => {
+                ctx.push(Issue::PROPERTY_MISSING(format!("{name}#"), e.to_string()));
+                None
+            }
+            Err(e) => {
+                ctx.push(Issue::JSON_PARSE_ERROR(at(offset), e.to_string()));
+                None
+            }
+        }
+    };
+    if bytes.first() == Some(&b'{') {
+        return parse_json(ctx, bytes, 0).map(|j| (j, Vec::new()));
+    }
+    if bytes.len() < 24 {
+        ctx.push(Issue::BINARY_INVALID_LENGTH(
+            at(0),
+            format!(
+                "{} bytes is shorter than the 24-byte subtree header",
+                bytes.len()
+            ),
+        ));
+        return None;
+    }
+    let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
+    let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
+    if u32_at(0) != SUBTREE_MAGIC {
+        ctx.push(Issue::BINARY_INVALID(
+            at(0),
+            format!("magic {:#010x} is not \"subt\" (0x74627573)", u32_at(0)),
+        ));
+        return None;
+    }
+    if u32_at(4) != 1 {
+        ctx.push(Issue::BINARY_INVALID(
+            at(4),
+            format!("version {} is not 1", u32_at(4)),
+        ));
+        return None;
+    }
+    let (json_len, bin_len) = (u64_at(8), u64_at(16));
+    let total = 24u64
+        .checked_add(json_len)
+        .and_then(|t| t.checked_add(bin_len));
+    match total {
+        Some(t) if t == bytes.len() as u64 => {}
+        Some(t) if t < bytes.len() as u64 => ctx.push(Issue::BINARY_INVALID_LENGTH(
+            at(8),
+            format!("header declares {t} bytes but the file has {}", bytes.len()),
+        )),
+        _ => {
+            ctx.push(Issue::BINARY_INVALID_LENGTH(
+                at(8),
+                format!(
+                    "jsonByteLength {json_len} + binaryByteLength {bin_len} run past the {}-byte file",
+                    bytes.len()
+                ),
+            ));
+            return None;
+        }
+    }
+    // "The JSON chunk MUST be padded with trailing spaces to a multiple of 8 bytes"; the binary
+    // chunk likewise with zeros.
+    if json_len % 8 != 0 {
+        ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
+            at(8),
+            format!("jsonByteLength {json_len} is not a multiple of 8"),
+        ));
+    }
+    if bin_len % 8 != 0 {
+        ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
+            at(16),
+            format!("binaryByteLength {bin_len} is not a multiple of 8"),
+        ));
+    }
+    let json = &bytes[24..24 + json_len as usize];
+    let end = json.iter().rposition(|&b| b == b'}').map_or(0, |p| p + 1);
+    if json[end..].iter().any(|&b| b != b' ') {
+        ctx.push(Issue::BINARY_INVALID_PADDING(
+            at(24 + end as u64),
+            "the JSON chunk must be padded with spaces (0x20) only",
+        ));
+    }
+    let j = parse_json(ctx, &json[..end], 24)?;
+    let bin = bytes[24 + json_len as usize..24 + (json_len + bin_len) as usize].to_vec();
+    Some((j, bin))
+}
+
+/// Buffers and bufferViews of one subtree, checked.
+struct Views {
+    buffers: Vec<Option<Vec<u8>>>,
+    /// Per view: buffer, start, end, when valid.
+    views: Vec<Option<(usize, usize, usize)>>,
+}
+
+impl Views {
+    fn get(&self, i: u32) -> Option<&[u8]> {
+        let (b, s, e) = (*self.views.get(i as usize)?)?;
+        self.buffers.get(b)?.as_ref()?.get(s..e)
+    }
+}
+
+fn check_views(
+    ctx: &mut Ctx<'_>,
+    j: &SubtreeJson,
+    bin: Vec<u8>,
+    name: &str,
+    dir_rel: &str,
+) -> Views {
+    let mut bin = Some(bin);
+    let mut buffers = Vec::new();
+    for (i, b) in j.buffers.iter().enumerate() {
+        let path = format!("{name}#/buffers/{i}");
+        match &b.uri {
+            None => {
+                let data = bin.take();
+                match &data {
+                    Some(d)
+                        if (d.len() as u64) >= b.byte_length
+                            && d.len() as u64 - b.byte_length < 8 => {}
+                    Some(d) => ctx.push(Issue::BUFFERS_INCONSISTENT(
+                        format!("{path}/byteLength"),
+                        format!(
+                            "byteLength {} does not match the {}-byte binary chunk",
+                            b.byte_length,
+                            d.len()
+                        ),
+                    )),
+                    None => ctx.push(Issue::BUFFERS_INCONSISTENT(
+                        path,
+                        "only one buffer may omit uri (the binary chunk)",
+                    )),
+                }
+                buffers.push(data);
+            }
+            Some(uri) => {
+                let rel = if dir_rel.is_empty() {
+                    uri.clone()
+                } else {
+                    format!("{dir_rel}/{uri}")
+                };
+                let data = ctx
+                    .resolve(&rel, &format!("{path}/uri"))
+                    .and_then(|f| ctx.read(&f, &rel));
+                if let Some(d) = &data
+                    && (d.len() as u64) < b.byte_length
+                {
+                    ctx.push(Issue::BUFFERS_INCONSISTENT(
+                        format!("{path}/byteLength"),
+                        format!(
+                            "byteLength {} exceeds the {} bytes of '{uri}'",
+                            b.byte_length,
+                            d.len()
+                        ),
+                    ));
+                }
+                buffers.push(data);
+            }
+        }
+    }
+    let mut views = Vec::new();
+    for (i, v) in j.buffer_views.iter().enumerate() {
+        let path = format!("{name}#/bufferViews/{i}");
+        let Some(b) = j.buffers.get(v.buffer as usize) else {
+            ctx.push(Issue::BUFFERS_INCONSISTENT(
+                format!("{path}/buffer"),
+                format!("buffer {} does not exist", v.buffer),
+            ));
+            views.push(None);
+            continue;
+        };
+        if v.byte_offset % 8 != 0 {
+            ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
+                format!("{path}/byteOffset"),
+                format!("byteOffset {} is not a multiple of 8", v.byte_offset),
+            ));
+        }
+        let end = v.byte_offset.checked_add(v.byte_length);
+        if end.is_none_or(|e| e > b.byte_length) {
+            ctx.push(Issue::BUFFERS_INCONSISTENT(
+                path,
+                format!(
+                    "bytes {}..+{} run past the {}-byte buffer {}",
+                    v.byte_offset, v.byte_length, b.byte_length, v.buffer
+                ),
+            ));
+            views.push(None);
+            continue;
+        }
+        views.push(Some((
+            v.buffer as usize,
+            v.byte_offset as usize,
+            (v.byte_offset + v.byte_length) as usize,
+        )));
+    }
+    Views { buffers, views }
+}
+
+/// Expands an availability object to `len` bits, reporting what is wrong with it.
+fn availability(
+    ctx: &mut Ctx<'_>,
+    a: &Availability,
+    len: usize,
+    views: &Views,
+    path: &str,
+) -> Option<Vec<bool>> {
+    let bits = match (a.bitstream, a.constant) {
+        (Some(_), Some(_)) | (None, None) => {
+            ctx.push(Issue::AVAILABILITY_INVALID(
+                path,
+                "an availability must have exactly one of 'bitstream' and 'constant'",
+            ));
+            return None;
+        }
+        (None, Some(c)) => {
+            if c > 1 {
+                ctx.push(Issue::VALUE_NOT_IN_RANGE(
+                    format!("{path}/constant"),
+                    format!("constant {c} is neither 0 nor 1"),
+                ));
+                return None;
+            }
+            vec![c == 1; len]
+        }
+        (Some(v), None) => {
+            let Some(bytes) = views.get(v) else {
+                ctx.push(Issue::AVAILABILITY_INVALID(
+                    format!("{path}/bitstream"),
+                    format!("bufferView {v} is missing or invalid"),
+                ));
+                return None;
+            };
+            if bytes.len() != len.div_ceil(8) {
+                ctx.push(Issue::AVAILABILITY_INVALID(
+                    format!("{path}/bitstream"),
+                    format!(
+                        "the bitstream has {} bytes; {len} bits need {}",
+                        bytes.len(),
+                        len.div_ceil(8)
+                    ),
+                ));
+                if bytes.len() < len.div_ceil(8) {
+                    return None;
+                }
+            }
+            (0..len).map(|i| bit(bytes, i)).collect()
+        }
+    };
+    let count = bits.iter().filter(|b| **b).count() as u64;
+    if let Some(c) = a.available_count
+        && c != count
+    {
+        ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+            format!("{path}/availableCount"),
+            format!("availableCount {c} but {count} bits are set"),
+        ));
+    }
+    Some(bits)
+}
+
+/// Columns of one property table resolved by semantic: per row, the values.
+#[allow(clippy::too_many_arguments)] // one call site; a struct would only rename the arguments
+fn table_column(
+    ctx: &mut Ctx<'_>,
+    j: &SubtreeJson,
+    views: &Views,
+    schema: &Schema,
+    table: u32,
+    rows: usize,
+    path: &str,
+    semantics: &[&str],
+) -> Vec<Option<Vec<f64>>> {
+    let mut out = vec![None; semantics.len()];
+    let Some(t) = j.property_tables.get(table as usize) else {
+        ctx.push(Issue::PROPERTY_TABLE_INVALID(
+            path,
+            format!("property table {table} does not exist"),
+        ));
+        return out;
+    };
+    let tp = format!("{path}/propertyTables/{table}");
+    if t.count != rows as u64 {
+        ctx.push(Issue::PROPERTY_TABLE_COUNT_MISMATCH(
+            format!("{tp}/count"),
+            format!("count {} but {rows} tiles/contents are available", t.count),
+        ));
+    }
+    let Some(class) = schema.classes.get(&t.class) else {
+        ctx.push(Issue::PROPERTY_TABLE_INVALID(
+            format!("{tp}/class"),
+            format!("class '{}' is not in the tileset schema", t.class),
+        ));
+        return out;
+    };
+    for (pname, p) in &t.properties {
+        let pp = format!("{tp}/properties/{pname}");
+        let Some(prop) = class.get(pname) else {
+            ctx.push(Issue::PROPERTY_TABLE_INVALID(
+                pp,
+                format!("class '{}' has no property '{pname}'", t.class),
+            ));
+            continue;
+        };
+        let Some(bytes) = views.get(p.values) else {
+            ctx.push(Issue::PROPERTY_TABLE_INVALID(
+                format!("{pp}/values"),
+                format!("bufferView {} is missing or invalid", p.values),
+            ));
+            continue;
+        };
+        let Some(row) = prop.row_bytes() else {
+            continue;
+        };
+        let need = row.saturating_mul(t.count);
+        if (bytes.len() as u64) < need {
+            ctx.push(Issue::PROPERTY_TABLE_VALUES_INVALID(
+                format!("{pp}/values"),
+                format!(
+                    "{} bytes; {} rows of {row} bytes need {need}",
+                    bytes.len(),
+                    t.count
+                ),
+            ));
+            continue;
+        }
+        if let Some(k) = semantics
+            .iter()
+            .position(|s| prop.semantic.as_deref() == Some(*s))
+            && t.count == rows as u64
+        {
+            let per = (row
+                / super::metadata::component_size(prop.component.as_deref().unwrap_or("FLOAT64"))
+                    .unwrap_or(8)) as usize;
+            out[k] = numbers(
+                bytes,
+                prop.component.as_deref().unwrap_or("FLOAT64"),
+                rows * per,
+            );
+        }
+    }
+    out
+}
+
+/// Validates an implicit root tile and walks its subtrees.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn validate(
+    ctx: &mut Ctx<'_>,
+    tile: &Value,
+    it: &Value,
+    path: &str,
+    volume: Option<Volume>,
+    world: DMat4,
+    root_error: Option<f64>,
+    schema: &Schema,
+) {
+    let ip = format!("{path}/implicitTiling");
+    // "children, metadata and content.boundingVolume MUST NOT be defined on an implicit root".
+    if tile.get("children").is_some() {
+        ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
+            format!("{path}/children"),
+            "an implicit root must not have children",
+        ));
+    }
+    if tile.get("metadata").is_some() {
+        ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
+            format!("{path}/metadata"),
+            "an implicit root must not have metadata",
+        ));
+    }
+    let mut templates = Vec::new();
+    let contents: Vec<(String, &Value)> = match (tile.get("content"), tile.get("contents")) {
+        (Some(c), _) => vec![(format!("{path}/content"), c)],
+        (None, Some(Value::Array(cs))) => cs
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (format!("{path}/contents/{i}"), c))
+            .collect(),
+        _ => vec![],
+    };
+    for (cp, c) in &contents {
+        if c.get("boundingVolume").is_some() {
+            ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
+                format!("{cp}/boundingVolume"),
+                "content of an implicit root must not have a boundingVolume",
+            ));
+        }
+        match c.get("uri").and_then(Value::as_str) {
+            Some(u) => templates.push((format!("{cp}/uri"), u.to_string())),
+            None => ctx.push(Issue::PROPERTY_MISSING(
+                cp.clone(),
+                "content 'uri' is required",
+            )),
+        }
+    }
+    if let Some(Volume::Sphere { .. }) = volume {
+        ctx.push(Issue::BOUNDING_VOLUME_INVALID(
+            format!("{path}/boundingVolume/sphere"),
+            "implicit tiling does not allow sphere bounding volumes",
+        ));
+    }
+    let Some(obj) = it.as_object() else {
+        ctx.push(Issue::TYPE_MISMATCH(ip, "implicitTiling must be an object"));
+        return;
+    };
+    let scheme = match obj.get("subdivisionScheme").and_then(Value::as_str) {
+        Some("QUADTREE") => Some(Scheme::Quadtree),
+        Some("OCTREE") => Some(Scheme::Octree),
+        Some(s) => {
+            ctx.push(Issue::VALUE_NOT_IN_LIST(
+                format!("{ip}/subdivisionScheme"),
+                format!("'{s}' is not QUADTREE or OCTREE"),
+            ));
+            None
+        }
+        None => {
+            ctx.push(Issue::PROPERTY_MISSING(
+                ip.clone(),
+                "'subdivisionScheme' is required",
+            ));
+            None
+        }
+    };
+    let mut levels = |key: &str| match obj.get(key) {
+        None => {
+            ctx.push(Issue::PROPERTY_MISSING(
+                ip.clone(),
+                format!("'{key}' is required"),
+            ));
+            None
+        }
+        Some(v) => match v.as_u64() {
+            Some(n) if n >= 1 => Some(n),
+            _ => {
+                ctx.push(Issue::VALUE_NOT_IN_RANGE(
+                    format!("{ip}/{key}"),
+                    format!("{key} must be an integer >= 1"),
+                ));
+                None
+            }
+        },
+    };
+    let subtree_levels = levels("subtreeLevels");
+    let available_levels = levels("availableLevels");
+    let subtrees_uri = match obj
+        .get("subtrees")
+        .map(|s| s.get("uri").and_then(Value::as_str))
+    {
+        Some(Some(u)) => Some(u.to_string()),
+        _ => {
+            ctx.push(Issue::PROPERTY_MISSING(
+                format!("{ip}/subtrees"),
+                "'subtrees.uri' is required",
+            ));
+            None
+        }
+    };
+    let Some(scheme) = scheme else { return };
+    let octree = scheme == Scheme::Octree;
+    if let Some(u) = &subtrees_uri {
+        template(ctx, u, &format!("{ip}/subtrees/uri"), octree);
+    }
+    for (p, u) in &templates {
+        template(ctx, u, p, octree);
+    }
+    let (Some(sl), Some(al), Some(subtrees_uri)) = (subtree_levels, available_levels, subtrees_uri)
+    else {
+        return;
+    };
+    let arity = scheme.arity();
+    let max_level = if octree { 21 } else { 31 };
+    if arity
+        .checked_pow(sl as u32)
+        .is_none_or(|n| n > MAX_CHILD_BITS)
+        || al > max_level
+    {
+        ctx.push(Issue::IMPLICIT_TILING_ERROR(
+            ip,
+            format!("subtreeLevels {sl} / availableLevels {al} are beyond what this validator walks (N^subtreeLevels <= 2^24, levels <= {max_level})"),
+        ));
+        return;
+    }
+    let (sl, al) = (sl as u32, al as u32);
+    let n_tiles = tile_count(arity, sl) as usize;
+    let n_children = arity.pow(sl) as usize;
+    let dims = scheme.dims();
+    let tile_class_box = "TILE_BOUNDING_BOX";
+    let tile_class_err = "TILE_GEOMETRIC_ERROR";
+
+    let mut errors: HashMap<TileKey, f64> = HashMap::new();
+    let mut queue = vec![(TileKey::ROOT, true)];
+    let mut seen = HashSet::new();
+    while let Some((root, is_root)) = queue.pop() {
+        if !seen.insert(root) {
+            continue;
+        }
+        if seen.len() > MAX_SUBTREES {
+            ctx.push(Issue::IMPLICIT_TILING_ERROR(
+                ip.clone(),
+                format!("more than {MAX_SUBTREES} subtrees are available; the walk stopped there"),
+            ));
+            break;
+        }
+        let uri = expand_template(&subtrees_uri, root);
+        let Some(file) = ctx.resolve(&uri, &format!("{path}/implicitTiling/subtrees/uri")) else {
+            continue;
+        };
+        if !ctx.exists(&file) {
+            if is_root {
+                ctx.push(Issue::IO_ERROR(uri, "the root subtree file is missing"));
+            } else {
+                ctx.push(Issue::SUBTREE_FILE_MISSING(
+                    uri,
+                    "its parent subtree marks this child subtree available, but there is no file",
+                ));
+            }
+            continue;
+        }
+        let Some(bytes) = ctx.read(&file, &uri) else {
+            continue;
+        };
+        let Some((j, bin)) = parse_subtree(ctx, &bytes, &uri) else {
+            continue;
+        };
+        let dir_rel = std::path::Path::new(&uri)
+            .parent()
+            .map(|p| p.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let views = check_views(ctx, &j, bin, &uri, &dir_rel);
+        let sp = format!("{uri}#");
+        let Some(tiles) = availability(
+            ctx,
+            &j.tile_availability,
+            n_tiles,
+            &views,
+            &format!("{sp}/tileAvailability"),
+        ) else {
+            continue;
+        };
+        let mut layers = Vec::new();
+        for (c, a) in j.content_availability.iter().enumerate() {
+            layers.push(availability(
+                ctx,
+                a,
+                n_tiles,
+                &views,
+                &format!("{sp}/contentAvailability/{c}"),
+            ));
+        }
+        if layers.len() != templates.len() && !(layers.is_empty() && templates.is_empty()) {
+            ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                format!("{sp}/contentAvailability"),
+                format!(
+                    "{} content availabilities for {} content templates",
+                    layers.len(),
+                    templates.len()
+                ),
+            ));
+        }
+        let children = availability(
+            ctx,
+            &j.child_subtree_availability,
+            n_children,
+            &views,
+            &format!("{sp}/childSubtreeAvailability"),
+        );
+
+        // Index helpers: level offset + Morton index.
+        let key_of = |idx: usize| {
+            let mut rl = 0u32;
+            while tile_count(arity, rl + 1) as usize <= idx {
+                rl += 1;
+            }
+            let m = (idx - tile_count(arity, rl) as usize) as u64;
+            (rl, m)
+        };
+        let abs = |rl: u32, m: u64| {
+            let (x, y, z) = scheme.decode(m);
+            TileKey {
+                level: root.level + rl,
+                x: (root.x << rl) + x,
+                y: (root.y << rl) + y,
+                z: (root.z << rl) + z,
+            }
+        };
+        // "If a tile is available, its parent tile MUST be available"; content => tile.
+        let mut bad_parent = Vec::new();
+        for (idx, _) in tiles.iter().enumerate().filter(|(_, b)| **b) {
+            let (rl, m) = key_of(idx);
+            if rl > 0 && !tiles[tile_count(arity, rl - 1) as usize + (m >> dims) as usize] {
+                bad_parent.push(idx);
+            }
+            if root.level + rl >= al {
+                ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                    format!("{sp}/tileAvailability"),
+                    format!(
+                        "tile {idx} (level {}) is available but availableLevels is {al}",
+                        root.level + rl
+                    ),
+                ));
+                break;
+            }
+        }
+        if let Some(&idx) = bad_parent.first() {
+            ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                format!("{sp}/tileAvailability"),
+                format!(
+                    "{} available tiles have an unavailable parent; first: tile index {idx}",
+                    bad_parent.len()
+                ),
+            ));
+        }
+        for (c, layer) in layers.iter().enumerate() {
+            let Some(layer) = layer else { continue };
+            let orphans = layer
+                .iter()
+                .zip(&tiles)
+                .filter(|(c, t)| **c && !**t)
+                .count();
+            if orphans > 0 {
+                ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                    format!("{sp}/contentAvailability/{c}"),
+                    format!("{orphans} contents are available on unavailable tiles"),
+                ));
+            }
+        }
+        if let Some(children) = &children {
+            let first_last = tile_count(arity, sl - 1) as usize;
+            for (m, &set) in children.iter().enumerate() {
+                let parent_ok = tiles[first_last + (m >> dims)];
+                let key = abs(sl, m as u64);
+                if set && !parent_ok {
+                    ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                        format!("{sp}/childSubtreeAvailability"),
+                        format!("child subtree {m} is available but its parent tile is not"),
+                    ));
+                } else if set && key.level >= al {
+                    ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                        format!("{sp}/childSubtreeAvailability"),
+                        format!(
+                            "child subtree {m} starts at level {} but availableLevels is {al}",
+                            key.level
+                        ),
+                    ));
+                } else if set {
+                    queue.push((key, false));
+                } else if parent_ok && key.level < al {
+                    let child_uri = expand_template(&subtrees_uri, key);
+                    if crate::tiling::load::resolve_inside(&ctx.dir, &child_uri)
+                        .is_some_and(|f| f.is_file())
+                    {
+                        ctx.push(Issue::SUBTREE_FILE_UNREFERENCED(
+                            child_uri,
+                            format!(
+                                "{uri} marks this child subtree unavailable, so it is never loaded"
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+
+        // Property tables.
+        let available: Vec<usize> = tiles
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| **b)
+            .map(|(i, _)| i)
+            .collect();
+        let mut boxes = None;
+        let mut tile_errors = None;
+        if let Some(t) = j.tile_metadata {
+            let cols = table_column(
+                ctx,
+                &j,
+                &views,
+                schema,
+                t,
+                available.len(),
+                &sp,
+                &[tile_class_box, tile_class_err],
+            );
+            // Columns of the wrong shape were reported by the schema checks; ignore them here.
+            boxes = cols[0].clone().filter(|b| b.len() == available.len() * 12);
+            tile_errors = cols[1].clone().filter(|e| e.len() == available.len());
+        }
+        for (c, t) in j.content_metadata.iter().flatten().enumerate() {
+            let rows = layers
+                .get(c)
+                .and_then(|l| l.as_ref())
+                .map_or(0, |l| l.iter().filter(|b| **b).count());
+            table_column(ctx, &j, &views, schema, *t, rows, &sp, &[]);
+        }
+
+        // Per available tile: error, volume, contents.
+        for (row, &idx) in available.iter().enumerate() {
+            let (rl, m) = key_of(idx);
+            let key = abs(rl, m);
+            let error = match &tile_errors {
+                Some(e) => {
+                    let v = e[row];
+                    if !(v >= 0.0 && v.is_finite()) {
+                        ctx.push(Issue::METADATA_VALUE_INVALID(
+                            format!("{sp}/propertyTables/{}", j.tile_metadata.unwrap_or(0)),
+                            format!("TILE_GEOMETRIC_ERROR of tile index {idx} is {v} (must be finite and >= 0)"),
+                        ));
+                    }
+                    Some(v)
+                }
+                None => root_error.map(|e| e / f64::powi(2.0, key.level as i32)),
+            };
+            if let (Some(e), Some(parent)) = (error, key.parent().and_then(|p| errors.get(&p)))
+                && e > *parent
+            {
+                ctx.push(Issue::TILE_GEOMETRIC_ERRORS_INCONSISTENT(
+                    format!("{sp}/tileMetadata"),
+                    format!("tile {}/{}/{}/{}: geometric error {e} is larger than its parent's {parent}", key.level, key.x, key.y, key.z),
+                ));
+            }
+            if let Some(e) = error {
+                errors.insert(key, e);
+            }
+            let tile_volume = match &boxes {
+                Some(b) => match parse_box(&b[row * 12..row * 12 + 12]) {
+                    Ok(v) => Some(v),
+                    Err(why) => {
+                        ctx.push(Issue::METADATA_VALUE_INVALID(
+                            format!("{sp}/propertyTables/{}", j.tile_metadata.unwrap_or(0)),
+                            format!("TILE_BOUNDING_BOX of tile index {idx}: {why}"),
+                        ));
+                        None
+                    }
+                },
+                None => volume.map(|v| v.subdivide(octree, key.level, key.x, key.y, key.z)),
+            };
+            for (c, layer) in layers.iter().enumerate() {
+                if !layer.as_ref().is_some_and(|l| l[idx]) {
+                    continue;
+                }
+                let Some((tp, t)) = templates.get(c) else {
+                    continue;
+                };
+                let curi = expand_template(t, key);
+                content_file(ctx, &curi, tp, tile_volume, world);
+            }
+        }
+    }
+}

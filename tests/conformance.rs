@@ -1,0 +1,908 @@
+//! Conformance suite of `splat2tiles validate`: every case under `conformance/cases/` (a
+//! `case.json` naming a generated base tileset, a mutation and the exact expected codes) is run.
+//!
+//! Bases are converted at test time into a temp dir (nothing large is committed); a mutation is a
+//! named Rust function below that breaks exactly one rule of a copy of the base. The test fails on
+//! any difference between the multiset of ERROR/WARNING codes and `expected`.
+
+mod common;
+
+use serde_json::{Value, json};
+use splat2tiles::convert::{ConvertOptions, SchemeChoice, convert};
+use splat2tiles::encode::glb::{read_glb, write_glb};
+use splat2tiles::frame::geo::Geodetic;
+use splat2tiles::validate::{ValidateOptions, validate_tileset};
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, OnceLock};
+
+fn cases_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("conformance/cases")
+}
+
+/// Scratch folder shared by the whole run.
+fn scratch() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| tempfile::tempdir().expect("tempdir"))
+        .path()
+}
+
+fn opts(
+    max: usize,
+    scheme: SchemeChoice,
+    levels: Option<u32>,
+    origin: Option<&str>,
+) -> ConvertOptions {
+    ConvertOptions {
+        max_splats_per_tile: max,
+        scheme,
+        subtree_levels: levels,
+        origin: origin.map(|o| Geodetic::parse(o).expect("origin")),
+        progress: false,
+        ..ConvertOptions::default()
+    }
+}
+
+/// Converts base `name` once per run; returns its folder.
+fn base(name: &str) -> PathBuf {
+    static BUILT: OnceLock<Mutex<HashMap<String, PathBuf>>> = OnceLock::new();
+    let built = BUILT.get_or_init(|| Mutex::new(HashMap::new()));
+    let mut map = built.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(p) = map.get(name) {
+        return p.clone();
+    }
+    let out = scratch().join("bases").join(name);
+    let gen_ply = |n: usize, deg: u8, seed: u64| {
+        let p = scratch().join(format!("{name}.ply"));
+        common::write_ply_file(&p, &common::random_splats(n, deg, 10.0, seed));
+        p
+    };
+    let (input, o) = match name {
+        "small_octree" => (
+            gen_ply(6000, 1, 7),
+            opts(400, SchemeChoice::Octree, Some(2), None),
+        ),
+        "small_quadtree" => (
+            gen_ply(6000, 1, 8),
+            opts(400, SchemeChoice::Quadtree, Some(2), None),
+        ),
+        "single" => (
+            gen_ply(200, 0, 9),
+            opts(1000, SchemeChoice::Octree, None, None),
+        ),
+        "sh3_octree" => (
+            gen_ply(2000, 3, 10),
+            opts(300, SchemeChoice::Octree, Some(2), None),
+        ),
+        "georef_generated" => (
+            gen_ply(3000, 2, 11),
+            opts(400, SchemeChoice::Auto, Some(3), Some("-122.4,37.8,10")),
+        ),
+        "plant" => (
+            common::scene("plant.splat"),
+            opts(32_768, SchemeChoice::Auto, None, None),
+        ),
+        "plant_quadtree" => (
+            common::scene("plant.splat"),
+            opts(32_768, SchemeChoice::Quadtree, None, None),
+        ),
+        "plant_georef" => (
+            common::scene("plant.splat"),
+            opts(32_768, SchemeChoice::Auto, None, Some("2.2945,48.8584,35")),
+        ),
+        "donut" => (
+            common::scene("donut_fused_sh0.ply"),
+            opts(32_768, SchemeChoice::Auto, None, None),
+        ),
+        "biker" => (
+            common::scene("biker.spz"),
+            opts(32_768, SchemeChoice::Octree, None, None),
+        ),
+        other => panic!("unknown base '{other}'"),
+    };
+    convert(&input, &out, &o).unwrap_or_else(|e| panic!("converting base {name}: {e}"));
+    map.insert(name.to_string(), out.clone());
+    out
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let t = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &t);
+        } else {
+            std::fs::copy(e.path(), &t).unwrap();
+        }
+    }
+}
+
+fn files_under(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|x| x == ext) {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// A copy of a base tileset that mutations edit.
+struct Ts {
+    dir: PathBuf,
+}
+
+impl Ts {
+    fn tileset(&self) -> Value {
+        serde_json::from_slice(&std::fs::read(self.dir.join("tileset.json")).unwrap()).unwrap()
+    }
+    fn set_tileset(&self, v: &Value) {
+        std::fs::write(
+            self.dir.join("tileset.json"),
+            serde_json::to_vec_pretty(v).unwrap(),
+        )
+        .unwrap();
+    }
+    fn edit_tileset(&self, f: impl FnOnce(&mut Value)) {
+        let mut v = self.tileset();
+        f(&mut v);
+        self.set_tileset(&v);
+    }
+    fn glbs(&self) -> Vec<PathBuf> {
+        files_under(&self.dir.join("tiles"), "glb")
+    }
+    fn glb(&self) -> PathBuf {
+        self.glbs().into_iter().next().expect("a glb")
+    }
+    fn subtrees(&self) -> Vec<PathBuf> {
+        files_under(&self.dir.join("subtrees"), "subtree")
+    }
+    fn root_subtree(&self) -> PathBuf {
+        self.subtrees()
+            .into_iter()
+            .find(|p| p.starts_with(self.dir.join("subtrees/0")))
+            .expect("root subtree")
+    }
+    /// A subtree whose child subtree availability is constant 0.
+    fn leaf_subtree(&self) -> PathBuf {
+        self.subtrees()
+            .into_iter()
+            .rev()
+            .find(|p| read_subtree(p).0["childSubtreeAvailability"]["constant"] == json!(0))
+            .expect("leaf subtree")
+    }
+    /// Bits of tile availability and of child subtree availability in one subtree.
+    fn counts(&self) -> (usize, usize) {
+        let v = self.tileset();
+        let it = &v["root"]["implicitTiling"];
+        let l = it["subtreeLevels"].as_u64().unwrap() as u32;
+        let n: usize = if it["subdivisionScheme"] == "OCTREE" {
+            8
+        } else {
+            4
+        };
+        ((n.pow(l) - 1) / (n - 1), n.pow(l))
+    }
+    /// Edits a glb's JSON, keeping its BIN chunk.
+    fn edit_glb(&self, f: impl FnOnce(&mut Value)) {
+        let p = self.glb();
+        let bytes = std::fs::read(&p).unwrap();
+        let c = read_glb(&bytes).unwrap();
+        let mut v: Value = serde_json::from_slice(c.json).unwrap();
+        f(&mut v);
+        let out = write_glb(&serde_json::to_vec(&v).unwrap(), c.bin).unwrap();
+        std::fs::write(&p, out).unwrap();
+    }
+    /// Writes `val` into component `comp` of element 0 of attribute `attr` of the first glb.
+    fn poke_glb(&self, attr: &str, comp: usize, val: f32) {
+        let p = self.glb();
+        let mut bytes = std::fs::read(&p).unwrap();
+        let c = read_glb(&bytes).unwrap();
+        let v: Value = serde_json::from_slice(c.json).unwrap();
+        let ai = v["meshes"][0]["primitives"][0]["attributes"][attr]
+            .as_u64()
+            .unwrap() as usize;
+        let acc = &v["accessors"][ai];
+        let view = &v["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+        let at = c.bin_offset
+            + view["byteOffset"].as_u64().unwrap_or(0) as usize
+            + acc["byteOffset"].as_u64().unwrap_or(0) as usize
+            + comp * 4;
+        bytes[at..at + 4].copy_from_slice(&val.to_le_bytes());
+        std::fs::write(&p, bytes).unwrap();
+    }
+}
+
+/// Rewrites availability `key` of a subtree as a fresh bitstream after `f` edits its bits.
+fn set_availability(
+    j: &mut Value,
+    bin: &mut Vec<u8>,
+    key: &str,
+    len: usize,
+    f: impl FnOnce(&mut Vec<bool>),
+) {
+    let a = j[key].clone();
+    let mut bits: Vec<bool> = match a["constant"].as_u64() {
+        Some(c) => vec![c == 1; len],
+        None => {
+            let v = a["bitstream"].as_u64().unwrap() as usize;
+            let off = j["bufferViews"][v]["byteOffset"].as_u64().unwrap() as usize;
+            (0..len)
+                .map(|i| (bin[off + i / 8] >> (i % 8)) & 1 == 1)
+                .collect()
+        }
+    };
+    f(&mut bits);
+    let mut packed = vec![0u8; len.div_ceil(8)];
+    for (i, b) in bits.iter().enumerate() {
+        if *b {
+            packed[i / 8] |= 1 << (i % 8);
+        }
+    }
+    let off = bin.len();
+    bin.extend_from_slice(&packed);
+    while !bin.len().is_multiple_of(8) {
+        bin.push(0);
+    }
+    let views = j["bufferViews"].as_array_mut().unwrap();
+    views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": packed.len()}));
+    let view = views.len() - 1;
+    j["buffers"][0]["byteLength"] = json!(bin.len());
+    j[key] = json!({"bitstream": view, "availableCount": bits.iter().filter(|b| **b).count()});
+}
+
+/// A subtree file's JSON and binary chunk.
+fn read_subtree(p: &Path) -> (Value, Vec<u8>) {
+    let b = std::fs::read(p).unwrap();
+    let jl = u64::from_le_bytes(b[8..16].try_into().unwrap()) as usize;
+    let bl = u64::from_le_bytes(b[16..24].try_into().unwrap()) as usize;
+    (
+        serde_json::from_slice(&b[24..24 + jl]).unwrap(),
+        b[24 + jl..24 + jl + bl].to_vec(),
+    )
+}
+
+/// Frames a subtree with `pad` as JSON padding byte up to `align` bytes.
+fn frame_subtree(json: &Value, bin: &[u8], pad: u8, extra_pad: usize) -> Vec<u8> {
+    let mut j = serde_json::to_vec(json).unwrap();
+    while !j.len().is_multiple_of(8) {
+        j.push(pad);
+    }
+    j.extend(std::iter::repeat_n(pad, extra_pad));
+    let mut out = Vec::new();
+    out.extend_from_slice(&0x7462_7573u32.to_le_bytes());
+    out.extend_from_slice(&1u32.to_le_bytes());
+    out.extend_from_slice(&(j.len() as u64).to_le_bytes());
+    out.extend_from_slice(&(bin.len() as u64).to_le_bytes());
+    out.extend_from_slice(&j);
+    out.extend_from_slice(bin);
+    out
+}
+
+fn edit_subtree(p: &Path, f: impl FnOnce(&mut Value, &mut Vec<u8>)) {
+    let (mut j, mut bin) = read_subtree(p);
+    f(&mut j, &mut bin);
+    std::fs::write(p, frame_subtree(&j, &bin, b' ', 0)).unwrap();
+}
+
+/// Byte range in the binary chunk of the tile-metadata column `prop`, and the row count.
+fn column(j: &Value, prop: &str) -> (usize, usize) {
+    let t = j["tileMetadata"].as_u64().unwrap() as usize;
+    let table = &j["propertyTables"][t];
+    let view = &j["bufferViews"][table["properties"][prop]["values"].as_u64().unwrap() as usize];
+    (
+        view["byteOffset"].as_u64().unwrap() as usize,
+        table["count"].as_u64().unwrap() as usize,
+    )
+}
+
+/// First row of the root subtree's tile table whose geometric error is 0 (a leaf with content).
+fn leaf_row(j: &Value, bin: &[u8]) -> usize {
+    let (off, n) = column(j, "geometricError");
+    (0..n)
+        .find(|r| f64::from_le_bytes(bin[off + r * 8..off + r * 8 + 8].try_into().unwrap()) == 0.0)
+        .expect("a leaf row")
+}
+
+fn set_f64(bin: &mut [u8], at: usize, v: f64) {
+    bin[at..at + 8].copy_from_slice(&v.to_le_bytes());
+}
+
+type Mutation = fn(&Ts);
+
+fn mutations() -> BTreeMap<&'static str, Mutation> {
+    let mut m: BTreeMap<&'static str, Mutation> = BTreeMap::new();
+    m.insert("none", |_| {});
+    m.insert("gzip_everything", |t| {
+        use std::io::Write;
+        let mut files = vec![t.dir.join("tileset.json")];
+        files.extend(t.glbs());
+        files.extend(t.subtrees());
+        for f in files {
+            let raw = std::fs::read(&f).unwrap();
+            let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+            gz.write_all(&raw).unwrap();
+            std::fs::write(&f, gz.finish().unwrap()).unwrap();
+        }
+    });
+    // tileset.json
+    m.insert("tileset_json_truncated", |t| {
+        let b = std::fs::read(t.dir.join("tileset.json")).unwrap();
+        std::fs::write(t.dir.join("tileset.json"), &b[..b.len() / 2]).unwrap();
+    });
+    m.insert("asset_missing", |t| {
+        t.edit_tileset(|v| {
+            v.as_object_mut().unwrap().remove("asset");
+        })
+    });
+    m.insert("asset_version_unknown", |t| {
+        t.edit_tileset(|v| v["asset"]["version"] = json!("2.0"))
+    });
+    m.insert("root_geometric_error_negative", |t| {
+        t.edit_tileset(|v| v["root"]["geometricError"] = json!(-1.0))
+    });
+    m.insert("root_error_larger_than_tileset", |t| {
+        t.edit_tileset(|v| {
+            let e = v["geometricError"].as_f64().unwrap();
+            v["root"]["geometricError"] = json!(e * 2.0 + 1.0);
+        })
+    });
+    m.insert("root_refine_missing", |t| {
+        t.edit_tileset(|v| {
+            v["root"].as_object_mut().unwrap().remove("refine");
+        })
+    });
+    m.insert("refine_invalid", |t| {
+        t.edit_tileset(|v| v["root"]["refine"] = json!("MERGE"))
+    });
+    m.insert("bounding_volume_missing", |t| {
+        t.edit_tileset(|v| {
+            v["root"].as_object_mut().unwrap().remove("boundingVolume");
+        })
+    });
+    m.insert("box_wrong_length", |t| {
+        t.edit_tileset(|v| {
+            v["root"]["boundingVolume"]["box"]
+                .as_array_mut()
+                .unwrap()
+                .pop();
+        })
+    });
+    m.insert("box_degenerate", |t| {
+        t.edit_tileset(|v| {
+            let b = v["root"]["boundingVolume"]["box"].as_array_mut().unwrap();
+            for x in b.iter_mut().skip(3) {
+                *x = json!(0.0);
+            }
+        })
+    });
+    m.insert("region_south_above_north", |t| {
+        t.edit_tileset(|v| {
+            v["root"]["boundingVolume"] = json!({"region": [-1.0, 0.5, 1.0, -0.5, 0.0, 10.0]});
+        })
+    });
+    m.insert("sphere_on_implicit_root", |t| {
+        t.edit_tileset(|v| {
+            v["root"]["boundingVolume"] = json!({"sphere": [0.0, 0.0, 0.0, 1000.0]});
+        })
+    });
+    m.insert("sphere_negative_radius", |t| {
+        t.edit_tileset(|v| {
+            v["root"]["boundingVolume"] = json!({"sphere": [0.0, 0.0, 0.0, -1.0]});
+        })
+    });
+    m.insert("transform_wrong_length", |t| {
+        t.edit_tileset(|v| v["root"]["transform"] = json!(vec![1.0; 15]))
+    });
+    m.insert("transform_singular", |t| {
+        t.edit_tileset(|v| v["root"]["transform"] = json!(vec![0.0; 16]))
+    });
+    m.insert("implicit_root_children", |t| {
+        t.edit_tileset(|v| v["root"]["children"] = json!([]))
+    });
+    m.insert("implicit_root_metadata", |t| {
+        t.edit_tileset(|v| v["root"]["metadata"] = json!({"class": "tile"}))
+    });
+    m.insert("implicit_content_bounding_volume", |t| {
+        t.edit_tileset(|v| {
+            v["root"]["content"]["boundingVolume"] = v["root"]["boundingVolume"].clone();
+        })
+    });
+    m.insert("subdivision_scheme_invalid", |t| {
+        t.edit_tileset(|v| v["root"]["implicitTiling"]["subdivisionScheme"] = json!("KDTREE"))
+    });
+    m.insert("subtree_levels_zero", |t| {
+        t.edit_tileset(|v| v["root"]["implicitTiling"]["subtreeLevels"] = json!(0))
+    });
+    m.insert("template_invalid_variable", |t| {
+        // Quadtree content template gains {z} (always 0): files renamed so only the template is wrong.
+        t.edit_tileset(|v| v["root"]["content"]["uri"] = json!("tiles/{level}/{x}/{y}{z}.glb"));
+        for g in t.glbs() {
+            let stem = g.file_stem().unwrap().to_string_lossy().into_owned();
+            std::fs::rename(&g, g.with_file_name(format!("{stem}0.glb"))).unwrap();
+        }
+    });
+    m.insert("template_missing_variable", |t| {
+        t.edit_tileset(|v| v["root"]["content"]["uri"] = json!("tiles/0/{x}/{y}/{z}.glb"))
+    });
+    m.insert("uri_escapes_root", |t| {
+        t.edit_tileset(|v| v["root"]["content"]["uri"] = json!("../tiles/{level}/{x}/{y}/{z}.glb"))
+    });
+    m.insert("uri_absolute", |t| {
+        t.edit_tileset(|v| {
+            v["root"]["content"]["uri"] = json!("/tmp/tiles/{level}/{x}/{y}/{z}.glb")
+        })
+    });
+    m.insert("uri_remote", |t| {
+        t.edit_tileset(|v| {
+            v["root"]["content"]["uri"] = json!("https://example.com/{level}/{x}/{y}/{z}.glb")
+        })
+    });
+    m.insert("subtree_uri_escapes_root", |t| {
+        t.edit_tileset(|v| {
+            let u = v["root"]["implicitTiling"]["subtrees"]["uri"]
+                .as_str()
+                .unwrap()
+                .to_string();
+            v["root"]["implicitTiling"]["subtrees"]["uri"] = json!(format!("../{u}"));
+        })
+    });
+    m.insert("extension_required_not_used", |t| {
+        t.edit_tileset(|v| v["extensionsRequired"] = json!(["3DTILES_content_gltf"]))
+    });
+    m.insert("schema_id_invalid", |t| {
+        t.edit_tileset(|v| v["schema"]["id"] = json!("1bad id"))
+    });
+    m.insert("schema_semantic_wrong_count", |t| {
+        t.edit_tileset(|v| {
+            v["schema"]["classes"]["tile"]["properties"]["boundingBox"]["count"] = json!(11)
+        })
+    });
+    m.insert("schema_type_invalid", |t| {
+        t.edit_tileset(|v| {
+            v["schema"]["classes"]["splatContent"]["properties"]["splatCount"]["type"] =
+                json!("INTEGER")
+        })
+    });
+    // subtrees
+    m.insert("subtree_bad_magic", |t| {
+        let p = t.root_subtree();
+        let mut b = std::fs::read(&p).unwrap();
+        b[0..4].copy_from_slice(b"sbut");
+        std::fs::write(&p, b).unwrap();
+    });
+    m.insert("subtree_bad_version", |t| {
+        let p = t.root_subtree();
+        let mut b = std::fs::read(&p).unwrap();
+        b[4] = 2;
+        std::fs::write(&p, b).unwrap();
+    });
+    m.insert("subtree_truncated", |t| {
+        let p = t.root_subtree();
+        let b = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &b[..b.len() - 8]).unwrap();
+    });
+    m.insert("subtree_json_padded_with_nul", |t| {
+        let p = t.root_subtree();
+        let (j, bin) = read_subtree(&p);
+        let mut text = serde_json::to_vec(&j).unwrap();
+        let pad = 8 - text.len() % 8;
+        text.extend(std::iter::repeat_n(0u8, pad));
+        let mut out = frame_subtree(&json!({}), &[], b' ', 0)[..24].to_vec();
+        out[8..16].copy_from_slice(&(text.len() as u64).to_le_bytes());
+        out[16..24].copy_from_slice(&(bin.len() as u64).to_le_bytes());
+        out.extend_from_slice(&text);
+        out.extend_from_slice(&bin);
+        std::fs::write(&p, out).unwrap();
+    });
+    m.insert("subtree_json_length_unaligned", |t| {
+        let p = t.root_subtree();
+        let (j, bin) = read_subtree(&p);
+        std::fs::write(&p, frame_subtree(&j, &bin, b' ', 4)).unwrap();
+    });
+    m.insert("subtree_bufferview_misaligned", |t| {
+        edit_subtree(&t.root_subtree(), |j, bin| {
+            // Move the last view's data 4 bytes later.
+            let views = j["bufferViews"].as_array_mut().unwrap();
+            let (i, _) = views
+                .iter()
+                .enumerate()
+                .max_by_key(|(_, v)| v["byteOffset"].as_u64().unwrap())
+                .unwrap();
+            let off = views[i]["byteOffset"].as_u64().unwrap() as usize;
+            views[i]["byteOffset"] = json!(off + 4);
+            bin.splice(off..off, [0u8; 4]);
+            bin.extend([0u8; 4]);
+            j["buffers"][0]["byteLength"] = json!(bin.len());
+        })
+    });
+    m.insert("availability_count_wrong", |t| {
+        edit_subtree(&t.root_subtree(), |j, _| {
+            let c = j["tileAvailability"]["availableCount"].as_u64().unwrap();
+            j["tileAvailability"]["availableCount"] = json!(c + 1);
+        })
+    });
+    m.insert("availability_bit_without_parent", |t| {
+        let (n, _) = t.counts();
+        edit_subtree(&t.root_subtree(), |j, bin| {
+            // Clear the root tile's bit: every available level-1 tile then lacks its parent.
+            set_availability(j, bin, "tileAvailability", n, |bits| bits[0] = false);
+        })
+    });
+    m.insert("availability_constant_not_binary", |t| {
+        edit_subtree(&t.leaf_subtree(), |j, _| {
+            j["childSubtreeAvailability"]["constant"] = json!(2);
+        })
+    });
+    m.insert("availability_both_bitstream_and_constant", |t| {
+        edit_subtree(&t.root_subtree(), |j, _| {
+            j["tileAvailability"]["constant"] = json!(1);
+            j["tileAvailability"]["bitstream"] = json!(0);
+        })
+    });
+    m.insert("child_subtree_missing", |t| {
+        let leaf = t.leaf_subtree();
+        std::fs::remove_file(leaf).unwrap();
+    });
+    m.insert("child_subtree_unreferenced", |t| {
+        let (_, n) = t.counts();
+        edit_subtree(&t.root_subtree(), |j, bin| {
+            set_availability(j, bin, "childSubtreeAvailability", n, |bits| {
+                let i = bits.iter().position(|b| *b).expect("a child subtree");
+                bits[i] = false;
+            });
+        })
+    });
+    m.insert("property_table_count_wrong", |t| {
+        edit_subtree(&t.root_subtree(), |j, _| {
+            let i = j["tileMetadata"].as_u64().unwrap() as usize;
+            let c = j["propertyTables"][i]["count"].as_u64().unwrap();
+            j["propertyTables"][i]["count"] = json!(c - 1);
+        })
+    });
+    m.insert("property_table_values_short", |t| {
+        edit_subtree(&t.root_subtree(), |j, _| {
+            let i = j["tileMetadata"].as_u64().unwrap() as usize;
+            let v = j["propertyTables"][i]["properties"]["geometricError"]["values"]
+                .as_u64()
+                .unwrap() as usize;
+            let l = j["bufferViews"][v]["byteLength"].as_u64().unwrap();
+            j["bufferViews"][v]["byteLength"] = json!(l - 8);
+        })
+    });
+    m.insert("property_table_unknown_class", |t| {
+        edit_subtree(&t.root_subtree(), |j, _| {
+            let i = j["tileMetadata"].as_u64().unwrap() as usize;
+            j["propertyTables"][i]["class"] = json!("nope");
+        })
+    });
+    m.insert("metadata_geometric_error_negative", |t| {
+        edit_subtree(&t.leaf_subtree(), |j, bin| {
+            let r = leaf_row(j, bin);
+            let (off, _) = column(j, "geometricError");
+            set_f64(bin, off + r * 8, -1.0);
+        })
+    });
+    m.insert("metadata_child_error_larger_than_parent", |t| {
+        edit_subtree(&t.leaf_subtree(), |j, bin| {
+            let r = leaf_row(j, bin);
+            let (off, _) = column(j, "geometricError");
+            set_f64(bin, off + r * 8, 1.0e9);
+        })
+    });
+    m.insert("metadata_box_degenerate", |t| {
+        edit_subtree(&t.leaf_subtree(), |j, bin| {
+            let r = leaf_row(j, bin);
+            let (off, _) = column(j, "boundingBox");
+            for k in 3..12 {
+                set_f64(bin, off + (r * 12 + k) * 8, 0.0);
+            }
+        })
+    });
+    m.insert("content_outside_box", |t| {
+        edit_subtree(&t.leaf_subtree(), |j, bin| {
+            let r = leaf_row(j, bin);
+            let (off, _) = column(j, "boundingBox");
+            let at = off + r * 12 * 8;
+            let x = f64::from_le_bytes(bin[at..at + 8].try_into().unwrap());
+            set_f64(bin, at, x + 1000.0);
+        })
+    });
+    // glb contents
+    m.insert("content_file_missing", |t| {
+        std::fs::remove_file(t.glb()).unwrap()
+    });
+    m.insert("content_compression_bomb", |t| {
+        use std::io::Write;
+        let mut enc = zstd::stream::write::Encoder::new(Vec::new(), 3).unwrap();
+        let zeros = vec![0u8; 1 << 20];
+        for _ in 0..64 {
+            enc.write_all(&zeros).unwrap();
+        }
+        std::fs::write(t.glb(), enc.finish().unwrap()).unwrap();
+    });
+    m.insert("glb_truncated", |t| {
+        let b = std::fs::read(t.glb()).unwrap();
+        std::fs::write(t.glb(), &b[..b.len() - 16]).unwrap();
+    });
+    m.insert("glb_bad_magic", |t| {
+        let mut b = std::fs::read(t.glb()).unwrap();
+        b[0] = b'x';
+        std::fs::write(t.glb(), b).unwrap();
+    });
+    m.insert("glb_json_invalid", |t| {
+        let mut b = std::fs::read(t.glb()).unwrap();
+        b[20] = b'x';
+        std::fs::write(t.glb(), b).unwrap();
+    });
+    m.insert("glb_mode_triangles", |t| {
+        t.edit_glb(|v| v["meshes"][0]["primitives"][0]["mode"] = json!(4))
+    });
+    m.insert("glb_kernel_missing", |t| {
+        t.edit_glb(|v| {
+            v["meshes"][0]["primitives"][0]["extensions"]["KHR_gaussian_splatting"]
+                .as_object_mut()
+                .unwrap()
+                .remove("kernel");
+        })
+    });
+    m.insert("glb_color_space_invalid", |t| {
+        t.edit_glb(|v| {
+            v["meshes"][0]["primitives"][0]["extensions"]["KHR_gaussian_splatting"]["colorSpace"] =
+                json!("acescg");
+        })
+    });
+    m.insert("glb_extension_not_in_used", |t| {
+        t.edit_glb(|v| v["extensionsUsed"] = json!([]))
+    });
+    m.insert("glb_child_extension_not_in_used", |t| {
+        t.edit_glb(|v| {
+            v["meshes"][0]["primitives"][0]["extensions"]["KHR_gaussian_splatting"]["extensions"] =
+                json!({"EXT_splat_future": {}});
+        })
+    });
+    m.insert("glb_no_splat_primitive", |t| {
+        t.edit_glb(|v| {
+            v["meshes"][0]["primitives"][0]
+                .as_object_mut()
+                .unwrap()
+                .remove("extensions");
+        })
+    });
+    m.insert("glb_accessor_count_mismatch", |t| {
+        t.edit_glb(|v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:OPACITY"]
+                .as_u64()
+                .unwrap() as usize;
+            let c = v["accessors"][a]["count"].as_u64().unwrap();
+            v["accessors"][a]["count"] = json!(c - 1);
+        })
+    });
+    m.insert("glb_accessor_out_of_bounds", |t| {
+        t.edit_glb(|v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:OPACITY"]
+                .as_u64()
+                .unwrap() as usize;
+            v["accessors"][a]["byteOffset"] = json!(4);
+        })
+    });
+    m.insert("glb_accessor_misaligned", |t| {
+        t.edit_glb(|v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:OPACITY"]
+                .as_u64()
+                .unwrap() as usize;
+            v["accessors"][a]["byteOffset"] = json!(2);
+        })
+    });
+    m.insert("glb_bufferview_past_buffer", |t| {
+        t.edit_glb(|v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:OPACITY"]
+                .as_u64()
+                .unwrap() as usize;
+            let bv = v["accessors"][a]["bufferView"].as_u64().unwrap() as usize;
+            v["bufferViews"][bv]["byteLength"] = json!(1u64 << 40);
+        })
+    });
+    m.insert("glb_position_min_max_missing", |t| {
+        t.edit_glb(|v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap() as usize;
+            v["accessors"][a].as_object_mut().unwrap().remove("min");
+        })
+    });
+    m.insert("glb_position_max_wrong", |t| {
+        t.edit_glb(|v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap() as usize;
+            let x = v["accessors"][a]["max"][0].as_f64().unwrap();
+            v["accessors"][a]["max"][0] = json!(x + 1.0);
+        })
+    });
+    m.insert("glb_opacity_above_one", |t| {
+        t.poke_glb("KHR_gaussian_splatting:OPACITY", 0, 1.5)
+    });
+    m.insert("glb_scale_log_space", |t| {
+        t.poke_glb("KHR_gaussian_splatting:SCALE", 0, -3.0)
+    });
+    m.insert("glb_rotation_not_unit", |t| {
+        t.poke_glb("KHR_gaussian_splatting:ROTATION", 3, 2.0)
+    });
+    m.insert("glb_position_nan", |t| t.poke_glb("POSITION", 0, f32::NAN));
+    m.insert("glb_sh_partial_degree", |t| {
+        t.edit_glb(|v| {
+            v["meshes"][0]["primitives"][0]["attributes"]
+                .as_object_mut()
+                .unwrap()
+                .remove("KHR_gaussian_splatting:SH_DEGREE_1_COEF_1");
+        })
+    });
+    m.insert("glb_sh_degree_0_missing", |t| {
+        t.edit_glb(|v| {
+            v["meshes"][0]["primitives"][0]["attributes"]
+                .as_object_mut()
+                .unwrap()
+                .remove("KHR_gaussian_splatting:SH_DEGREE_0_COEF_0");
+        })
+    });
+    m.insert("glb_scale_missing", |t| {
+        t.edit_glb(|v| {
+            v["meshes"][0]["primitives"][0]["attributes"]
+                .as_object_mut()
+                .unwrap()
+                .remove("KHR_gaussian_splatting:SCALE");
+        })
+    });
+    m.insert("glb_sh_normalized", |t| t.edit_glb(|v| {
+        let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:SH_DEGREE_0_COEF_0"].as_u64().unwrap() as usize;
+        v["accessors"][a]["normalized"] = json!(true);
+    }));
+    m.insert("meshopt_marked_view_not_decoded", |t| {
+        t.poke_glb("KHR_gaussian_splatting:OPACITY", 0, 5.0);
+        t.edit_glb(|v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:OPACITY"].as_u64().unwrap() as usize;
+            let bv = v["accessors"][a]["bufferView"].as_u64().unwrap() as usize;
+            v["bufferViews"][bv]["extensions"] = json!({"EXT_meshopt_compression": {"buffer": 0, "byteLength": 4, "count": 1, "byteStride": 4, "mode": "ATTRIBUTES"}});
+            v["extensionsUsed"].as_array_mut().unwrap().push(json!("EXT_meshopt_compression"));
+        })
+    });
+    m.insert("spz2_style_tile_not_decoded", |t| {
+        t.edit_glb(|v| {
+            // SPZ_2 layout: accessors without bufferView, DC colour in COLOR_0 (deviation D1).
+            for a in v["accessors"].as_array_mut().unwrap() {
+                a.as_object_mut().unwrap().remove("bufferView");
+            }
+            let p = &mut v["meshes"][0]["primitives"][0];
+            p["attributes"]
+                .as_object_mut()
+                .unwrap()
+                .remove("KHR_gaussian_splatting:SH_DEGREE_0_COEF_0");
+            p["attributes"]
+                .as_object_mut()
+                .unwrap()
+                .retain(|k, _| !k.contains("SH_DEGREE"));
+            p["extensions"]["KHR_gaussian_splatting"]["extensions"] =
+                json!({"KHR_gaussian_splatting_compression_spz_2": {"bufferView": 0}});
+            v["extensionsUsed"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!("KHR_gaussian_splatting_compression_spz_2"));
+        })
+    });
+    m.insert("glb_unknown_splat_attribute", |t| {
+        t.edit_glb(|v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:OPACITY"]
+                .clone();
+            v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:GLOW"] = a;
+        })
+    });
+    m
+}
+
+#[derive(serde::Deserialize)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+struct Case {
+    description: String,
+    base: String,
+    mutation: String,
+    #[serde(default)]
+    options: Options,
+    expected: Vec<String>,
+}
+
+#[derive(serde::Deserialize, Default)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+struct Options {
+    #[serde(default)]
+    allow_remote: bool,
+}
+
+fn load_cases() -> Vec<(String, Case)> {
+    let mut out = Vec::new();
+    for kind in ["valid", "invalid"] {
+        let mut dirs: Vec<_> = std::fs::read_dir(cases_dir().join(kind))
+            .unwrap()
+            .flatten()
+            .map(|e| e.path())
+            .collect();
+        dirs.sort();
+        for d in dirs {
+            let text = std::fs::read_to_string(d.join("case.json")).unwrap();
+            let case: Case =
+                serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", d.display()));
+            assert!(!case.description.is_empty());
+            assert_eq!(kind == "valid", case.expected.is_empty(), "{}", d.display());
+            out.push((
+                format!("{kind}/{}", d.file_name().unwrap().to_string_lossy()),
+                case,
+            ));
+        }
+    }
+    out
+}
+
+#[test]
+fn corpus_has_at_least_40_cases_and_every_mutation_is_used() {
+    let cases = load_cases();
+    assert!(cases.len() >= 40, "only {} conformance cases", cases.len());
+    let m = mutations();
+    for (name, c) in &cases {
+        assert!(
+            m.contains_key(c.mutation.as_str()),
+            "{name}: unknown mutation {}",
+            c.mutation
+        );
+    }
+    for k in m.keys() {
+        assert!(
+            cases.iter().any(|(_, c)| c.mutation == *k),
+            "mutation {k} has no case"
+        );
+    }
+}
+
+#[test]
+fn every_case_gives_exactly_its_expected_codes() {
+    let m = mutations();
+    let mut failures = Vec::new();
+    let cases = load_cases();
+    let valid = cases
+        .iter()
+        .filter(|(n, _)| n.starts_with("valid/"))
+        .count();
+    eprintln!(
+        "running {} cases ({valid} valid, {} invalid)",
+        cases.len(),
+        cases.len() - valid
+    );
+    for (name, case) in cases {
+        let dir = scratch().join("cases").join(&name);
+        copy_dir(&base(&case.base), &dir);
+        let t = Ts { dir: dir.clone() };
+        m[case.mutation.as_str()](&t);
+        let opts = ValidateOptions {
+            allow_remote: case.options.allow_remote,
+            ..ValidateOptions::default()
+        };
+        let report = validate_tileset(&dir.join("tileset.json"), &opts).expect("readable");
+        let mut expected = case.expected.clone();
+        expected.sort();
+        if report.codes() != expected {
+            failures.push(format!(
+                "{name}:\n  expected: {expected:?}\n  actual:   {:?}\n{}",
+                report.codes(),
+                report.to_text(&name)
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

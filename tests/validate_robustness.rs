@@ -1,0 +1,124 @@
+//! Hostile-input regression tests for the validator and the readers the fuzz targets call: every
+//! fuzz seed and every prefix of it must give a report or an error, never a panic. Crash inputs
+//! found by fuzzing (RELIABILITY.md) are added to `fuzz/seeds/<target>/` and replayed here.
+
+use splat2tiles::validate::{ValidateOptions, validate_glb_bytes, validate_subtree_bytes};
+use std::path::Path;
+
+fn seeds(target: &str) -> Vec<(String, Vec<u8>)> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/seeds")
+        .join(target);
+    let mut out: Vec<(String, Vec<u8>)> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .flatten()
+        .map(|e| {
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    out.sort();
+    assert!(!out.is_empty(), "no seeds for {target}");
+    out
+}
+
+/// Prefix lengths to try: all of them for small inputs, a spread for large ones.
+fn cuts(len: usize) -> Vec<usize> {
+    if len <= 1024 {
+        (0..len).collect()
+    } else {
+        (0..len).step_by(len / 512).collect()
+    }
+}
+
+#[test]
+fn glb_seeds_and_prefixes_never_panic() {
+    let opts = ValidateOptions::default();
+    for (name, bytes) in seeds("glb") {
+        let r = validate_glb_bytes(&bytes, &opts);
+        assert_eq!(r.num_errors, 0, "{name}: {}", r.to_text(&name));
+        for n in cuts(bytes.len()) {
+            let _ = splat2tiles::encode::tile::read_tile_glb(&bytes[..n]);
+            let r = validate_glb_bytes(&bytes[..n], &opts);
+            assert!(r.num_errors > 0, "{name}: prefix {n} accepted");
+        }
+    }
+}
+
+#[test]
+fn subtree_seeds_and_prefixes_never_panic() {
+    let opts = ValidateOptions::default();
+    for (_, bytes) in seeds("subtree") {
+        for n in cuts(bytes.len()).into_iter().chain([bytes.len()]) {
+            let _ = splat2tiles::tiling::subtree::read_subtree(&bytes[..n]);
+            for octree in [false, true] {
+                for levels in 1..=4 {
+                    let _ = validate_subtree_bytes(&bytes[..n], octree, levels, &opts);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn scene_seeds_and_prefixes_never_panic() {
+    for (target, ext) in [("ply", "ply"), ("spz", "spz"), ("splat", "splat")] {
+        for (_, bytes) in seeds(target) {
+            for n in cuts(bytes.len()).into_iter().chain([bytes.len()]) {
+                let _ = splat2tiles::io::read_bytes(&format!("seed.{ext}"), &bytes[..n]);
+            }
+        }
+    }
+}
+
+/// Crash inputs found by fuzzing (`fuzz/regressions/<target>/crash-*`, see RELIABILITY.md).
+#[test]
+fn fuzz_crash_regressions_replay_cleanly() {
+    let opts = ValidateOptions::default();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/regressions");
+    let mut n = 0;
+    for target in ["ply", "spz", "splat", "glb", "subtree"] {
+        for e in std::fs::read_dir(dir.join(target))
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            let bytes = std::fs::read(e.path()).unwrap();
+            n += 1;
+            match target {
+                "glb" => {
+                    let _ = splat2tiles::encode::tile::read_tile_glb(&bytes);
+                    let _ = validate_glb_bytes(&bytes, &opts);
+                }
+                "subtree" => {
+                    let _ = splat2tiles::tiling::subtree::read_subtree(&bytes);
+                    let _ = validate_subtree_bytes(
+                        &bytes,
+                        bytes.first().is_some_and(|b| b & 1 == 1),
+                        1 + u32::from(bytes.get(1).copied().unwrap_or(0) % 4),
+                        &opts,
+                    );
+                }
+                ext => {
+                    let _ = splat2tiles::io::read_bytes(&format!("crash.{ext}"), &bytes);
+                }
+            }
+        }
+    }
+    assert!(
+        n >= 1,
+        "the glb crash of 2026-11-22 must stay in the corpus"
+    );
+}
+
+/// The first fuzz crash: a SCALE accessor typed SCALAR (reported as ACCESSOR_TYPE_INVALID) was
+/// then read as VEC3, past the end of its data (src/validate/content.rs, fixed).
+#[test]
+fn r_fuzz_glb_wrongly_typed_attribute_is_reported_not_read() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/regressions/glb/crash-1cf7a1582a61af25fe3ba96b1504d834a505c333");
+    let r = validate_glb_bytes(&std::fs::read(path).unwrap(), &ValidateOptions::default());
+    assert!(r.num_errors > 0);
+}
