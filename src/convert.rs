@@ -776,7 +776,9 @@ fn tileset_json(
             generator: Some(format!("splat2tiles {}", env!("CARGO_PKG_VERSION"))),
             tileset_version: None,
         },
-        geometric_error: (root.hi - root.lo).length().max(1e-6),
+        // Never below the root's own error (a georeferenced root is a zoom-0 LOD tile whose
+        // clustering radius can exceed the scene's extent).
+        geometric_error: (root.hi - root.lo).length().max(root_error).max(1e-6),
         root: Tile {
             bounding_volume: layout.root_volume.clone(),
             geometric_error: root_error,

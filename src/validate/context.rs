@@ -43,6 +43,9 @@ pub(crate) struct Ctx<'a> {
     pub issues: Vec<Issue>,
     /// An in-memory file standing in for the disk (single-file validation and fuzzing).
     pub memory: Option<(PathBuf, Vec<u8>)>,
+    /// Quality-variant URI templates (name, template) declared by the tileset's `splatVariants`
+    /// metadata (spec/quality-variants.md): each content tile's variant files are checked too.
+    pub variant_templates: Vec<(String, String)>,
 }
 
 /// Most issues one report lists (hostile inputs can produce millions).
@@ -61,6 +64,7 @@ impl<'a> Ctx<'a> {
             opts,
             issues: Vec::new(),
             memory: None,
+            variant_templates: Vec::new(),
         }
     }
 

@@ -807,6 +807,17 @@ pub(crate) fn validate(
                 };
                 let curi = expand_template(t, key);
                 content_file(ctx, &curi, tp, tile_volume, world);
+                // The tile's other quality variants, declared in the tileset metadata.
+                if c == 0 {
+                    for (name, vt) in ctx.variant_templates.clone() {
+                        if &vt != t {
+                            let vuri = expand_template(&vt, key);
+                            let vp =
+                                format!("tileset.json#/metadata/properties/variantUris ({name})");
+                            content_file(ctx, &vuri, &vp, tile_volume, world);
+                        }
+                    }
+                }
             }
         }
     }

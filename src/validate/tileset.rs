@@ -335,6 +335,7 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value) {
         ));
         return;
     }
+    ctx.variant_templates = variant_templates(v);
     match v.get("asset") {
         None => ctx.push(Issue::PROPERTY_MISSING(path, "'asset' is required")),
         Some(a) => match a.get("version") {
@@ -411,5 +412,28 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value) {
             &schema,
             0,
         ),
+    }
+}
+
+/// Written quality variants declared by a `splatVariants` tileset metadata entity: (name, URI
+/// template) pairs, skipping variants whose template is empty (not written).
+fn variant_templates(v: &Value) -> Vec<(String, String)> {
+    let Some(m) = v
+        .get("metadata")
+        .filter(|m| m.get("class").and_then(Value::as_str) == Some("splatVariants"))
+    else {
+        return vec![];
+    };
+    let props = &m["properties"];
+    let names = props["variantNames"].as_array();
+    let uris = props["variantUris"].as_array();
+    match (names, uris) {
+        (Some(n), Some(u)) => n
+            .iter()
+            .zip(u)
+            .filter_map(|(n, u)| Some((n.as_str()?.to_string(), u.as_str()?.to_string())))
+            .filter(|(_, u)| !u.is_empty())
+            .collect(),
+        _ => vec![],
     }
 }
