@@ -424,14 +424,21 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
     });
     m.insert("template_invalid_variable", |t| {
         // Quadtree content template gains {z} (always 0): files renamed so only the template is wrong.
-        t.edit_tileset(|v| v["root"]["content"]["uri"] = json!("tiles/{level}/{x}/{y}{z}.glb"));
+        t.edit_tileset(|v| {
+            let uri = json!("tiles/best/{level}/{x}/{y}{z}.glb");
+            v["root"]["content"]["uri"] = uri.clone();
+            // Keep the variant metadata pointing at the renamed Best files.
+            if v["metadata"]["properties"]["variantUris"].is_array() {
+                v["metadata"]["properties"]["variantUris"][0] = uri;
+            }
+        });
         for g in t.glbs() {
             let stem = g.file_stem().unwrap().to_string_lossy().into_owned();
             std::fs::rename(&g, g.with_file_name(format!("{stem}0.glb"))).unwrap();
         }
     });
     m.insert("template_missing_variable", |t| {
-        t.edit_tileset(|v| v["root"]["content"]["uri"] = json!("tiles/0/{x}/{y}/{z}.glb"))
+        t.edit_tileset(|v| v["root"]["content"]["uri"] = json!("tiles/best/0/{x}/{y}/{z}.glb"))
     });
     m.insert("uri_escapes_root", |t| {
         t.edit_tileset(|v| v["root"]["content"]["uri"] = json!("../tiles/{level}/{x}/{y}/{z}.glb"))
@@ -691,7 +698,12 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             let a = v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:OPACITY"]
                 .as_u64()
                 .unwrap() as usize;
-            v["accessors"][a]["byteOffset"] = json!(4);
+            // One whole record (the stride of an interleaved view, else 4 bytes) past its
+            // start: the last element then ends outside the bufferView.
+            let bv = v["accessors"][a]["bufferView"].as_u64().unwrap() as usize;
+            let offset = v["accessors"][a]["byteOffset"].as_u64().unwrap_or(0);
+            let step = v["bufferViews"][bv]["byteStride"].as_u64().unwrap_or(4);
+            v["accessors"][a]["byteOffset"] = json!(offset + step);
         })
     });
     m.insert("glb_accessor_misaligned", |t| {
