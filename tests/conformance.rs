@@ -118,23 +118,6 @@ fn copy_dir(from: &Path, to: &Path) {
     }
 }
 
-fn files_under(dir: &Path, ext: &str) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                stack.push(p);
-            } else if p.extension().is_some_and(|x| x == ext) {
-                out.push(p);
-            }
-        }
-    }
-    out.sort();
-    out
-}
-
 /// A copy of a base tileset that mutations edit.
 struct Ts {
     dir: PathBuf,
@@ -157,13 +140,13 @@ impl Ts {
         self.set_tileset(&v);
     }
     fn glbs(&self) -> Vec<PathBuf> {
-        files_under(&self.dir.join("tiles"), "glb")
+        common::files_under(&self.dir.join("tiles"), "glb")
     }
     fn glb(&self) -> PathBuf {
         self.glbs().into_iter().next().expect("a glb")
     }
     fn subtrees(&self) -> Vec<PathBuf> {
-        files_under(&self.dir.join("subtrees"), "subtree")
+        common::files_under(&self.dir.join("subtrees"), "subtree")
     }
     fn root_subtree(&self) -> PathBuf {
         self.subtrees()

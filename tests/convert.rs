@@ -44,7 +44,7 @@ fn shared_scenes_keep_every_splat() {
         assert!(out.join("tileset.json").is_file());
         let ts = load_tileset(&out.join("tileset.json")).unwrap();
         assert!(ts.tiles.len() > 1, "{name}: more than one tile");
-        let subtrees = walk(&out.join("subtrees"), "subtree");
+        let subtrees = files_under(&out.join("subtrees"), "subtree");
         assert!(!subtrees.is_empty(), "{name}: subtree files written");
         let parents: std::collections::HashSet<_> =
             ts.tiles.iter().filter_map(|t| t.key.parent()).collect();
@@ -68,22 +68,6 @@ fn shared_scenes_keep_every_splat() {
         let stdout = String::from_utf8_lossy(&o.stdout);
         assert!(stdout.contains(&count.to_string()), "summary: {stdout}");
     }
-}
-
-fn walk(dir: &Path, ext: &str) -> Vec<std::path::PathBuf> {
-    let mut out = vec![];
-    let Ok(rd) = std::fs::read_dir(dir) else {
-        return out;
-    };
-    for e in rd.flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            out.extend(walk(&p, ext));
-        } else if p.extension().is_some_and(|e| e == ext) {
-            out.push(p);
-        }
-    }
-    out
 }
 
 /// Converts `input` with an index map and checks every splat decoded from the tiles against the
@@ -398,7 +382,7 @@ fn failed_run_leaves_the_earlier_result_untouched() {
     let o = run_convert(&[good.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(o.status.success());
     let before = std::fs::read(out.join("tileset.json")).unwrap();
-    let files_before = walk(&out, "glb").len();
+    let files_before = files_under(&out, "glb").len();
     let bad = tmp.path().join("bad.ply");
     let mut b = ply_bytes(&PROPS, 8, &records(8));
     b.truncate(b.len() - 7);
@@ -406,7 +390,7 @@ fn failed_run_leaves_the_earlier_result_untouched() {
     let o = run_convert(&[bad.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
     assert_eq!(std::fs::read(out.join("tileset.json")).unwrap(), before);
-    assert_eq!(walk(&out, "glb").len(), files_before);
+    assert_eq!(files_under(&out, "glb").len(), files_before);
     // A successful re-run replaces it completely.
     let o = run_convert(&[
         scene("donut_fused_sh0.ply").to_str().unwrap(),

@@ -8,34 +8,8 @@ use common::*;
 use glam::{DQuat, DVec3};
 use splat2tiles::encode::tile::read_tile_glb;
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
-
-fn js_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/js")
-}
-
-fn require_node_modules() {
-    let nm = js_dir().join("node_modules");
-    assert!(
-        nm.join("gltf-validator").is_dir() && nm.join("@playcanvas/splat-transform").is_dir(),
-        "tests/js/node_modules is missing: run `npm ci --prefix tests/js` (the .ci/run script does)"
-    );
-}
-
-fn glbs(dir: &Path) -> Vec<PathBuf> {
-    let mut out = vec![];
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            out.extend(glbs(&p));
-        } else if p.extension().is_some_and(|x| x == "glb") {
-            out.push(p);
-        }
-    }
-    out.sort();
-    out
-}
 
 fn convert_to(input: &Path, out: &Path, extra: &[&str]) {
     let o = Command::new(bin())
@@ -64,7 +38,7 @@ fn khronos_gltf_validator_accepts_every_tile() {
     ] {
         let out = tmp.path().join(name);
         convert_to(&input, &out, &["--max-splats", "40000"]);
-        files.extend(glbs(&out));
+        files.extend(files_under(&out, "glb"));
     }
     assert!(files.len() >= 8, "tiles to validate: {}", files.len());
     let o = Command::new("node")

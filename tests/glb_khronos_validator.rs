@@ -1,27 +1,16 @@
 //! Runs the Khronos glTF-Validator (npm `gltf-validator`, via `tests/js/validate_glb.mjs`) over
 //! tiles we write and expects zero errors; needs `npm ci --prefix tests/js` once.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 use splat2tiles::encode::glb::{parse_json, read_glb, write_gltf_glb};
 use splat2tiles::encode::tile::IDENTITY;
 use splat2tiles::encode::write_tile_glb;
+mod common;
+
+use common::{js_dir, require_node_modules};
 use splat2tiles::splat::{Splat, Splats, normalize_quat};
-
-fn js_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/js")
-}
-
-/// Fails (never skips) when the node harness is not installed.
-fn require_node_modules() {
-    let dir = js_dir().join("node_modules/gltf-validator");
-    assert!(
-        dir.is_dir(),
-        "{} is missing: run `npm ci --prefix tests/js` (needs Node >= 20)",
-        dir.display()
-    );
-}
 
 fn tile(degree: u8, n: usize) -> Splats {
     let mut s = Splats::with_capacity(degree, n);

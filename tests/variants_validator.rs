@@ -4,22 +4,8 @@
 mod common;
 
 use common::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
-
-fn glbs(dir: &Path) -> Vec<PathBuf> {
-    let mut out = vec![];
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            out.extend(glbs(&p));
-        } else if p.extension().is_some_and(|x| x == "glb") {
-            out.push(p);
-        }
-    }
-    out.sort();
-    out
-}
 
 #[test]
 fn khronos_validator_accepts_every_variant() {
@@ -52,7 +38,7 @@ fn khronos_validator_accepts_every_variant() {
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        files.extend(glbs(&out));
+        files.extend(files_under(&out, "glb"));
     }
     for v in ["best", "high", "medium", "low"] {
         assert!(

@@ -139,3 +139,35 @@ pub fn decode_leaves(tileset: &Path) -> HashMap<TileKey, DecodedLeaf> {
     all.retain(|k, _| !parents.contains(k));
     all
 }
+
+/// Every file under `dir` (recursively) whose extension is `ext`, sorted; empty if `dir` is missing.
+pub fn files_under(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|x| x == ext) {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The node harness folder (`tests/js`: Khronos glTF-Validator, splat-transform).
+pub fn js_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/js")
+}
+
+/// Fails (never skips) when the node harness is not installed.
+pub fn require_node_modules() {
+    let nm = js_dir().join("node_modules");
+    assert!(
+        nm.join("gltf-validator").is_dir() && nm.join("@playcanvas/splat-transform").is_dir(),
+        "tests/js/node_modules is missing: run `npm ci --prefix tests/js` (the .ci/run script does)"
+    );
+}
