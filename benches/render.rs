@@ -151,6 +151,30 @@ fn svg(points: &[(String, f64, f64)]) -> String {
     s
 }
 
+/// Times one scene (fastest of `runs`), appends its table row and logs it.
+fn scene_row(
+    md: &mut String,
+    name: &str,
+    instances: &[(&Splats, DMat4)],
+    cam: &Camera,
+    opts: &RenderOptions,
+    runs: usize,
+) {
+    let (ms, _) = min_ms(runs, || render(instances, cam, opts));
+    let (_, stats) = render_with_stats(instances, cam, opts);
+    let _ = writeln!(
+        md,
+        "| {name} | {} | {} | {} | {ms:.1} | {:.1} / {:.1} / {:.1} |",
+        stats.splats,
+        stats.visible,
+        stats.tile_pairs,
+        stats.project_ms,
+        stats.sort_ms,
+        stats.composite_ms
+    );
+    eprintln!("{name}: {ms:.1} ms");
+}
+
 fn main() {
     let threads = rayon::current_num_threads();
     let plant = splat_file::read_splat(splat_file::PLANT);
@@ -166,36 +190,19 @@ fn main() {
         "| scene | splats | visible | tile pairs | ms/frame (min of 5) | project / sort / composite ms (one run) |"
     );
     let _ = writeln!(md, "|---|---:|---:|---:|---:|---|");
-    let (ms, _) = min_ms(5, || render(&[(&plant, DMat4::IDENTITY)], &cam, &exact));
-    let (_, stats) = render_with_stats(&[(&plant, DMat4::IDENTITY)], &cam, &exact);
-    let _ = writeln!(
-        md,
-        "| plant.splat | {} | {} | {} | {ms:.1} | {:.1} / {:.1} / {:.1} |",
-        stats.splats,
-        stats.visible,
-        stats.tile_pairs,
-        stats.project_ms,
-        stats.sort_ms,
-        stats.composite_ms
+    scene_row(
+        &mut md,
+        "plant.splat",
+        &[(&plant, DMat4::IDENTITY)],
+        &cam,
+        &exact,
+        5,
     );
-    eprintln!("plant: {ms:.1} ms");
     for (name, up) in [("donut_fused_sh0.ply", -DVec3::Y), ("biker.spz", DVec3::Y)] {
         let scene = splat_file::read_splat(name);
         let (lo, hi) = scene.bounds().unwrap();
         let c = auto_views_with(DVec3::from(lo), DVec3::from(hi), up, W, H, 50.0)[0];
-        let (ms, _) = min_ms(5, || render(&[(&scene, DMat4::IDENTITY)], &c, &exact));
-        let (_, stats) = render_with_stats(&[(&scene, DMat4::IDENTITY)], &c, &exact);
-        let _ = writeln!(
-            md,
-            "| {name} | {} | {} | {} | {ms:.1} | {:.1} / {:.1} / {:.1} |",
-            stats.splats,
-            stats.visible,
-            stats.tile_pairs,
-            stats.project_ms,
-            stats.sort_ms,
-            stats.composite_ms
-        );
-        eprintln!("{name}: {ms:.1} ms");
+        scene_row(&mut md, name, &[(&scene, DMat4::IDENTITY)], &c, &exact, 5);
     }
 
     // ~1M splats: 9 instances of plant on a 3x3 grid (model matrices), framed as a whole.
@@ -211,19 +218,14 @@ fn main() {
     let big_lo = DVec3::from(lo) - ext * 0.8;
     let big_hi = DVec3::from(hi) + ext * 0.8;
     let big_cam = auto_views_with(big_lo, big_hi, -DVec3::Y, W, H, 50.0)[0];
-    let (ms, _) = min_ms(3, || render(&inst, &big_cam, &exact));
-    let (_, stats) = render_with_stats(&inst, &big_cam, &exact);
-    let _ = writeln!(
-        md,
-        "| 9 x plant (instances, generated) | {} | {} | {} | {ms:.1} | {:.1} / {:.1} / {:.1} |",
-        stats.splats,
-        stats.visible,
-        stats.tile_pairs,
-        stats.project_ms,
-        stats.sort_ms,
-        stats.composite_ms
+    scene_row(
+        &mut md,
+        "9 x plant (instances, generated)",
+        &inst,
+        &big_cam,
+        &exact,
+        3,
     );
-    eprintln!("9x plant: {ms:.1} ms");
 
     // Trade-off on plant with synthetic SH3.
     let sh3 = with_synthetic_sh3(&plant);

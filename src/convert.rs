@@ -493,6 +493,31 @@ struct TreeTile {
     facts: Option<ContentFacts>,
 }
 
+/// Writes one tile's contents centred on its splats: `pts` are their centres in the tileset
+/// frame; returns the tight box there and what was written.
+fn write_centred(
+    layout: &Layout,
+    scheme: Scheme,
+    key: TileKey,
+    tile: &Splats,
+    pts: &[DVec3],
+    dir: &Path,
+    opts: &ConvertOptions,
+) -> Result<(DVec3, DVec3, ContentFacts), ConvertError> {
+    let (lo, hi) = bounds(pts);
+    let centre_s = layout.a.transpose() * ((lo + hi) * 0.5);
+    let facts = write_tile_contents(
+        dir,
+        scheme,
+        key,
+        tile,
+        centre_s.to_array(),
+        node_matrix(layout.a, centre_s),
+        &opts.variants,
+    )?;
+    Ok((lo, hi, facts))
+}
+
 fn write_leaves(
     splats: &Splats,
     layout: &Layout,
@@ -507,18 +532,8 @@ fn write_leaves(
         .map(|leaf| {
             let tile = splats.select(&leaf.indices);
             let pts: Vec<DVec3> = leaf.indices.iter().map(|&i| layout.pos_t[i]).collect();
-            let (lo, hi) = bounds(&pts);
-            let centre_t = (lo + hi) * 0.5;
-            let centre_s = layout.a.transpose() * centre_t;
-            let facts = write_tile_contents(
-                dir,
-                part.scheme,
-                leaf.key,
-                &tile,
-                centre_s.to_array(),
-                node_matrix(layout.a, centre_s),
-                &opts.variants,
-            )?;
+            let (lo, hi, facts) =
+                write_centred(layout, part.scheme, leaf.key, &tile, &pts, dir, opts)?;
             bar.inc(1);
             Ok((
                 leaf.key,
@@ -615,17 +630,8 @@ fn write_parents(
                 .iter()
                 .map(|q| layout.a * DVec3::from_array(*q))
                 .collect();
-            let (lo, hi) = bounds(&pts);
-            let centre_s = layout.a.transpose() * ((lo + hi) * 0.5);
-            let facts = write_tile_contents(
-                dir,
-                part.scheme,
-                p.key,
-                &p.splats,
-                centre_s.to_array(),
-                node_matrix(layout.a, centre_s),
-                &opts.variants,
-            )?;
+            let (_, _, facts) =
+                write_centred(layout, part.scheme, p.key, &p.splats, &pts, dir, opts)?;
             Ok(WrittenParent {
                 facts,
                 error: p.radius,
