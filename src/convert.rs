@@ -832,6 +832,7 @@ static ACTIVE_STAGING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Ve
 /// Installs a Ctrl-C / SIGTERM handler that removes unfinished output folders and exits with
 /// 130, so an interrupted conversion leaves nothing behind. Call once, from the binary.
 pub fn remove_staging_on_interrupt() {
+    #[cfg(feature = "native")]
     let _ = ctrlc::set_handler(|| {
         if let Ok(dirs) = ACTIVE_STAGING.lock() {
             for d in dirs.iter() {

@@ -1,6 +1,7 @@
 //! splat2tiles: turns 3D Gaussian Splatting scenes into OGC 3D Tiles 1.1 implicit tilesets of
 //! glTF 2.0 `KHR_gaussian_splatting` tiles, and renders, validates and streams them.
 
+#[cfg(feature = "native")]
 pub mod cli;
 pub mod convert;
 pub mod encode;
@@ -12,5 +13,6 @@ pub mod sim;
 pub mod splat;
 pub mod stream;
 pub mod tiling;
+#[cfg(feature = "native")]
 pub mod validate;
 pub mod variants;

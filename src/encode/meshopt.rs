@@ -1,5 +1,7 @@
 //! Quantized splat tiles through `EXT_meshopt_compression` (High / Medium variants): float
 //! attributes through its EXPONENTIAL filter, rotations through QUATERNION; reference decoder.
+// Without `native` only the decoder's shell remains (it reports the missing codec).
+#![cfg_attr(not(feature = "native"), allow(unused_imports, dead_code))]
 
 use std::collections::BTreeMap;
 
@@ -15,6 +17,7 @@ use super::tile::{
     sh_attribute, splat_document,
 };
 use crate::splat::Splats;
+#[cfg(feature = "native")]
 use meshopt::EncodeExpMode;
 
 /// Mantissa bits (EXPONENTIAL filter) and quaternion bits (QUATERNION filter) of one level.
@@ -35,6 +38,12 @@ pub struct MeshoptLevel {
     /// Highest SH degree kept (lower of this and the input's).
     pub max_sh_degree: u8,
 }
+
+/// Why a meshopt stream was refused.
+#[cfg(feature = "native")]
+const NO_DECODE: &str = "meshopt stream does not decode";
+#[cfg(not(feature = "native"))]
+const NO_DECODE: &str = "meshopt streams need the native build of splat2tiles";
 
 /// The High variant's bit depths.
 pub const HIGH: MeshoptLevel = MeshoptLevel {
@@ -87,10 +96,12 @@ fn spec(semantic: String, kind: AccessorType, component: ComponentType, offset: 
     }
 }
 
+#[cfg(feature = "native")]
 fn words<const N: usize>(v: &[[u32; N]]) -> Vec<u8> {
     v.iter().flatten().flat_map(|w| w.to_le_bytes()).collect()
 }
 
+#[cfg(feature = "native")]
 /// Encodes floats with the EXPONENTIAL filter; returns the filtered bytes and decoded values.
 fn exp3(v: &[[f32; 3]], bits: i32, mode: EncodeExpMode) -> (Vec<u8>, Vec<f32>) {
     let enc = meshopt::encode_filter_exp::<3>(v, bits, mode);
@@ -98,6 +109,7 @@ fn exp3(v: &[[f32; 3]], bits: i32, mode: EncodeExpMode) -> (Vec<u8>, Vec<f32>) {
     (bytes.clone(), unfilter_exp(bytes))
 }
 
+#[cfg(feature = "native")]
 /// Applies the EXPONENTIAL filter's decoding to a copy (what a client will see).
 fn unfilter_exp(mut bytes: Vec<u8>) -> Vec<f32> {
     filter_in_place(&mut bytes, 4, "EXPONENTIAL");
@@ -108,6 +120,7 @@ fn unfilter_exp(mut bytes: Vec<u8>) -> Vec<f32> {
 }
 
 /// Runs a meshopt decode filter over `data` (elements of `stride` bytes) in place.
+#[cfg(feature = "native")]
 fn filter_in_place(data: &mut [u8], stride: usize, filter: &str) {
     let count = data.len() / stride;
     if count == 0 {
@@ -130,6 +143,7 @@ fn filter_in_place(data: &mut [u8], stride: usize, filter: &str) {
     }
 }
 
+#[cfg(feature = "native")]
 fn min_max3(v: &[f32]) -> (Vec<f64>, Vec<f64>) {
     let mut lo = [f32::MAX; 3];
     let mut hi = [f32::MIN; 3];
@@ -142,6 +156,7 @@ fn min_max3(v: &[f32]) -> (Vec<f64>, Vec<f64>) {
     (lo.map(f64::from).to_vec(), hi.map(f64::from).to_vec())
 }
 
+#[cfg(feature = "native")]
 /// Encodes a meshopt ATTRIBUTES stream (bitstream version 0, the one EXT_meshopt_compression
 /// allows).
 fn encode_attributes(data: &[u8], stride: usize) -> Vec<u8> {
@@ -165,7 +180,17 @@ fn encode_attributes(data: &[u8], stride: usize) -> Vec<u8> {
     }
 }
 
+/// Without the native codecs no meshopt stream decodes (callers report it).
+#[cfg(not(feature = "native"))]
+fn decode_attributes(_src: &[u8], _count: usize, _stride: usize) -> Option<Vec<u8>> {
+    None
+}
+
+#[cfg(not(feature = "native"))]
+fn filter_in_place(_data: &mut [u8], _stride: usize, _filter: &str) {}
+
 /// Decodes a meshopt ATTRIBUTES stream into `count * stride` bytes.
+#[cfg(feature = "native")]
 fn decode_attributes(src: &[u8], count: usize, stride: usize) -> Option<Vec<u8>> {
     let mut out = vec![0u8; count.checked_mul(stride)?];
     // SAFETY: `out` holds `count * stride` bytes; the decoder validates `src` (any content is
@@ -182,6 +207,7 @@ fn decode_attributes(src: &[u8], count: usize, stride: usize) -> Option<Vec<u8>>
     (rc == 0).then_some(out)
 }
 
+#[cfg(feature = "native")]
 /// The streams of a tile at `level`.
 fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Stream> {
     let n = splats.len();
@@ -283,8 +309,23 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
     out
 }
 
+/// Without the native codecs meshopt tiles cannot be written.
+#[cfg(not(feature = "native"))]
+pub fn write_meshopt_glb(
+    _splats: &Splats,
+    _centre: [f64; 3],
+    _node_matrix: [f64; 16],
+    _level: &MeshoptLevel,
+) -> Result<Vec<u8>, GlbError> {
+    Err(GlbError::invalid(
+        "/extensionsUsed",
+        "EXT_meshopt_compression needs the native build of splat2tiles",
+    ))
+}
+
 /// Writes a splat tile compressed with `EXT_meshopt_compression` (required; the uncompressed
 /// layout lives in a fallback buffer without data) at the bit depths of `level`.
+#[cfg(feature = "native")]
 pub fn write_meshopt_glb(
     splats: &Splats,
     centre: [f64; 3],
@@ -419,7 +460,7 @@ pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
                     ));
                 }
                 let mut data = decode_attributes(src, count as usize, stride as usize)
-                    .ok_or_else(|| GlbError::invalid(&path, "meshopt stream does not decode"))?;
+                    .ok_or_else(|| GlbError::invalid(&path, NO_DECODE))?;
                 let filter = ext.get("filter").and_then(Value::as_str).unwrap_or("NONE");
                 filter_in_place(&mut data, stride as usize, filter);
                 data

@@ -112,10 +112,7 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
     }
     let zstd = bytes.starts_with(&ZSTD_MAGIC);
     let decoder: Box<dyn Read + '_> = if zstd {
-        Box::new(
-            zstd::stream::read::Decoder::with_buffer(bytes)
-                .map_err(|e| cx.whole(ReadErrorKind::Decompress(format!("zstd: {e}"))))?,
-        )
+        zstd_reader(cx, bytes)?
     } else {
         Box::new(flate2::read::GzDecoder::new(bytes))
     };
@@ -322,6 +319,22 @@ fn read_v4(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
     Ok(scene)
 }
 
+/// A zstd decoder over `bytes`.
+#[cfg(feature = "native")]
+fn zstd_reader<'a>(cx: &Ctx, bytes: &'a [u8]) -> Result<Box<dyn Read + 'a>, ReadError> {
+    let d = zstd::stream::read::Decoder::with_buffer(bytes)
+        .map_err(|e| cx.whole(ReadErrorKind::Decompress(format!("zstd: {e}"))))?;
+    Ok(Box::new(d))
+}
+
+/// Without the native codecs zstd streams (SPZ v4) are refused.
+#[cfg(not(feature = "native"))]
+fn zstd_reader<'a>(cx: &Ctx, _bytes: &'a [u8]) -> Result<Box<dyn Read + 'a>, ReadError> {
+    Err(cx.whole(ReadErrorKind::Unsupported(
+        "zstd (SPZ v4) needs the native build of splat2tiles".into(),
+    )))
+}
+
 /// Decompresses one v4 stream into exactly `raw` bytes, never holding more than `raw + 1`.
 fn unzstd(cx: &Ctx, i: usize, at: u64, comp: &[u8], raw: u64) -> Result<Vec<u8>, ReadError> {
     let name = STREAM_NAMES.get(i).copied().unwrap_or("extra");
@@ -334,7 +347,7 @@ fn unzstd(cx: &Ctx, i: usize, at: u64, comp: &[u8], raw: u64) -> Result<Vec<u8>,
     if raw == 0 && comp.is_empty() {
         return Ok(Vec::new());
     }
-    let dec = zstd::stream::read::Decoder::with_buffer(comp).map_err(|e| err(e.to_string()))?;
+    let dec = zstd_reader(cx, comp).map_err(|e| err(e.to_string()))?;
     let mut out = Vec::with_capacity(raw.min(1 << 26) as usize);
     dec.take(raw + 1)
         .read_to_end(&mut out)
