@@ -4,7 +4,8 @@
 // the page's measurements (tiles, splats drawn, foreground pixels), console problems, 404s.
 //
 // usage: node interop_cesium.mjs TILESET_DIR [--shot out.png] [--sse N] [--place lon,lat,h]
-//                                [--pitch DEG] [--max-frames N] [--timeout SECONDS]
+//                                [--pitch DEG]
+//                                [--target lon,lat,h,range] [--max-frames N] [--timeout SECONDS]
 // Exit 0 when the page finished (whatever it measured; the caller judges), 1 when it did not.
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -30,6 +31,7 @@ try {
   if (opt.sse) qs.set('sse', opt.sse);
   if (opt.place) qs.set('place', opt.place);
   if (opt.pitch) qs.set('pitch', opt.pitch);
+  if (opt.target) qs.set('target', opt.target);
   if (opt['max-frames']) qs.set('maxFrames', opt['max-frames']);
   await browser.page.goto(`${srv.base}/interop_cesium.html?${qs}`);
   await browser.page.waitForFunction(() => document.title.startsWith('done:'), null, {

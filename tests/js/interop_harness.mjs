@@ -128,3 +128,31 @@ export function parseArgs(argv) {
   }
   return { pos, opt };
 }
+
+/**
+ * Counts pixels of a PNG screenshot that differ from `bg` ([r,g,b]) by more than `threshold` in
+ * some channel, decoding the PNG in the page (Chromium) so Node needs no image library.
+ */
+export async function foreground(page, png, bg, threshold) {
+  return page.evaluate(
+    async ({ b64, bg, threshold }) => {
+      const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+      const bmp = await createImageBitmap(new Blob([bytes], { type: 'image/png' }));
+      const c = new OffscreenCanvas(bmp.width, bmp.height);
+      const ctx = c.getContext('2d');
+      ctx.drawImage(bmp, 0, 0);
+      const px = ctx.getImageData(0, 0, bmp.width, bmp.height).data;
+      let fg = 0;
+      for (let i = 0; i < px.length; i += 4) {
+        const d = Math.max(
+          Math.abs(px[i] - bg[0]),
+          Math.abs(px[i + 1] - bg[1]),
+          Math.abs(px[i + 2] - bg[2]),
+        );
+        if (d > threshold) fg++;
+      }
+      return { pixels: px.length / 4, foreground: fg, foregroundFraction: fg / (px.length / 4) };
+    },
+    { b64: png.toString('base64'), bg, threshold },
+  );
+}
