@@ -143,6 +143,11 @@ fn float_acc(kind: AccessorType, n: usize) -> Accessor {
 /// accessors (no bufferView) for POSITION, COLOR_0 (DC colour, opacity in alpha), ROTATION,
 /// SCALE, OPACITY and SH degrees 1..=d; no `SH_DEGREE_0_COEF_0` (CesiumJS counts `SH_DEGREE_`
 /// attributes to find the degree). POSITION min/max are the decoded payload's.
+///
+/// COLOR_0 is declared VEC4 unsigned byte normalized (SPZ v2 stores 8-bit colour and alpha;
+/// glTF allows it for COLOR_0). CesiumJS 1.145 requires it: it decodes COLOR_0 into RGBA bytes
+/// and views them through the accessor's componentType, so a FLOAT declaration yields a quarter
+/// of the colours and its splat texture worker panics ("unreachable"); `tests/interop.rs`.
 pub fn write_spz2_glb(
     splats: &Splats,
     centre: [f64; 3],
@@ -173,7 +178,10 @@ pub fn write_spz2_glb(
     pos.min = Some(lo.to_vec());
     pos.max = Some(hi.to_vec());
     add(ATTR_POSITION.into(), pos);
-    add(ATTR_COLOR_0.into(), float_acc(AccessorType::Vec4, n));
+    let mut color = float_acc(AccessorType::Vec4, n);
+    color.component_type = ComponentType::U8.code();
+    color.normalized = true;
+    add(ATTR_COLOR_0.into(), color);
     add(ATTR_ROTATION.into(), float_acc(AccessorType::Vec4, n));
     add(ATTR_SCALE.into(), float_acc(AccessorType::Vec3, n));
     add(ATTR_OPACITY.into(), float_acc(AccessorType::Scalar, n));
