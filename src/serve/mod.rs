@@ -401,12 +401,12 @@ fn serve_file(root: &Path, path: &Path, req: &Request) -> Reply {
     if has_sibling {
         r.headers.push(("Vary", "Accept-Encoding".into()));
     }
-    if let Some(inm) = req.header("If-None-Match") {
-        if none_match_hits(inm, &tag) {
-            r.status = 304;
-            r.length = len;
-            return r;
-        }
+    if let Some(inm) = req.header("If-None-Match")
+        && none_match_hits(inm, &tag)
+    {
+        r.status = 304;
+        r.length = len;
+        return r;
     }
     let range = match req.header("Range") {
         // If-Range: the range applies only to the version the client already holds (strong match).
@@ -603,5 +603,86 @@ fn handle(mounts: &[Mount], rq: tiny_http::Request, quiet: bool) {
             printable(&method_name),
             printable(&req.target)
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn accept_encoding_honours_q_and_star() {
+        assert!(accepts_encoding(Some("gzip, deflate, br"), "br"));
+        assert!(accepts_encoding(Some("GZIP"), "gzip"));
+        assert!(accepts_encoding(Some("x-gzip"), "gzip"));
+        assert!(accepts_encoding(Some("br;q=0.5"), "br"));
+        assert!(!accepts_encoding(Some("br;q=0"), "br"));
+        assert!(!accepts_encoding(Some("br; q=0.000"), "br"));
+        assert!(accepts_encoding(Some("*"), "gzip"));
+        assert!(!accepts_encoding(Some("*, gzip;q=0"), "gzip"));
+        assert!(!accepts_encoding(Some("*;q=0"), "br"));
+        assert!(!accepts_encoding(Some("identity"), "gzip"));
+        assert!(!accepts_encoding(Some("gzip;q=nonsense"), "gzip"));
+        assert!(!accepts_encoding(None, "gzip"));
+    }
+
+    #[test]
+    fn content_types_by_extension() {
+        let t = |p: &str| content_type(Path::new(p));
+        assert_eq!(t("a/tileset.json"), "application/json");
+        assert_eq!(t("x.GLB"), "model/gltf-binary");
+        assert_eq!(t("0.subtree"), "application/octet-stream");
+        assert_eq!(t("pkg/v_bg.wasm"), "application/wasm");
+        assert!(t("index.html").starts_with("text/html"));
+        assert!(t("v.js").starts_with("text/javascript"));
+        assert!(t("s.css").starts_with("text/css"));
+        assert_eq!(t("i.png"), "image/png");
+        assert_eq!(t("noext"), "application/octet-stream");
+    }
+
+    #[test]
+    fn if_none_match_lists_and_weak_tags() {
+        assert!(none_match_hits("\"a\"", "\"a\""));
+        assert!(none_match_hits("\"x\", W/\"a\"", "\"a\""));
+        assert!(none_match_hits(" * ", "\"a\""));
+        assert!(!none_match_hits("\"b\"", "\"a\""));
+        assert!(!none_match_hits("", "\"a\""));
+    }
+
+    #[test]
+    fn answers_without_a_socket() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("t.json"), b"{}").unwrap();
+        let mounts = [Mount::new("/", dir.path()).unwrap()];
+        let req = |method, target: &str, headers: &[(&str, &str)]| Request {
+            method,
+            target: target.into(),
+            headers: headers
+                .iter()
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect(),
+        };
+        let r = answer(&mounts, &req(Method::Get, "/t.json", &[]));
+        assert_eq!((r.status, r.length), (200, 2));
+        assert_eq!(r.header("Access-Control-Allow-Origin"), Some("*"));
+        let r = answer(
+            &mounts,
+            &req(Method::Head, "/t.json", &[("range", "bytes=1-")]),
+        );
+        assert_eq!((r.status, r.length), (206, 1));
+        assert_eq!(r.header("content-range"), Some("bytes 1-1/2"));
+        assert_eq!(
+            answer(&mounts, &req(Method::Other, "/t.json", &[])).status,
+            405
+        );
+        assert_eq!(
+            answer(&mounts, &req(Method::Get, "/%2e%2e/x", &[])).status,
+            403
+        );
+        assert_eq!(
+            answer(&mounts, &req(Method::Get, "t.json", &[])).status,
+            400
+        );
+        assert!(Mount::new("/", &dir.path().join("missing")).is_err());
     }
 }

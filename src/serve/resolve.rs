@@ -111,8 +111,8 @@ mod tests {
         assert_eq!(segs("/a//./b?x=1#f").unwrap(), ["a", "b"]);
         assert_eq!(segs("/a%20b/c%2Fd").unwrap(), ["a b", "c", "d"]);
         assert_eq!(segs("/").unwrap(), Vec::<String>::new());
-        assert_eq!(segments("/dir/").unwrap().1, true);
-        assert_eq!(segments("/dir").unwrap().1, false);
+        assert!(segments("/dir/").unwrap().1);
+        assert!(!segments("/dir").unwrap().1);
     }
 
     #[test]
