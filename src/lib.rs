@@ -9,6 +9,8 @@ pub mod frame;
 pub mod io;
 pub mod lod;
 pub mod render;
+#[cfg(feature = "native")]
+pub mod serve;
 pub mod sim;
 pub mod splat;
 pub mod stream;

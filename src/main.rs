@@ -28,6 +28,10 @@ enum Command {
     Simulate(cli::simulate::SimulateArgs),
     /// Print a tileset's per-level table: tiles, splats, bytes, mean geometric error.
     Stats(cli::stats::StatsArgs),
+    /// Serve a tileset folder over HTTP (ranges, ETags, precompressed files, CORS) until Ctrl-C.
+    Serve(cli::serve::ServeArgs),
+    /// Serve a tileset and the web viewer, and open the viewer in a browser.
+    View(cli::serve::ViewArgs),
 }
 
 fn main() {
@@ -39,6 +43,8 @@ fn main() {
         Command::Compare(a) => report(render_cli::run_compare(&a)),
         Command::Simulate(a) => report(cli::simulate::run(&a)),
         Command::Stats(a) => cli::stats::run(a),
+        Command::Serve(a) => report(cli::serve::run_serve(&a)),
+        Command::View(a) => report(cli::serve::run_view(&a)),
     };
     std::process::exit(code);
 }

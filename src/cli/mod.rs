@@ -2,6 +2,7 @@
 //! so that `main.rs` only parses and maps results to exit codes.
 
 pub mod convert;
+pub mod serve;
 pub mod simulate;
 pub mod stats;
 pub mod validate;

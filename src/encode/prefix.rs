@@ -111,18 +111,112 @@ pub fn decode_prefix(prefix: &[u8]) -> Result<(Splats, usize), GlbError> {
         let degree = sh_degree_of(&layout.doc);
         return Ok((Splats::new(degree), consumed));
     }
-    // A glb of the first k records: same JSON with counts and lengths cut to k.
-    let mut doc = layout.doc;
-    let view_offset = doc.buffer_views[0].byte_offset;
+    let bin = &prefix[layout.first_record..consumed];
+    let splats = decode_records(&layout.doc, bin, k)?;
+    Ok((splats, consumed))
+}
+
+/// Decodes `k` whole splat records (`records.len() == k * stride`) with the tile's JSON cut to them.
+fn decode_records(full: &Gltf, records: &[u8], k: usize) -> Result<Splats, GlbError> {
+    // A glb of just these records: same JSON with counts and lengths cut to k, view at offset 0.
+    let mut doc = full.clone();
     for a in &mut doc.accessors {
         a.count = k as u64;
     }
-    doc.buffer_views[0].byte_length = (k * layout.stride) as u64;
-    doc.buffers[0].byte_length = view_offset + (k * layout.stride) as u64;
-    let bin_start = layout.first_record - view_offset as usize;
-    let bin = &prefix[bin_start..consumed];
-    let glb = write_gltf_glb(&doc, Some(bin))?;
-    Ok((read_tile_glb(&glb)?.splats, consumed))
+    doc.buffer_views[0].byte_offset = 0;
+    doc.buffer_views[0].byte_length = records.len() as u64;
+    doc.buffers[0].byte_length = records.len() as u64;
+    let glb = write_gltf_glb(&doc, Some(records))?;
+    Ok(read_tile_glb(&glb)?.splats)
+}
+
+/// Incremental decoder of one interleaved tile arriving in chunks (a streamed download).
+///
+/// Each [`push`](Self::push) returns only the splats completed by that chunk, in tile order: a
+/// record cut across chunks is kept and completed by the next one, and no record is decoded twice.
+#[derive(Debug, Clone, Default)]
+pub struct PrefixStream {
+    /// Bytes received but not yet decoded (the header before the layout is known, then at most
+    /// one partial record).
+    pending: Vec<u8>,
+    /// The tile's layout, once its header, JSON and BIN chunk header have arrived.
+    layout: Option<PrefixLayout>,
+    /// Bytes still to skip before splat 0's record (header and any view offset).
+    skip: usize,
+    /// Splats returned so far.
+    decoded: usize,
+    /// Bytes pushed so far.
+    received: u64,
+}
+
+impl PrefixStream {
+    /// An empty stream, before the first byte of the glb.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Appends the next chunk of the glb and returns the splats it completed (maybe none).
+    ///
+    /// Bytes after the last record (chunk padding) are ignored. After an error the stream is in
+    /// an unspecified state and should be dropped.
+    pub fn push(&mut self, chunk: &[u8]) -> Result<Splats, GlbError> {
+        self.received += chunk.len() as u64;
+        self.pending.extend_from_slice(chunk);
+        if self.layout.is_none() {
+            let Some(layout) = prefix_layout(&self.pending)? else {
+                return Ok(Splats::new(0));
+            };
+            if layout.stride == 0 {
+                return Err(GlbError::unsupported(
+                    "/bufferViews/0/byteStride",
+                    "byteStride 0 cannot hold splat records",
+                ));
+            }
+            self.skip = layout.first_record;
+            self.layout = Some(layout);
+        }
+        let Some(layout) = &self.layout else {
+            return Ok(Splats::new(0));
+        };
+        let dropped = self.skip.min(self.pending.len());
+        self.pending.drain(..dropped);
+        self.skip -= dropped;
+        let left = layout.count - self.decoded;
+        let k = (self.pending.len() / layout.stride).min(left);
+        if k == 0 {
+            if left == 0 {
+                self.pending.clear();
+            }
+            return Ok(Splats::new(sh_degree_of(&layout.doc)));
+        }
+        let splats = decode_records(&layout.doc, &self.pending[..k * layout.stride], k)?;
+        self.pending.drain(..k * layout.stride);
+        self.decoded += k;
+        if self.decoded == layout.count {
+            self.pending.clear();
+        }
+        Ok(splats)
+    }
+
+    /// Splats returned by [`push`](Self::push) so far.
+    pub fn decoded(&self) -> usize {
+        self.decoded
+    }
+
+    /// Splats in the whole tile, once the header has arrived.
+    pub fn total(&self) -> Option<usize> {
+        self.layout.as_ref().map(|l| l.count)
+    }
+
+    /// Bytes pushed so far (where a resumed download's `Range: bytes=N-` starts).
+    pub fn received(&self) -> u64 {
+        self.received
+    }
+
+    /// True once every splat of the tile has been returned.
+    pub fn is_complete(&self) -> bool {
+        self.total() == Some(self.decoded)
+    }
 }
 
 /// SH degree declared by the primitive's attributes (for an empty result of the right shape).
@@ -136,4 +230,125 @@ fn sh_degree_of(doc: &Gltf) -> u8 {
         })
         .last()
         .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encode::tile::{IDENTITY, TileLayout, try_write_tile_glb};
+    use crate::splat::{Splat, sh_rest_count};
+
+    /// `n` deterministic, distinct splats of SH degree `deg`.
+    fn scene(n: usize, deg: u8) -> Splats {
+        let mut s = Splats::with_capacity(deg, n);
+        let rest = sh_rest_count(deg);
+        for i in 0..n {
+            let f = i as f32;
+            let splat = Splat {
+                position: [
+                    f as f64 * 0.01,
+                    (f * 0.37).sin() as f64,
+                    (f * 0.11).cos() as f64,
+                ],
+                scale: [0.01 + f * 1e-4, 0.02, 0.03],
+                rotation: crate::splat::normalize_quat([f.sin(), 0.2, 0.3, 1.0]),
+                opacity: 0.1 + (i % 80) as f32 * 0.01,
+                sh0: [f * 0.001, -0.5, 0.25],
+            };
+            let r: Vec<[f32; 3]> = (0..rest)
+                .map(|c| [c as f32 * 0.01, f * 1e-3, -0.1])
+                .collect();
+            s.push(splat, &r);
+        }
+        s
+    }
+
+    /// Pushes `glb` cut at `cuts` (sorted) and returns everything the stream yielded.
+    fn stream(glb: &[u8], cuts: &[usize]) -> (Splats, PrefixStream) {
+        let mut st = PrefixStream::new();
+        let mut all: Option<Splats> = None;
+        let mut at = 0;
+        for &c in cuts.iter().chain(std::iter::once(&glb.len())) {
+            let new = st.push(&glb[at..c]).unwrap();
+            at = c;
+            let acc = all.get_or_insert_with(|| Splats::new(new.sh_degree));
+            if acc.is_empty() {
+                *acc = Splats::new(new.sh_degree);
+            }
+            if !new.is_empty() {
+                assert_eq!(acc.sh_degree, new.sh_degree);
+                for i in 0..new.len() {
+                    acc.push_from(&new, i);
+                }
+            }
+            assert_eq!(acc.len(), st.decoded());
+        }
+        (all.unwrap_or_else(|| Splats::new(0)), st)
+    }
+
+    fn assert_same(a: &Splats, b: &Splats) {
+        assert_eq!(a.len(), b.len());
+        for i in 0..a.len() {
+            assert_eq!(a.get(i), b.get(i), "splat {i}");
+            assert_eq!(a.rest_of(i), b.rest_of(i), "SH of splat {i}");
+        }
+    }
+
+    #[test]
+    fn chunked_pushes_at_random_cuts_yield_the_whole_tile_once() {
+        for (n, deg) in [(1usize, 0u8), (37, 1), (400, 3)] {
+            let glb =
+                try_write_tile_glb(&scene(n, deg), [0.5; 3], IDENTITY, TileLayout::Interleaved)
+                    .unwrap();
+            let full = read_tile_glb(&glb).unwrap().splats;
+            let mut seed = 0x9e37_79b9_7f4a_7c15u64 ^ n as u64;
+            for round in 0..40 {
+                let pieces = 1 + round % 25;
+                let mut cuts: Vec<usize> = (0..pieces)
+                    .map(|_| {
+                        seed ^= seed << 13;
+                        seed ^= seed >> 7;
+                        seed ^= seed << 17;
+                        (seed % (glb.len() as u64 + 1)) as usize
+                    })
+                    .collect();
+                cuts.sort_unstable();
+                let (got, st) = stream(&glb, &cuts);
+                assert!(st.is_complete(), "n {n} cuts {cuts:?}");
+                assert_eq!(st.total(), Some(n));
+                assert_eq!(st.received(), glb.len() as u64);
+                assert_eq!(got.sh_degree, full.sh_degree);
+                assert_same(&got, &full);
+            }
+            // Byte by byte: every record is cut at every offset.
+            let every: Vec<usize> = (1..glb.len()).collect();
+            assert_same(&stream(&glb, &every).0, &full);
+        }
+    }
+
+    #[test]
+    fn stream_agrees_with_decode_prefix_at_each_step() {
+        let glb =
+            try_write_tile_glb(&scene(50, 2), [0.0; 3], IDENTITY, TileLayout::Interleaved).unwrap();
+        let mut st = PrefixStream::new();
+        for end in (0..=glb.len()).step_by(97).chain([glb.len()]) {
+            let at = st.received() as usize;
+            st.push(&glb[at..end]).unwrap();
+            let (part, _) = decode_prefix(&glb[..end]).unwrap();
+            assert_eq!(st.decoded(), part.len(), "prefix of {end} bytes");
+        }
+        assert!(st.is_complete());
+        // Bytes past the end of the tile are ignored, not decoded as splats.
+        assert!(st.push(&[0u8; 64]).unwrap().is_empty());
+        assert_eq!(st.decoded(), 50);
+    }
+
+    #[test]
+    fn stream_rejects_what_is_not_an_interleaved_glb() {
+        let mut st = PrefixStream::new();
+        assert!(st.push(b"not a glb at all, clearly").is_err());
+        let glb =
+            try_write_tile_glb(&scene(5, 0), [0.0; 3], IDENTITY, TileLayout::Separate).unwrap();
+        assert!(PrefixStream::new().push(&glb).is_err());
+    }
 }
