@@ -80,7 +80,8 @@ pub fn default_up_axis(path: &Path) -> DVec3 {
     }
 }
 
-fn parse_vec3(s: &str) -> anyhow::Result<DVec3> {
+/// Parses `X,Y,Z` (three finite comma-separated numbers).
+pub fn parse_vec3(s: &str) -> anyhow::Result<DVec3> {
     let v: Vec<f64> = s
         .split(',')
         .map(|t| t.trim().parse::<f64>())
@@ -242,7 +243,7 @@ pub fn content_model(ts: &crate::tiling::load::LoadedTileset, node: &[f64; 16]) 
 }
 
 /// The tileset's up direction in world coordinates (+z of the root frame).
-fn tileset_up(ts: &crate::tiling::load::LoadedTileset) -> DVec3 {
+pub fn tileset_up(ts: &crate::tiling::load::LoadedTileset) -> DVec3 {
     ts.root_transform
         .transform_vector3(DVec3::Z)
         .try_normalize()
@@ -250,7 +251,7 @@ fn tileset_up(ts: &crate::tiling::load::LoadedTileset) -> DVec3 {
 }
 
 /// World-space (after the root transform) axis-aligned bounds of the root's tight box.
-fn tileset_bounds(ts: &crate::tiling::load::LoadedTileset) -> Option<(DVec3, DVec3)> {
+pub fn tileset_bounds(ts: &crate::tiling::load::LoadedTileset) -> Option<(DVec3, DVec3)> {
     let root = ts
         .tiles
         .iter()

@@ -1,0 +1,329 @@
+//! The native window (winit 0.30): first-person controls (WASD, Q/E, drag to look, shift faster),
+//! tiles kept resident for the moving camera, and a once-per-second status line on stderr.
+
+use std::collections::HashSet;
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::Context;
+use glam::DVec3;
+use splat2tiles::render::camera::Camera;
+use splat2tiles::stream::geom::ViewPose;
+use winit::application::ApplicationHandler;
+use winit::event::{ElementState, MouseButton, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+use crate::headless::{ViewArgs, open_tileset, tileset_camera};
+use crate::renderer::{RendererConfig, SplatRenderer};
+use crate::tiles::{StaticTiles, TileUpdate};
+
+/// Walking speed, metres per second (times 5 with shift).
+pub const WALK_SPEED: f64 = 2.0;
+/// Mouse look, radians per pixel dragged.
+pub const LOOK_RAD_PER_PX: f64 = 0.004;
+
+/// First-person camera state in the tileset frame (z up).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FlyCamera {
+    /// Pose (position, yaw, pitch).
+    pub pose: ViewPose,
+    /// Vertical field of view, degrees.
+    pub fov_y_deg: f64,
+}
+
+impl FlyCamera {
+    /// Moves by the keys held for `dt` seconds: `fwd`/`right`/`up` in {-1, 0, 1}.
+    pub fn step(&mut self, fwd: f64, right: f64, up: f64, fast: bool, dt: f64) {
+        let speed = WALK_SPEED * if fast { 5.0 } else { 1.0 } * dt;
+        let [x, _, z] = self.pose.basis();
+        let flat = DVec3::new(z.x, z.y, 0.0).normalize_or(DVec3::X);
+        let dir = flat * fwd + x * right + DVec3::Z * up;
+        self.pose.pos += dir * speed;
+    }
+
+    /// Turns by a mouse drag of `(dx, dy)` pixels (pitch clamped short of the poles).
+    pub fn look(&mut self, dx: f64, dy: f64) {
+        self.pose.yaw -= dx * LOOK_RAD_PER_PX;
+        self.pose.pitch = (self.pose.pitch - dy * LOOK_RAD_PER_PX).clamp(-1.5, 1.5);
+    }
+
+    /// The pinhole camera for a `width x height` frame, `root` mapping the tileset frame to world.
+    pub fn camera(&self, width: u32, height: u32, root: glam::DMat4) -> Camera {
+        Camera::from_pose(
+            width.max(1),
+            height.max(1),
+            self.fov_y_deg,
+            root * self.pose.world_from_camera(),
+        )
+    }
+}
+
+struct Gfx {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    config: wgpu::SurfaceConfiguration,
+    renderer: SplatRenderer,
+    adapter: String,
+}
+
+struct App {
+    tiles: StaticTiles,
+    fly: FlyCamera,
+    root: glam::DMat4,
+    cfg: RendererConfig,
+    gfx: Option<Gfx>,
+    error: Option<anyhow::Error>,
+    keys: HashSet<KeyCode>,
+    dragging: bool,
+    last_cursor: Option<(f64, f64)>,
+    last_frame: f64,
+    log_at: f64,
+    frames: u32,
+    bytes_at_log: u64,
+}
+
+impl App {
+    fn init(&mut self, el: &ActiveEventLoop) -> anyhow::Result<Gfx> {
+        let window = Arc::new(
+            el.create_window(Window::default_attributes().with_title("splat2tiles-viewer"))
+                .context("cannot open a window")?,
+        );
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_with_display_handle(
+            Box::new(el.owned_display_handle()),
+        ));
+        let surface = instance
+            .create_surface(window.clone())
+            .context("cannot create a surface for the window")?;
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            compatible_surface: Some(&surface),
+            ..Default::default()
+        }))
+        .map_err(|e| anyhow::anyhow!("{e}"))
+        .context("no GPU adapter can present to this window")?;
+        let (device, queue) = pollster::block_on(crate::gpu::request_device(&adapter))?;
+        let size = window.inner_size();
+        let mut config = surface
+            .get_default_config(&adapter, size.width.max(1), size.height.max(1))
+            .context("the surface is not supported by the adapter")?;
+        // The reference writes linear values straight to 8 bits: prefer a non-sRGB format.
+        let caps = surface.get_capabilities(&adapter);
+        if let Some(f) = caps.formats.iter().find(|f| !f.is_srgb()) {
+            config.format = *f;
+        }
+        surface.configure(&device, &config);
+        let renderer = SplatRenderer::new(&device, &queue, config.format, self.cfg);
+        let i = adapter.get_info();
+        Ok(Gfx {
+            window,
+            surface,
+            device,
+            queue,
+            config,
+            renderer,
+            adapter: format!("{:?} / {}", i.backend, i.name),
+        })
+    }
+
+    fn frame(&mut self) {
+        let now = crate::clock::now_ms() / 1e3;
+        let dt = (now - self.last_frame).clamp(0.0, 0.25);
+        self.last_frame = now;
+        let k = |c| self.keys.contains(&c) as i32 as f64;
+        let fwd = k(KeyCode::KeyW) - k(KeyCode::KeyS);
+        let right = k(KeyCode::KeyD) - k(KeyCode::KeyA);
+        let up = k(KeyCode::KeyE) - k(KeyCode::KeyQ);
+        let fast =
+            self.keys.contains(&KeyCode::ShiftLeft) || self.keys.contains(&KeyCode::ShiftRight);
+        self.fly.step(fwd, right, up, fast, dt);
+        let Some(g) = self.gfx.as_mut() else { return };
+        let cam = self.fly.camera(g.config.width, g.config.height, self.root);
+        for u in self.tiles.update(&cam, false) {
+            match u {
+                TileUpdate::Insert {
+                    id,
+                    splats,
+                    tile_to_world,
+                } => g
+                    .renderer
+                    .insert_tile(&g.device, &g.queue, id, &splats, tile_to_world, now),
+                TileUpdate::Remove { id } => g.renderer.remove_tile(id, now),
+            }
+        }
+        let frame = match g.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(f)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                g.surface.configure(&g.device, &g.config);
+                return;
+            }
+            _ => return,
+        };
+        let view = frame
+            .texture
+            .create_view(&wgpu::TextureViewDescriptor::default());
+        let stats = g.renderer.render(&g.device, &g.queue, &view, &cam, now);
+        g.queue.present(frame);
+        self.frames += 1;
+        if now - self.log_at >= 1.0 {
+            let span = now - self.log_at;
+            let bytes = self.tiles.bytes_read();
+            eprintln!(
+                "{:.1} fps | {} resident splats in {} tiles | cache {:.1} MiB GPU, {:.1} MiB CPU | {:.2} MB/s | {} pending fetches | {}",
+                self.frames as f64 / span,
+                stats.resident,
+                stats.tiles,
+                g.renderer.gpu_bytes() as f64 / 1048576.0,
+                g.renderer.cpu_bytes() as f64 / 1048576.0,
+                (bytes - self.bytes_at_log) as f64 / span / 1e6,
+                self.tiles.pending(),
+                g.adapter
+            );
+            for e in self.tiles.errors() {
+                eprintln!("tile error: {e}");
+            }
+            self.log_at = now;
+            self.frames = 0;
+            self.bytes_at_log = bytes;
+        }
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, el: &ActiveEventLoop) {
+        if self.gfx.is_some() {
+            return;
+        }
+        match self.init(el) {
+            Ok(g) => {
+                g.window.request_redraw();
+                self.gfx = Some(g);
+            }
+            Err(e) => {
+                self.error = Some(e);
+                el.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, el: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => el.exit(),
+            WindowEvent::Resized(size) => {
+                if let Some(g) = self.gfx.as_mut()
+                    && size.width > 0
+                    && size.height > 0
+                {
+                    g.config.width = size.width;
+                    g.config.height = size.height;
+                    g.surface.configure(&g.device, &g.config);
+                }
+            }
+            WindowEvent::KeyboardInput { event, .. } => {
+                if let PhysicalKey::Code(code) = event.physical_key {
+                    if code == KeyCode::Escape {
+                        el.exit();
+                    } else if event.state == ElementState::Pressed {
+                        self.keys.insert(code);
+                    } else {
+                        self.keys.remove(&code);
+                    }
+                }
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                if button == MouseButton::Left {
+                    self.dragging = state == ElementState::Pressed;
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                let p = (position.x, position.y);
+                if self.dragging
+                    && let Some(last) = self.last_cursor
+                {
+                    self.fly.look(p.0 - last.0, p.1 - last.1);
+                }
+                self.last_cursor = Some(p);
+            }
+            WindowEvent::RedrawRequested => {
+                self.frame();
+                if let Some(g) = &self.gfx {
+                    g.window.request_redraw();
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Opens the window on `tileset` (a local path) with the starting camera of `v`.
+pub fn run_window(tileset: &Path, v: &ViewArgs) -> anyhow::Result<()> {
+    let ts = open_tileset(tileset)?;
+    let start = tileset_camera(&ts, tileset, v)?;
+    let root = ts.root_transform;
+    // Back to the tileset frame for the first-person pose.
+    let local = root.inverse() * start.world_from_camera;
+    let pos = local.w_axis.truncate();
+    let fwd = local.z_axis.truncate();
+    let fly = FlyCamera {
+        pose: ViewPose::looking_at(0.0, pos, pos + fwd),
+        fov_y_deg: v.fov,
+    };
+    let cfg = RendererConfig {
+        background: v.background_rgb()?,
+        max_sh_degree: v.sh_degree.unwrap_or(3),
+        ..RendererConfig::default()
+    };
+    let event_loop = EventLoop::new().context("no display to open a window on")?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    let now = crate::clock::now_ms() / 1e3;
+    let mut app = App {
+        tiles: StaticTiles::new(ts, v.max_sse),
+        fly,
+        root,
+        cfg,
+        gfx: None,
+        error: None,
+        keys: HashSet::new(),
+        dragging: false,
+        last_cursor: None,
+        last_frame: now,
+        log_at: now,
+        frames: 0,
+        bytes_at_log: 0,
+    };
+    event_loop.run_app(&mut app).context("window event loop")?;
+    match app.error {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fly_camera_moves_and_turns_in_the_ground_plane() {
+        let mut f = FlyCamera {
+            pose: ViewPose {
+                t: 0.0,
+                pos: DVec3::ZERO,
+                yaw: 0.0,
+                pitch: 0.3,
+            },
+            fov_y_deg: 50.0,
+        };
+        f.step(1.0, 0.0, 0.0, false, 1.0);
+        assert!((f.pose.pos - DVec3::new(WALK_SPEED, 0.0, 0.0)).length() < 1e-9);
+        f.step(0.0, 0.0, 1.0, true, 0.5);
+        assert!((f.pose.pos.z - WALK_SPEED * 2.5).abs() < 1e-9);
+        f.look(100.0, -1e6);
+        assert!(f.pose.pitch <= 1.5 && f.pose.yaw < 0.0);
+        let cam = f.camera(64, 32, glam::DMat4::IDENTITY);
+        assert_eq!((cam.width, cam.height), (64, 32));
+        assert!(cam.world_from_camera.is_finite());
+    }
+}

@@ -1,0 +1,272 @@
+//! Headless rendering of a tileset: the same camera resolution and tile selection as
+//! `splat2tiles render`, drawn by [`SplatRenderer`] offscreen and written as PNG.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use glam::DMat4;
+use splat2tiles::render::Image;
+use splat2tiles::render::camera::{self, Camera};
+use splat2tiles::render::cli::{
+    RenderArgs, content_model, parse_vec3, resolve_camera, select_tiles, tileset_bounds, tileset_up,
+};
+use splat2tiles::splat::Splats;
+use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
+
+use crate::gpu::{Headless, OFFSCREEN_FORMAT, Offscreen};
+use crate::renderer::{FrameStats, RendererConfig, SplatRenderer};
+
+/// What the headless modes need to place the camera, as `splat2tiles render` takes it.
+#[derive(Debug, Clone)]
+pub struct ViewArgs {
+    /// `PATH/cameras.json[#ID]` or `look-at:EX,EY,EZ:TX,TY,TZ`.
+    pub camera: Option<String>,
+    /// Automatic viewpoint 0..=7 around the tileset's root box.
+    pub auto_view: Option<usize>,
+    /// Image width (default 1280, or the cameras.json entry's).
+    pub width: Option<u32>,
+    /// Image height (default 720, or the cameras.json entry's).
+    pub height: Option<u32>,
+    /// Vertical field of view, degrees.
+    pub fov: f64,
+    /// Up axis override (`+z`, `-y`, ...).
+    pub up_axis: Option<String>,
+    /// Highest SH degree evaluated.
+    pub sh_degree: Option<u8>,
+    /// Background `R,G,B` in [0, 1].
+    pub background: String,
+    /// Screen-space error threshold of the tile selection, pixels.
+    pub max_sse: f64,
+}
+
+impl Default for ViewArgs {
+    fn default() -> Self {
+        ViewArgs {
+            camera: None,
+            auto_view: Some(0),
+            width: None,
+            height: None,
+            fov: camera::DEFAULT_FOV_Y_DEG,
+            up_axis: None,
+            sh_degree: None,
+            background: "0,0,0".into(),
+            max_sse: 16.0,
+        }
+    }
+}
+
+impl ViewArgs {
+    fn as_render_args(&self, input: &Path) -> RenderArgs {
+        RenderArgs {
+            input: input.to_path_buf(),
+            camera: self.camera.clone(),
+            auto_view: self.auto_view,
+            width: self.width,
+            height: self.height,
+            fov: self.fov,
+            up_axis: self.up_axis.clone(),
+            sh_degree: self.sh_degree,
+            background: self.background.clone(),
+            output: PathBuf::new(),
+            max_sse: self.max_sse,
+        }
+    }
+
+    /// The background colour.
+    pub fn background_rgb(&self) -> anyhow::Result<[f32; 3]> {
+        Ok(parse_vec3(&self.background)
+            .context("--background")?
+            .as_vec3()
+            .to_array())
+    }
+}
+
+/// Loads `tileset.json` (errors name the file).
+pub fn open_tileset(path: &Path) -> anyhow::Result<LoadedTileset> {
+    load_tileset(path).with_context(|| format!("{}: cannot load the tileset", path.display()))
+}
+
+/// The camera `splat2tiles render` would use for this tileset and these arguments.
+pub fn tileset_camera(ts: &LoadedTileset, input: &Path, v: &ViewArgs) -> anyhow::Result<Camera> {
+    let up = match &v.up_axis {
+        Some(s) => camera::parse_axis(s)
+            .with_context(|| format!("--up-axis '{s}': expected one of +x,-x,+y,-y,+z,-z"))?,
+        None => tileset_up(ts),
+    };
+    resolve_camera(&v.as_render_args(input), up, tileset_bounds(ts))
+}
+
+/// Reads and decodes tile contents (any variant) with their tile-to-world matrices.
+pub fn load_instances(
+    ts: &LoadedTileset,
+    paths: &[PathBuf],
+) -> anyhow::Result<Vec<(Splats, DMat4)>> {
+    paths
+        .iter()
+        .map(|p| {
+            let bytes =
+                std::fs::read(p).with_context(|| format!("{}: cannot read", p.display()))?;
+            let (splats, node) = splat2tiles::variants::decode_variant(&bytes)
+                .with_context(|| format!("{}: cannot decode the tile", p.display()))?;
+            Ok((splats, content_model(ts, &node)))
+        })
+        .collect()
+}
+
+/// Renders `instances` seen by `cam` once (tiles fully faded in, sort finished) and reads the
+/// frame back.
+pub fn render_instances(
+    gpu: &Headless,
+    instances: &[(Splats, DMat4)],
+    cam: &Camera,
+    cfg: RendererConfig,
+) -> anyhow::Result<(Image, FrameStats)> {
+    let cfg = RendererConfig {
+        blocking_sort: true,
+        ..cfg
+    };
+    let mut r = SplatRenderer::new(&gpu.device, &gpu.queue, OFFSCREEN_FORMAT, cfg);
+    for (i, (s, m)) in instances.iter().enumerate() {
+        r.insert_tile(&gpu.device, &gpu.queue, i as u64, s, *m, 0.0);
+    }
+    let target = Offscreen::new(&gpu.device, cam.width, cam.height)?;
+    let stats = r.render(
+        &gpu.device,
+        &gpu.queue,
+        &target.view,
+        cam,
+        cfg.fade_s.max(0.0),
+    );
+    let img = target.read(&gpu.device, &gpu.queue)?;
+    Ok((img, stats))
+}
+
+/// Result of [`run_static`].
+#[derive(Debug, Clone)]
+pub struct StaticSummary {
+    /// Adapter description.
+    pub adapter: String,
+    /// Tiles drawn and tiles in the tileset.
+    pub tiles: (usize, usize),
+    /// Splats uploaded.
+    pub splats: usize,
+    /// Wall time of upload + sort + draw + read-back, ms.
+    pub ms: f64,
+    /// The PNG written.
+    pub png: PathBuf,
+    /// Stats of the frame.
+    pub stats: FrameStats,
+}
+
+/// `--headless` with `--camera`/`--auto-view`: one frame to `out/frame_0000.png`.
+pub fn run_static(tileset: &Path, v: &ViewArgs, out: &Path) -> anyhow::Result<StaticSummary> {
+    let ts = open_tileset(tileset)?;
+    let cam = tileset_camera(&ts, tileset, v)?;
+    let picked = select_tiles(&ts, &cam, v.max_sse);
+    let instances = load_instances(&ts, &picked)?;
+    let gpu = crate::gpu::headless()?;
+    let cfg = RendererConfig {
+        background: v.background_rgb()?,
+        max_sh_degree: v.sh_degree.unwrap_or(3),
+        ..RendererConfig::default()
+    };
+    let t0 = crate::clock::now_ms();
+    let (img, stats) = render_instances(&gpu, &instances, &cam, cfg)?;
+    let ms = crate::clock::now_ms() - t0;
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let png = out.join("frame_0000.png");
+    img.save_png(&png)
+        .with_context(|| format!("{}: cannot write", png.display()))?;
+    Ok(StaticSummary {
+        adapter: gpu.adapter_name(),
+        tiles: (picked.len(), ts.tiles.len()),
+        splats: stats.resident,
+        ms,
+        png,
+        stats,
+    })
+}
+
+/// Result of [`run_trace`].
+#[derive(Debug, Clone)]
+pub struct TraceSummary {
+    /// Adapter description.
+    pub adapter: String,
+    /// Frames written.
+    pub frames: usize,
+    /// Most splats resident at once.
+    pub peak_resident: usize,
+    /// Tile bytes read.
+    pub bytes_read: u64,
+    /// Mean wall time per frame (selection, loads, sort, draw, read-back, PNG), ms.
+    pub mean_ms: f64,
+    /// Load errors (each names the file).
+    pub errors: Vec<String>,
+}
+
+/// `--headless --camera-trace FILE`: one PNG per pose (`frame_0000.png`, ...) while the tiles
+/// selected for each pose stream in (inserted and removed with fades at the pose's time).
+pub fn run_trace(
+    tileset: &Path,
+    trace_path: &Path,
+    v: &ViewArgs,
+    out: &Path,
+) -> anyhow::Result<TraceSummary> {
+    let text = std::fs::read_to_string(trace_path)
+        .with_context(|| format!("{}: cannot read", trace_path.display()))?;
+    let trace = splat2tiles::sim::trace::Trace::from_csv(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", trace_path.display()))?;
+    if trace.poses.is_empty() {
+        anyhow::bail!("{}: the trace has no pose", trace_path.display());
+    }
+    let fov = trace
+        .header("fov_y_deg")
+        .and_then(|s| s.parse::<f64>().ok())
+        .filter(|f| *f > 0.0 && *f < 180.0)
+        .unwrap_or(v.fov);
+    let (w, h) = (v.width.unwrap_or(1280), v.height.unwrap_or(720));
+    let ts = open_tileset(tileset)?;
+    let root = ts.root_transform;
+    let mut tiles = crate::tiles::StaticTiles::new(ts, v.max_sse);
+    let gpu = crate::gpu::headless()?;
+    let cfg = RendererConfig {
+        background: v.background_rgb()?,
+        max_sh_degree: v.sh_degree.unwrap_or(3),
+        blocking_sort: true,
+        ..RendererConfig::default()
+    };
+    let mut r = SplatRenderer::new(&gpu.device, &gpu.queue, OFFSCREEN_FORMAT, cfg);
+    let target = Offscreen::new(&gpu.device, w, h)?;
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let t0 = crate::clock::now_ms();
+    let mut peak = 0;
+    for (k, pose) in trace.poses.iter().enumerate() {
+        let cam = Camera::from_pose(w, h, fov, root * pose.world_from_camera());
+        for u in tiles.update(&cam, true) {
+            match u {
+                crate::tiles::TileUpdate::Insert {
+                    id,
+                    splats,
+                    tile_to_world,
+                } => r.insert_tile(&gpu.device, &gpu.queue, id, &splats, tile_to_world, pose.t),
+                crate::tiles::TileUpdate::Remove { id } => r.remove_tile(id, pose.t),
+            }
+        }
+        let stats = r.render(&gpu.device, &gpu.queue, &target.view, &cam, pose.t);
+        peak = peak.max(stats.resident);
+        let png = out.join(format!("frame_{k:04}.png"));
+        target
+            .read(&gpu.device, &gpu.queue)?
+            .save_png(&png)
+            .with_context(|| format!("{}: cannot write", png.display()))?;
+    }
+    let n = trace.poses.len();
+    Ok(TraceSummary {
+        adapter: gpu.adapter_name(),
+        frames: n,
+        peak_resident: peak,
+        bytes_read: tiles.bytes_read(),
+        mean_ms: (crate::clock::now_ms() - t0) / n as f64,
+        errors: tiles.errors().to_vec(),
+    })
+}

@@ -1,0 +1,1175 @@
+//! The splat renderer: resident tiles in paged attribute textures, per-tile camera-relative
+//! transforms computed in f64 each frame, one global back-to-front sort, instanced quads.
+//!
+//! Designed for `wgpu::Limits::downlevel_webgl2_defaults()`: no storage buffers, no compute,
+//! textures at most 2048 wide, attributes read with `textureLoad` in the vertex shader.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use glam::{DMat3, DMat4, DVec3};
+use splat2tiles::render::camera::Camera;
+use splat2tiles::render::raster::NEAR_Z;
+use splat2tiles::splat::{Splats, normalize_quat};
+
+use crate::alloc::{Run, SlotAllocator, page_pieces};
+use crate::sort::{RadixSorter, back_to_front_key};
+
+/// Splats per page (one layer of every attribute texture array).
+pub const PAGE_SPLATS: u32 = 1 << PAGE_BITS;
+/// log2 of [`PAGE_SPLATS`] (the shader splits slot indices with it).
+pub const PAGE_BITS: u32 = 14;
+/// Splats per texture row of a page (pages are 128 x 128 splats).
+pub const PAGE_ROW: u32 = 128;
+/// Tiles per row of the tile table texture.
+pub const TILES_PER_ROW: u32 = 256;
+/// Texels per tile in the tile table.
+pub const TILE_TEXELS: u32 = 5;
+/// Largest 3-sigma footprint (pixels, crude bound) drawn; bigger splats are dropped so that the
+/// f32 projection cannot overflow.
+pub const MAX_FOOTPRINT_PX: f32 = 1.0e6;
+
+/// Texels of SH data per splat for a degree: `ceil(3 (d+1)^2 / 4)`.
+pub const fn sh_texels(degree: u8) -> u32 {
+    let d = degree as u32 + 1;
+    (3 * d * d).div_ceil(4)
+}
+
+/// Settings of a [`SplatRenderer`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RendererConfig {
+    /// Seconds a tile takes to fade in after insert and out after remove.
+    pub fade_s: f64,
+    /// Re-sort when the camera moved farther than this (metres) since the last sort.
+    pub resort_distance: f64,
+    /// Re-sort when the view direction turned more than this (degrees) since the last sort.
+    pub resort_angle_deg: f64,
+    /// Highest SH degree evaluated (and stored).
+    pub max_sh_degree: u8,
+    /// Clear colour, linear RGB in [0, 1].
+    pub background: [f32; 3],
+    /// Wait for each needed sort inside `render` (headless and tests); otherwise the frame keeps
+    /// the previous order until the worker's new one arrives (native only).
+    pub blocking_sort: bool,
+    /// Most pages (of [`PAGE_SPLATS`]) to allocate, further capped by the device's
+    /// `max_texture_array_layers`.
+    pub max_pages: u32,
+}
+
+impl Default for RendererConfig {
+    fn default() -> Self {
+        RendererConfig {
+            fade_s: 0.3,
+            resort_distance: 2.0,
+            resort_angle_deg: 15.0,
+            max_sh_degree: 3,
+            background: [0.0; 3],
+            blocking_sort: false,
+            max_pages: 256,
+        }
+    }
+}
+
+/// What one [`SplatRenderer::render`] call did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrameStats {
+    /// Instances drawn (splats in the current order).
+    pub drawn: usize,
+    /// Splats resident in the textures (live and fading-out tiles).
+    pub resident: usize,
+    /// A new order was applied this frame.
+    pub sorted: bool,
+    /// CPU time of the sort that produced the applied order (keys + radix sort), ms.
+    pub sort_ms: f64,
+    /// Tiles resident (live and fading out).
+    pub tiles: usize,
+    /// A sort is running on the worker.
+    pub sort_pending: bool,
+    /// Splats refused so far because the page budget was full.
+    pub refused_splats: usize,
+    /// Splats skipped on upload so far for holding NaN/Inf.
+    pub skipped_non_finite: usize,
+}
+
+/// The CPU copy kept per uploaded batch: tile-local positions and their slots (for depth keys).
+#[derive(Debug)]
+struct Chunk {
+    positions: Vec<[f32; 3]>,
+    slots: Vec<u32>,
+}
+
+#[derive(Debug)]
+struct Tile {
+    row: u32,
+    model: DMat4,
+    chunks: Vec<Arc<Chunk>>,
+    runs: Vec<Run>,
+    sh_degree: u8,
+    born: f64,
+    /// Set by `remove_tile`: the time and the fade-in alpha reached then.
+    dying: Option<(f64, f64)>,
+    count: usize,
+}
+
+/// A depth-sort request: batches with the depth row (camera z of the tile frame) to apply.
+struct SortJob {
+    generation: u64,
+    chunks: Vec<(Arc<Chunk>, [f32; 4])>,
+}
+
+struct SortResult {
+    generation: u64,
+    order: Vec<u32>,
+    ms: f64,
+}
+
+/// Computes back-to-front keys for every splat of the job and sorts the slots.
+fn run_sort(job: &SortJob, sorter: &mut RadixSorter, pairs: &mut Vec<u64>) -> SortResult {
+    let t0 = crate::clock::now_ms();
+    pairs.clear();
+    for (chunk, r) in &job.chunks {
+        pairs.extend(chunk.positions.iter().zip(&chunk.slots).map(|(p, &slot)| {
+            let z = r[0] * p[0] + r[1] * p[1] + r[2] * p[2] + r[3];
+            ((back_to_front_key(z) as u64) << 32) | slot as u64
+        }));
+    }
+    sorter.sort_packed(pairs);
+    let order = pairs.iter().map(|&p| p as u32).collect();
+    SortResult {
+        generation: job.generation,
+        order,
+        ms: crate::clock::now_ms() - t0,
+    }
+}
+
+/// Runs sorts on a worker thread (native) or inline (wasm).
+struct Sorter {
+    #[cfg(not(target_arch = "wasm32"))]
+    tx: Option<std::sync::mpsc::Sender<SortJob>>,
+    #[cfg(not(target_arch = "wasm32"))]
+    rx: std::sync::mpsc::Receiver<SortResult>,
+    #[cfg(not(target_arch = "wasm32"))]
+    worker: Option<std::thread::JoinHandle<()>>,
+    /// Inline sorter (wasm, or native when the worker could not start).
+    inline: RadixSorter,
+    inline_pairs: Vec<u64>,
+    inline_result: Option<SortResult>,
+    in_flight: bool,
+}
+
+impl Sorter {
+    #[cfg(not(target_arch = "wasm32"))]
+    fn new() -> Self {
+        let (tx, job_rx) = std::sync::mpsc::channel::<SortJob>();
+        let (res_tx, rx) = std::sync::mpsc::channel::<SortResult>();
+        let worker = std::thread::Builder::new()
+            .name("splat-sort".into())
+            .spawn(move || {
+                let mut sorter = RadixSorter::new();
+                let mut pairs = Vec::new();
+                while let Ok(mut job) = job_rx.recv() {
+                    // Only the newest request matters.
+                    while let Ok(newer) = job_rx.try_recv() {
+                        job = newer;
+                    }
+                    if res_tx
+                        .send(run_sort(&job, &mut sorter, &mut pairs))
+                        .is_err()
+                    {
+                        break;
+                    }
+                }
+            })
+            .ok();
+        let tx = worker.as_ref().map(|_| tx);
+        Sorter {
+            tx,
+            rx,
+            worker,
+            inline: RadixSorter::new(),
+            inline_pairs: Vec::new(),
+            inline_result: None,
+            in_flight: false,
+        }
+    }
+
+    #[cfg(target_arch = "wasm32")]
+    fn new() -> Self {
+        Sorter {
+            inline: RadixSorter::new(),
+            inline_pairs: Vec::new(),
+            inline_result: None,
+            in_flight: false,
+        }
+    }
+
+    fn submit(&mut self, job: SortJob) {
+        self.in_flight = true;
+        #[cfg(not(target_arch = "wasm32"))]
+        if let Some(tx) = &self.tx {
+            match tx.send(job) {
+                Ok(()) => return,
+                Err(e) => {
+                    self.tx = None;
+                    self.inline_result =
+                        Some(run_sort(&e.0, &mut self.inline, &mut self.inline_pairs));
+                    return;
+                }
+            }
+        }
+        self.inline_result = Some(run_sort(&job, &mut self.inline, &mut self.inline_pairs));
+    }
+
+    /// The finished result, if any; blocks for it when `wait`.
+    fn poll(&mut self, wait: bool) -> Option<SortResult> {
+        if !self.in_flight {
+            return None;
+        }
+        if let Some(r) = self.inline_result.take() {
+            self.in_flight = false;
+            return Some(r);
+        }
+        self.poll_worker(wait)
+    }
+
+    #[cfg(not(target_arch = "wasm32"))]
+    fn poll_worker(&mut self, wait: bool) -> Option<SortResult> {
+        let got = if wait {
+            self.rx.recv().ok()
+        } else {
+            self.rx.try_recv().ok()
+        };
+        if got.is_some() {
+            self.in_flight = false;
+        } else if wait {
+            // The worker is gone: nothing will arrive.
+            self.in_flight = false;
+            self.tx = None;
+        }
+        got
+    }
+
+    #[cfg(target_arch = "wasm32")]
+    fn poll_worker(&mut self, _wait: bool) -> Option<SortResult> {
+        // Sorts run inline on wasm: nothing can be pending here.
+        self.in_flight = false;
+        None
+    }
+
+    fn bytes(&self) -> usize {
+        self.inline.bytes() + self.inline_pairs.capacity() * 8
+    }
+}
+
+impl Drop for Sorter {
+    fn drop(&mut self) {
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            self.tx = None;
+            if let Some(w) = self.worker.take() {
+                let _ = w.join();
+            }
+        }
+    }
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct FrameUniform {
+    viewport: [f32; 4],
+    focal: [f32; 4],
+    lim: [f32; 4],
+    params: [f32; 4],
+}
+
+/// One attribute texture array: `blocks` texels per splat, stored block-major across the row.
+struct AttrTex {
+    texture: wgpu::Texture,
+    format: wgpu::TextureFormat,
+    blocks: u32,
+    layers: u32,
+    texel_bytes: u32,
+}
+
+impl AttrTex {
+    fn new(
+        device: &wgpu::Device,
+        label: &str,
+        format: wgpu::TextureFormat,
+        blocks: u32,
+        layers: u32,
+    ) -> Self {
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: PAGE_ROW * blocks,
+                height: PAGE_SPLATS / PAGE_ROW,
+                depth_or_array_layers: layers,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_DST
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let texel_bytes = format.block_copy_size(None).unwrap_or(16);
+        AttrTex {
+            texture,
+            format,
+            blocks,
+            layers,
+            texel_bytes,
+        }
+    }
+
+    fn bytes(&self) -> u64 {
+        self.texel_bytes as u64 * PAGE_SPLATS as u64 * self.blocks as u64 * self.layers as u64
+    }
+
+    /// A bigger copy (more layers and/or blocks) holding this one's contents.
+    fn grown(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        label: &str,
+        blocks: u32,
+        layers: u32,
+    ) -> Self {
+        let new = AttrTex::new(device, label, self.format, blocks, layers);
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("grow attribute texture"),
+        });
+        enc.copy_texture_to_texture(
+            self.texture.as_image_copy(),
+            new.texture.as_image_copy(),
+            wgpu::Extent3d {
+                width: PAGE_ROW * self.blocks.min(blocks),
+                height: PAGE_SPLATS / PAGE_ROW,
+                depth_or_array_layers: self.layers.min(layers),
+            },
+        );
+        queue.submit([enc.finish()]);
+        new
+    }
+
+    /// Writes `texels` (block `b` of splats `[local, local + n)` of `page`, row-aligned piece).
+    fn write(&self, queue: &wgpu::Queue, page: u32, local: u32, n: u32, block: u32, data: &[u8]) {
+        let x = local % PAGE_ROW;
+        let y = local / PAGE_ROW;
+        let (w, h) = if n <= PAGE_ROW - x && (x != 0 || n < PAGE_ROW) {
+            (n, 1)
+        } else {
+            (PAGE_ROW, n / PAGE_ROW)
+        };
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d {
+                    x: block * PAGE_ROW + x,
+                    y,
+                    z: page,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            data,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(w * self.texel_bytes),
+                rows_per_image: Some(h),
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+}
+
+/// Renders resident splat tiles with WebGL2-compatible wgpu.
+pub struct SplatRenderer {
+    cfg: RendererConfig,
+    pipeline: wgpu::RenderPipeline,
+    bgl: wgpu::BindGroupLayout,
+    uniform: wgpu::Buffer,
+    pos: AttrTex,
+    shape: AttrTex,
+    sh: AttrTex,
+    sh_capacity_degree: u8,
+    table: wgpu::Texture,
+    table_rows: u32,
+    bind_group: Option<wgpu::BindGroup>,
+    instances: wgpu::Buffer,
+    instance_cap: u64,
+    drawn: usize,
+    alloc: SlotAllocator,
+    tiles: HashMap<u64, Tile>,
+    dying: Vec<Tile>,
+    free_rows: Vec<u32>,
+    next_row: u32,
+    /// (resident generation at release, runs, table row) waiting for an order without them.
+    pending_free: Vec<(u64, Vec<Run>, u32)>,
+    generation: u64,
+    order_gen: u64,
+    has_order: bool,
+    sorter: Sorter,
+    last_sort_cam: Option<(DVec3, DVec3)>,
+    last_sort_ms: f64,
+    refused: usize,
+    skipped: usize,
+    table_scratch: Vec<f32>,
+}
+
+fn table_texture(device: &wgpu::Device, rows: u32) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("splat tile table"),
+        size: wgpu::Extent3d {
+            width: TILES_PER_ROW * TILE_TEXELS,
+            height: rows,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+fn instance_buffer(device: &wgpu::Device, cap: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("splat order"),
+        size: cap * 4,
+        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+fn tex_entry(binding: u32, dim: wgpu::TextureViewDimension) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: dim,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+fn f16_bits(v: f32) -> u16 {
+    half::f16::from_f32(v).to_bits()
+}
+
+impl SplatRenderer {
+    /// A renderer drawing into textures of `target_format`.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target_format: wgpu::TextureFormat,
+        cfg: RendererConfig,
+    ) -> Self {
+        let _ = queue;
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("splat.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("shaders/splat.wgsl").into()),
+        });
+        let bgl = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("splat bind group layout"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                tex_entry(1, wgpu::TextureViewDimension::D2Array),
+                tex_entry(2, wgpu::TextureViewDimension::D2Array),
+                tex_entry(3, wgpu::TextureViewDimension::D2Array),
+                tex_entry(4, wgpu::TextureViewDimension::D2),
+            ],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("splat pipeline layout"),
+            bind_group_layouts: &[Some(&bgl)],
+            immediate_size: 0,
+        });
+        let blend = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("splat pipeline"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: 4,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &[wgpu::VertexAttribute {
+                        format: wgpu::VertexFormat::Uint32,
+                        offset: 0,
+                        shader_location: 0,
+                    }],
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleStrip,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: target_format,
+                    blend: Some(wgpu::BlendState {
+                        color: blend,
+                        alpha: blend,
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("splat frame uniform"),
+            size: std::mem::size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let max_pages = cfg
+            .max_pages
+            .min(device.limits().max_texture_array_layers)
+            .max(1);
+        let cfg = RendererConfig {
+            max_sh_degree: cfg.max_sh_degree.min(3),
+            max_pages,
+            ..cfg
+        };
+        let f32x4 = wgpu::TextureFormat::Rgba32Float;
+        SplatRenderer {
+            cfg,
+            pipeline,
+            bgl,
+            uniform,
+            pos: AttrTex::new(device, "splat centres", f32x4, 1, 1),
+            shape: AttrTex::new(device, "splat shapes", f32x4, 2, 1),
+            sh: AttrTex::new(device, "splat SH", wgpu::TextureFormat::Rgba16Float, 1, 1),
+            sh_capacity_degree: 0,
+            table: table_texture(device, 1),
+            table_rows: 1,
+            bind_group: None,
+            instances: instance_buffer(device, 1024),
+            instance_cap: 1024,
+            drawn: 0,
+            alloc: SlotAllocator::new(PAGE_SPLATS, max_pages),
+            tiles: HashMap::new(),
+            dying: Vec::new(),
+            free_rows: Vec::new(),
+            next_row: 0,
+            pending_free: Vec::new(),
+            generation: 0,
+            order_gen: 0,
+            has_order: false,
+            sorter: Sorter::new(),
+            last_sort_cam: None,
+            last_sort_ms: 0.0,
+            refused: 0,
+            skipped: 0,
+            table_scratch: Vec::new(),
+        }
+    }
+
+    /// The configuration in force (page budget capped by the device).
+    pub fn config(&self) -> &RendererConfig {
+        &self.cfg
+    }
+
+    /// Adds a tile's splats (tile-local coordinates, as decoded from the glb) with its
+    /// tile-to-world matrix; it fades in over `fade_s`. An id already resident is replaced at once.
+    pub fn insert_tile(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        id: u64,
+        splats: &Splats,
+        tile_to_world: DMat4,
+        now_s: f64,
+    ) {
+        if let Some(mut old) = self.tiles.remove(&id) {
+            old.dying = Some((f64::NEG_INFINITY, 0.0));
+            self.dying.push(old);
+        }
+        let row = match self.free_rows.pop() {
+            Some(r) => r,
+            None => {
+                let r = self.next_row;
+                self.next_row += 1;
+                r
+            }
+        };
+        let mut tile = Tile {
+            row,
+            model: tile_to_world,
+            chunks: Vec::new(),
+            runs: Vec::new(),
+            sh_degree: splats.sh_degree.min(self.cfg.max_sh_degree),
+            born: now_s,
+            dying: None,
+            count: 0,
+        };
+        self.upload(device, queue, &mut tile, splats);
+        self.tiles.insert(id, tile);
+        self.generation += 1;
+    }
+
+    /// Appends more splats (only the new ones, in tile order) to a resident tile: a progressive
+    /// download whose prefix grows. Unknown ids are ignored.
+    pub fn append_tile(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        id: u64,
+        splats: &Splats,
+        now_s: f64,
+    ) {
+        let _ = now_s;
+        let Some(mut tile) = self.tiles.remove(&id) else {
+            return;
+        };
+        tile.sh_degree = tile
+            .sh_degree
+            .max(splats.sh_degree.min(self.cfg.max_sh_degree));
+        self.upload(device, queue, &mut tile, splats);
+        self.tiles.insert(id, tile);
+        self.generation += 1;
+    }
+
+    /// Fades the tile out over `fade_s`, then frees its slots. Unknown ids are ignored.
+    pub fn remove_tile(&mut self, id: u64, now_s: f64) {
+        if let Some(mut t) = self.tiles.remove(&id) {
+            let a = self.fade_in(&t, now_s);
+            t.dying = Some((now_s, a));
+            self.dying.push(t);
+        }
+    }
+
+    /// Splats resident on the GPU (live and fading-out tiles).
+    pub fn resident_splats(&self) -> usize {
+        self.tiles
+            .values()
+            .chain(&self.dying)
+            .map(|t| t.count)
+            .sum()
+    }
+
+    /// Tiles resident (live and fading-out).
+    pub fn resident_tiles(&self) -> usize {
+        self.tiles.len() + self.dying.len()
+    }
+
+    /// GPU memory held: attribute textures, tile table, order buffer, uniforms.
+    pub fn gpu_bytes(&self) -> u64 {
+        self.pos.bytes()
+            + self.shape.bytes()
+            + self.sh.bytes()
+            + (TILES_PER_ROW * TILE_TEXELS * self.table_rows) as u64 * 16
+            + self.instance_cap * 4
+            + std::mem::size_of::<FrameUniform>() as u64
+    }
+
+    /// CPU memory kept: per-splat positions and slots, sort buffers, tile table scratch.
+    pub fn cpu_bytes(&self) -> u64 {
+        let chunks: usize = self
+            .tiles
+            .values()
+            .chain(&self.dying)
+            .flat_map(|t| &t.chunks)
+            .map(|c| c.positions.capacity() * 12 + c.slots.capacity() * 4)
+            .sum();
+        // The worker's buffers mirror the inline ones: two u64 arrays of the resident count.
+        let worker = self.resident_splats() * 16;
+        (chunks + self.sorter.bytes() + worker + self.table_scratch.capacity() * 4) as u64
+    }
+
+    /// Bytes of GPU texture memory per allocated splat slot (all attribute textures).
+    pub fn texture_bytes_per_slot(&self) -> f64 {
+        (self.pos.texel_bytes * self.pos.blocks
+            + self.shape.texel_bytes * self.shape.blocks
+            + self.sh.texel_bytes * self.sh.blocks) as f64
+    }
+
+    fn fade_in(&self, t: &Tile, now: f64) -> f64 {
+        if self.cfg.fade_s > 0.0 {
+            ((now - t.born) / self.cfg.fade_s).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    }
+
+    fn alpha(&self, t: &Tile, now: f64) -> f64 {
+        match t.dying {
+            None => self.fade_in(t, now),
+            Some((since, a0)) => {
+                if self.cfg.fade_s > 0.0 && since.is_finite() {
+                    a0 * (1.0 - (now - since) / self.cfg.fade_s).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+
+    /// Grows the attribute textures for `pages` pages and SH up to `degree`.
+    fn ensure_capacity(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        pages: u32,
+        degree: u8,
+    ) {
+        let layers = self.pos.layers;
+        if pages > layers {
+            let want = pages
+                .max(layers.saturating_mul(2))
+                .min(self.cfg.max_pages)
+                .max(pages);
+            self.pos = self.pos.grown(device, queue, "splat centres", 1, want);
+            self.shape = self.shape.grown(device, queue, "splat shapes", 2, want);
+            let b = self.sh.blocks;
+            self.sh = self.sh.grown(device, queue, "splat SH", b, want);
+            self.bind_group = None;
+        }
+        if degree > self.sh_capacity_degree {
+            let blocks = sh_texels(degree);
+            let l = self.sh.layers;
+            self.sh = self.sh.grown(device, queue, "splat SH", blocks, l);
+            self.sh_capacity_degree = degree;
+            self.bind_group = None;
+        }
+    }
+
+    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, tile: &mut Tile, s: &Splats) {
+        let n_all = s.len();
+        let consistent = s.scales.len() == n_all
+            && s.rotations.len() == n_all
+            && s.opacities.len() == n_all
+            && s.sh0.len() == n_all
+            && s.sh_rest.len() == n_all * s.rest_per_splat();
+        if !consistent {
+            self.skipped += n_all;
+            return;
+        }
+        let keep: Vec<usize> = (0..n_all).filter(|&i| s.is_finite(i)).collect();
+        self.skipped += n_all - keep.len();
+        if keep.is_empty() {
+            return;
+        }
+        let Ok(n) = u32::try_from(keep.len()) else {
+            self.refused += keep.len();
+            return;
+        };
+        let Some(runs) = self.alloc.alloc(n) else {
+            self.refused += keep.len();
+            return;
+        };
+        let degree = tile.sh_degree;
+        self.ensure_capacity(device, queue, self.alloc.pages(), degree);
+        let blocks = self.sh.blocks as usize;
+        let rest_n = s.rest_per_splat();
+        let d = degree as usize + 1;
+        let used_coefs = (d * d).min(1 + rest_n);
+        let mut positions = Vec::with_capacity(keep.len());
+        let mut slots = Vec::with_capacity(keep.len());
+        let mut k = 0usize;
+        for run in &runs {
+            for (page, local, len) in page_pieces(*run, PAGE_SPLATS, PAGE_ROW) {
+                let idx = &keep[k..k + len as usize];
+                k += len as usize;
+                let mut pos = Vec::with_capacity(idx.len() * 16);
+                let mut quat = Vec::with_capacity(idx.len() * 16);
+                let mut scale = Vec::with_capacity(idx.len() * 16);
+                let mut sh = vec![0u16; idx.len() * blocks * 4];
+                for (j, &i) in idx.iter().enumerate() {
+                    let p = s.positions[i].map(|v| v as f32);
+                    positions.push(p);
+                    slots.push(page * PAGE_SPLATS + local + j as u32);
+                    pos.extend_from_slice(bytemuck::cast_slice(&[
+                        p[0],
+                        p[1],
+                        p[2],
+                        s.opacities[i],
+                    ]));
+                    quat.extend_from_slice(bytemuck::cast_slice(&normalize_quat(s.rotations[i])));
+                    let sc = s.scales[i];
+                    scale.extend_from_slice(bytemuck::cast_slice(&[
+                        sc[0],
+                        sc[1],
+                        sc[2],
+                        tile.row as f32,
+                    ]));
+                    // Coefficient-major floats (DC first), texel t of splat j lands in block t.
+                    let rest = s.rest_of(i);
+                    for c in 0..used_coefs {
+                        let rgb = if c == 0 { s.sh0[i] } else { rest[c - 1] };
+                        for (ch, v) in rgb.iter().enumerate() {
+                            let f = c * 3 + ch;
+                            let (t, comp) = (f / 4, f % 4);
+                            if t < blocks {
+                                sh[(t * idx.len() + j) * 4 + comp] = f16_bits(*v);
+                            }
+                        }
+                    }
+                }
+                self.pos.write(queue, page, local, len, 0, &pos);
+                self.shape.write(queue, page, local, len, 0, &quat);
+                self.shape.write(queue, page, local, len, 1, &scale);
+                let per_block = idx.len() * 4;
+                for t in 0..blocks {
+                    let part = &sh[t * per_block..(t + 1) * per_block];
+                    self.sh.write(
+                        queue,
+                        page,
+                        local,
+                        len,
+                        t as u32,
+                        bytemuck::cast_slice(part),
+                    );
+                }
+            }
+        }
+        tile.count += keep.len();
+        tile.runs.extend(runs);
+        tile.chunks.push(Arc::new(Chunk { positions, slots }));
+    }
+
+    /// Camera-from-tile rows (f64 -> f32, relative to the camera centre) and the camera centre
+    /// in the tile frame; `None` for a non-finite or singular model.
+    fn tile_frame(model: DMat4, cam: &Camera) -> Option<([[f32; 4]; 3], [f32; 3])> {
+        if !model.is_finite() {
+            return None;
+        }
+        let a = DMat3::from_mat4(model);
+        let t = model.w_axis.truncate();
+        let c = cam.center();
+        let cam_from_world = cam.rotation().transpose();
+        let m = cam_from_world * a;
+        let b = cam_from_world * (t - c);
+        let det = a.determinant();
+        if !(det.is_finite() && det.abs() > 1e-300) {
+            return None;
+        }
+        let cl = a.inverse() * (c - t);
+        if !cl.is_finite() {
+            return None;
+        }
+        let rows = [0, 1, 2].map(|r| {
+            let row = m.row(r);
+            [row.x as f32, row.y as f32, row.z as f32, b[r] as f32]
+        });
+        Some((rows, [cl.x as f32, cl.y as f32, cl.z as f32]))
+    }
+
+    fn apply_result(&mut self, queue: &wgpu::Queue, device: &wgpu::Device, r: SortResult) {
+        let n = r.order.len() as u64;
+        if n > self.instance_cap {
+            self.instance_cap = n.next_power_of_two().max(1024);
+            self.instances = instance_buffer(device, self.instance_cap);
+        }
+        if n > 0 {
+            queue.write_buffer(&self.instances, 0, bytemuck::cast_slice(&r.order));
+        }
+        self.drawn = r.order.len();
+        self.order_gen = r.generation;
+        self.has_order = true;
+        self.last_sort_ms = r.ms;
+        // Slots of tiles gone before this order was requested can now be reused.
+        let mut freed = Vec::new();
+        self.pending_free.retain(|(g, runs, row)| {
+            if *g <= r.generation {
+                freed.push((runs.clone(), *row));
+                false
+            } else {
+                true
+            }
+        });
+        for (runs, row) in freed {
+            self.alloc.free(&runs);
+            self.free_rows.push(row);
+        }
+    }
+
+    fn make_job(&self, cam: &Camera) -> SortJob {
+        let mut chunks = Vec::new();
+        for t in self.tiles.values().chain(&self.dying) {
+            let Some((rows, _)) = Self::tile_frame(t.model, cam) else {
+                continue;
+            };
+            for c in &t.chunks {
+                chunks.push((c.clone(), rows[2]));
+            }
+        }
+        SortJob {
+            generation: self.generation,
+            chunks,
+        }
+    }
+
+    fn needs_sort(&self, cam: &Camera) -> bool {
+        if !self.has_order || self.order_gen != self.generation {
+            return true;
+        }
+        let Some((c, f)) = self.last_sort_cam else {
+            return true;
+        };
+        let fwd = cam.rotation().z_axis;
+        let moved = cam.center().distance(c) > self.cfg.resort_distance;
+        let cos = fwd.dot(f).clamp(-1.0, 1.0);
+        let turned = cos.acos().to_degrees() > self.cfg.resort_angle_deg;
+        moved || turned
+    }
+
+    /// Renders one frame into `target` (cleared to the background) and returns its stats.
+    pub fn render(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target: &wgpu::TextureView,
+        camera: &Camera,
+        now_s: f64,
+    ) -> FrameStats {
+        let mut stats = FrameStats::default();
+        // 1. Tiles whose fade-out ended leave the sorted set.
+        let mut i = 0;
+        while i < self.dying.len() {
+            if self.alpha(&self.dying[i], now_s) <= 0.0 {
+                let t = self.dying.swap_remove(i);
+                self.generation += 1;
+                self.pending_free.push((self.generation, t.runs, t.row));
+            } else {
+                i += 1;
+            }
+        }
+        // 2. Newest order from the worker; then a new sort when needed.
+        let blocking = self.cfg.blocking_sort || cfg!(target_arch = "wasm32");
+        if let Some(r) = self.sorter.poll(blocking) {
+            self.apply_result(queue, device, r);
+            stats.sorted = true;
+        }
+        if camera.width > 0
+            && camera.height > 0
+            && self.needs_sort(camera)
+            && !self.sorter.in_flight
+        {
+            let job = self.make_job(camera);
+            self.last_sort_cam = Some((camera.center(), camera.rotation().z_axis));
+            self.sorter.submit(job);
+            if let Some(r) = self.sorter.poll(blocking) {
+                self.apply_result(queue, device, r);
+                stats.sorted = true;
+            }
+        }
+        // 3. Tile table for this camera (f64 on the CPU, camera-relative).
+        let rows_needed = self.next_row.div_ceil(TILES_PER_ROW).max(1);
+        if rows_needed > self.table_rows {
+            let max_rows = device.limits().max_texture_dimension_2d.max(1);
+            self.table_rows = rows_needed.next_power_of_two().min(max_rows);
+            self.table = table_texture(device, self.table_rows);
+            self.bind_group = None;
+        }
+        let row_floats = (TILES_PER_ROW * TILE_TEXELS * 4) as usize;
+        let mut table = std::mem::take(&mut self.table_scratch);
+        table.clear();
+        table.resize(row_floats * self.table_rows as usize, 0.0);
+        let cap_deg = self.sh_capacity_degree;
+        for t in self.tiles.values().chain(&self.dying) {
+            let Some((rows, cl)) = Self::tile_frame(t.model, camera) else {
+                continue;
+            };
+            let base = (t.row * TILE_TEXELS * 4) as usize;
+            if base + 20 > table.len() {
+                continue;
+            }
+            let a = self.alpha(t, now_s) as f32;
+            let deg = t.sh_degree.min(cap_deg) as f32;
+            let vals: [f32; 20] = [
+                rows[0][0], rows[0][1], rows[0][2], rows[0][3], rows[1][0], rows[1][1], rows[1][2],
+                rows[1][3], rows[2][0], rows[2][1], rows[2][2], rows[2][3], cl[0], cl[1], cl[2], a,
+                deg, 0.0, 0.0, 0.0,
+            ];
+            table[base..base + 20].copy_from_slice(&vals);
+        }
+        queue.write_texture(
+            self.table.as_image_copy(),
+            bytemuck::cast_slice(&table),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(TILES_PER_ROW * TILE_TEXELS * 16),
+                rows_per_image: Some(self.table_rows),
+            },
+            wgpu::Extent3d {
+                width: TILES_PER_ROW * TILE_TEXELS,
+                height: self.table_rows,
+                depth_or_array_layers: 1,
+            },
+        );
+        self.table_scratch = table;
+        let (w, h) = (camera.width as f64, camera.height as f64);
+        let (fx, fy) = (camera.fx, camera.fy);
+        let ext_x = 0.3 * w / (2.0 * fx);
+        let ext_y = 0.3 * h / (2.0 * fy);
+        let u = FrameUniform {
+            viewport: [w as f32, h as f32, 0.0, 0.0],
+            focal: [fx as f32, fy as f32, camera.cx as f32, camera.cy as f32],
+            lim: [
+                (-camera.cx / fx - ext_x) as f32,
+                ((w - camera.cx) / fx + ext_x) as f32,
+                (-camera.cy / fy - ext_y) as f32,
+                ((h - camera.cy) / fy + ext_y) as f32,
+            ],
+            params: [NEAR_Z as f32, 3.0, MAX_FOOTPRINT_PX, 0.0],
+        };
+        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&u));
+        if self.bind_group.is_none() {
+            let view = |t: &wgpu::Texture, d| {
+                t.create_view(&wgpu::TextureViewDescriptor {
+                    dimension: Some(d),
+                    ..Default::default()
+                })
+            };
+            let arr = wgpu::TextureViewDimension::D2Array;
+            let (v1, v2, v3) = (
+                view(&self.pos.texture, arr),
+                view(&self.shape.texture, arr),
+                view(&self.sh.texture, arr),
+            );
+            let v4 = view(&self.table, wgpu::TextureViewDimension::D2);
+            self.bind_group = Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("splat bind group"),
+                layout: &self.bgl,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: self.uniform.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(&v1),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::TextureView(&v2),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: wgpu::BindingResource::TextureView(&v3),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 4,
+                        resource: wgpu::BindingResource::TextureView(&v4),
+                    },
+                ],
+            }));
+        }
+        // 4. Draw.
+        let bg = self.cfg.background.map(|v| v as f64);
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("splat frame"),
+        });
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("splats"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: bg[0],
+                            g: bg[1],
+                            b: bg[2],
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if self.drawn > 0
+                && let Some(bg) = &self.bind_group
+            {
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, bg, &[]);
+                pass.set_vertex_buffer(0, self.instances.slice(..));
+                pass.draw(0..4, 0..self.drawn as u32);
+            }
+        }
+        queue.submit([enc.finish()]);
+        stats.drawn = self.drawn;
+        stats.resident = self.resident_splats();
+        stats.tiles = self.resident_tiles();
+        stats.sort_ms = self.last_sort_ms;
+        stats.sort_pending = self.sorter.in_flight;
+        stats.refused_splats = self.refused;
+        stats.skipped_non_finite = self.skipped;
+        stats
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sh_texel_counts() {
+        assert_eq!(
+            [0, 1, 2, 3].map(sh_texels),
+            [1, 3, 7, 12],
+            "3 (d+1)^2 floats in RGBA texels"
+        );
+        assert!(PAGE_ROW * sh_texels(3) <= 2048, "fits WebGL2's 2048 texels");
+        assert!(TILES_PER_ROW * TILE_TEXELS <= 2048);
+        assert_eq!(PAGE_SPLATS % PAGE_ROW, 0);
+    }
+
+    #[test]
+    fn sort_job_orders_back_to_front_over_tiles() {
+        let a = Arc::new(Chunk {
+            positions: vec![[0.0, 0.0, 1.0], [0.0, 0.0, 5.0]],
+            slots: vec![10, 11],
+        });
+        let b = Arc::new(Chunk {
+            positions: vec![[0.0, 0.0, 3.0]],
+            slots: vec![20],
+        });
+        // Tile b is shifted 10 m farther along the camera's z.
+        let job = SortJob {
+            generation: 7,
+            chunks: vec![(a, [0.0, 0.0, 1.0, 0.0]), (b, [0.0, 0.0, 1.0, 10.0])],
+        };
+        let r = run_sort(&job, &mut RadixSorter::new(), &mut Vec::new());
+        assert_eq!(r.order, vec![20, 11, 10]);
+        assert_eq!(r.generation, 7);
+    }
+}
