@@ -340,7 +340,8 @@ fn converges_to_select_tiles_for_a_static_camera() {
 #[test]
 fn abort_mid_body_then_resume_with_range_gives_the_same_splats() {
     let ts = load_tileset(&plant().join("tileset.json")).unwrap();
-    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 1.3);
+    // The whole plant in view (frustum culling removes nothing).
+    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
     let target = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 0.0).center();
     let away = Camera::look_at(
         1280,
@@ -548,15 +549,24 @@ fn missing_truncated_and_garbled_tiles_are_errors_not_panics() {
         assert_eq!(tries, 4, "{u}");
     }
     // The other tiles of the view are resident and drawn.
+    let view: BTreeSet<PathBuf> = s
+        .client
+        .view_set()
+        .iter()
+        .map(|k| rel(&key_path(&ts, *k)))
+        .collect();
     let drawn: BTreeSet<PathBuf> = s
         .client
         .drawn()
         .iter()
         .map(|(k, _, _)| rel(&key_path(&ts, *k)))
         .collect();
-    for p in &picked[3..] {
+    let mut checked = 0;
+    for p in picked[3..].iter().filter(|p| view.contains(&rel(p))) {
         assert!(drawn.contains(&rel(p)), "{} not drawn", p.display());
+        checked += 1;
     }
+    assert!(checked > 0);
 }
 
 #[test]
