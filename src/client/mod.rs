@@ -54,6 +54,9 @@ pub type RequestId = u64;
 /// Largest `tileset.json` or subtree body accepted (bytes).
 pub const MAX_BOOTSTRAP_BYTES: usize = 64 << 20;
 
+/// Most tiles (plus pending subtrees) the bootstrap reads; a hostile tileset stops there.
+pub const MAX_TILES: usize = 1 << 20;
+
 /// Error messages kept in [`ClientStats::last_errors`].
 const KEPT_ERRORS: usize = 32;
 
@@ -620,10 +623,23 @@ impl StreamClient {
             return;
         };
         todo.retain(|k| *k != key);
+        let mut too_many = false;
         if let Some(p) = parsed {
             tiles.extend(p.tiles);
             todo.extend(p.child_subtrees);
+            if tiles.len() + todo.len() > MAX_TILES {
+                todo.clear();
+                too_many = true;
+            }
         }
+        if too_many {
+            self.error(format!(
+                "more than {MAX_TILES} tiles: the remaining subtrees are not read"
+            ));
+        }
+        let Phase::Subtrees { todo, .. } = &self.phase else {
+            return;
+        };
         if todo.is_empty() {
             let Phase::Subtrees { root, tiles, .. } =
                 std::mem::replace(&mut self.phase, Phase::Ready)
