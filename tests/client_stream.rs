@@ -610,3 +610,66 @@ fn moving_the_camera_away_aborts_in_flight_fetches() {
     assert_eq!(s.fake.fetched.len(), before);
     assert_eq!(s.client.stats().pending_fetches, 0);
 }
+
+#[test]
+fn low_first_then_upgrade_to_best_inserts_new_before_removing_old() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
+    let mut c = cfg(vec![Level::Best, Level::Low]);
+    // A pessimistic first estimate: nothing fits its deadline, so the tiles in view come at Low;
+    // measured throughput then makes Best upgrades fit (5 s deadlines for tiles in view).
+    c.initial_bandwidth = 1e3;
+    c.plan.urgent_s = 5.0;
+    let mut s = Session::new(plant(), c);
+    let mut log: Vec<(u64, Option<(TileKey, Level)>)> = vec![];
+    let mut steps = 0;
+    loop {
+        let acts = s.client.update(s.t, &cam);
+        s.fake.apply(acts);
+        s.fake.pump(&mut s.client, s.t);
+        let ups = s.client.take_updates();
+        for u in &ups {
+            match u {
+                SceneUpdate::Insert {
+                    tile, key, level, ..
+                } => log.push((*tile, Some((*key, *level)))),
+                SceneUpdate::Remove { tile } => log.push((*tile, None)),
+                SceneUpdate::Append { .. } => {}
+            }
+        }
+        s.scene.apply(ups);
+        s.t += DT;
+        steps += 1;
+        let all_best = !s.client.drawn().is_empty()
+            && s.client.drawn().iter().all(|(_, l, _)| *l == Level::Best);
+        if s.client.is_idle() && s.fake.live.is_empty() && all_best {
+            break;
+        }
+        assert!(steps < 50_000, "no convergence: {:?}", s.client.stats());
+    }
+    let low: Vec<(u64, TileKey)> = log
+        .iter()
+        .filter_map(|(id, e)| match e {
+            Some((k, Level::Low)) => Some((*id, *k)),
+            _ => None,
+        })
+        .collect();
+    assert!(!low.is_empty(), "some tiles came at Low first");
+    // Each Low drawable was removed only after the Best one of its tile was inserted.
+    for (id, key) in &low {
+        let removed = log
+            .iter()
+            .position(|(i, e)| i == id && e.is_none())
+            .expect("Low drawable removed");
+        let best = log
+            .iter()
+            .position(|(_, e)| *e == Some((*key, Level::Best)))
+            .expect("Best drawable inserted");
+        assert!(
+            best < removed,
+            "{key:?}: Best inserted after the Low one was removed"
+        );
+    }
+    assert_scene_is_selection(&s, &ts, &cam);
+    assert_eq!(s.client.stats().errors, 0);
+}
