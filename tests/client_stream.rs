@@ -673,3 +673,71 @@ fn low_first_then_upgrade_to_best_inserts_new_before_removing_old() {
     assert_scene_is_selection(&s, &ts, &cam);
     assert_eq!(s.client.stats().errors, 0);
 }
+
+/// Whether `k` or one of its ancestors is among `drawn`.
+fn covered(k: TileKey, drawn: &BTreeSet<TileKey>) -> bool {
+    let mut c = Some(k);
+    while let Some(t) = c {
+        if drawn.contains(&t) {
+            return true;
+        }
+        c = t.parent();
+    }
+    false
+}
+
+#[test]
+fn zooming_in_keeps_parents_drawn_until_their_children_are_resident() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    let far = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 5.0);
+    let near = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
+    let coarse = select_tiles(&ts, &far, 16.0);
+    let fine = select_tiles(&ts, &near, 16.0);
+    assert!(
+        1 < coarse.len() && coarse.len() < fine.len(),
+        "{} vs {}",
+        coarse.len(),
+        fine.len()
+    );
+    let mut s = Session::new(plant(), cfg(vec![Level::Best]));
+    s.run_idle(&far, 20_000);
+    assert_scene_is_selection(&s, &ts, &far);
+    let before: BTreeSet<TileKey> = s.client.drawn().iter().map(|d| d.0).collect();
+    // Zoom in: at every step each tile of the view is drawn itself or through an ancestor.
+    let mut steps = 0;
+    loop {
+        s.step(&near);
+        steps += 1;
+        let drawn: BTreeSet<TileKey> = s.client.drawn().iter().map(|d| d.0).collect();
+        for k in s.client.view_set() {
+            assert!(covered(k, &drawn), "{k:?} uncovered at step {steps}");
+        }
+        // A coarse tile goes only when every view tile below it is resident.
+        for c in before.difference(&drawn) {
+            let resident: BTreeSet<TileKey> = s.client.resident().iter().map(|r| r.0).collect();
+            for k in s.client.view_set() {
+                let mut p = k.parent();
+                while let Some(a) = p {
+                    if a == *c {
+                        assert!(resident.contains(&k), "{c:?} removed before {k:?} arrived");
+                    }
+                    p = a.parent();
+                }
+            }
+        }
+        if s.client.is_idle() && s.fake.live.is_empty() {
+            s.step(&near);
+            if s.client.is_idle() {
+                break;
+            }
+        }
+        assert!(steps < 20_000, "{:?}", s.client.stats());
+    }
+    assert_scene_is_selection(&s, &ts, &near);
+    // The coarse tiles are still cached (hidden): zooming out shows them without a fetch.
+    let fetched = s.fake.fetched.len();
+    s.run_idle(&far, 20_000);
+    assert_scene_is_selection(&s, &ts, &far);
+    assert_eq!(s.fake.fetched.len(), fetched);
+    eprintln!("coarse {} tiles, fine {} tiles", coarse.len(), fine.len());
+}
