@@ -32,8 +32,10 @@ fn plant() -> &'static Path {
     &DIR.get_or_init(|| {
         let tmp = tempfile::tempdir().unwrap();
         let out = tmp.path().join("plant");
+        // Two levels per subtree file: the client reads child subtrees when the view needs them.
         let opts = ConvertOptions {
             max_splats_per_tile: 8192,
+            subtree_levels: Some(2),
             variants: VariantOptions {
                 variants: vec![Variant::Best, Variant::Low],
                 measure_utility: false,
@@ -703,6 +705,16 @@ fn zooming_in_keeps_parents_drawn_until_their_children_are_resident() {
     s.run_idle(&far, 20_000);
     assert_scene_is_selection(&s, &ts, &far);
     let before: BTreeSet<TileKey> = s.client.drawn().iter().map(|d| d.0).collect();
+    let subtrees = |s: &Session| {
+        s.fake
+            .fetched
+            .iter()
+            .filter(|f| f.url.ends_with(".subtree"))
+            .count()
+    };
+    // Subtree files are read when the view needs them: the coarse view needs the root's only.
+    assert!(before.iter().all(|k| k.level < 2), "{before:?}");
+    assert_eq!(subtrees(&s), 1);
     // Zoom in: at every step each tile of the view is drawn itself or through an ancestor.
     let mut steps = 0;
     loop {
@@ -734,6 +746,7 @@ fn zooming_in_keeps_parents_drawn_until_their_children_are_resident() {
         assert!(steps < 20_000, "{:?}", s.client.stats());
     }
     assert_scene_is_selection(&s, &ts, &near);
+    assert!(subtrees(&s) > 1, "child subtrees read for the near view");
     // The coarse tiles are still cached (hidden): zooming out shows them without a fetch.
     let fetched = s.fake.fetched.len();
     s.run_idle(&far, 20_000);
