@@ -754,3 +754,50 @@ fn zooming_in_keeps_parents_drawn_until_their_children_are_resident() {
     assert_eq!(s.fake.fetched.len(), fetched);
     eprintln!("coarse {} tiles, fine {} tiles", coarse.len(), fine.len());
 }
+
+#[test]
+fn a_missing_child_subtree_is_an_error_and_its_parent_tile_stays_drawn() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    let near = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
+    let (_tmp, dir) = plant_copy();
+    // Remove every subtree file but the root's.
+    let mut removed = 0;
+    for e in std::fs::read_dir(dir.join("subtrees")).unwrap() {
+        let p = e.unwrap().path();
+        if p.file_name().unwrap() != "0" {
+            std::fs::remove_dir_all(&p).unwrap();
+            removed += 1;
+        }
+    }
+    assert!(removed > 0);
+    let mut s = Session::new(&dir, cfg(vec![Level::Best]));
+    s.run_idle(&near, 20_000);
+    let st = s.client.stats();
+    assert!(st.ready);
+    assert!(
+        st.last_errors
+            .iter()
+            .any(|e| e.contains("subtree") && e.contains("404")),
+        "{:?}",
+        st.last_errors
+    );
+    // Each missing subtree tried max_retries + 1 times, then given up.
+    let mut tries: HashMap<&str, usize> = HashMap::new();
+    for f in s
+        .fake
+        .fetched
+        .iter()
+        .filter(|f| f.url.ends_with(".subtree"))
+    {
+        *tries.entry(f.url.as_str()).or_default() += 1;
+    }
+    assert!(tries.values().any(|&n| n == 4), "{tries:?}");
+    assert!(tries.values().all(|&n| n == 1 || n == 4), "{tries:?}");
+    // What is drawn are tiles of the root subtree (levels 0-1), covering the view.
+    let drawn: BTreeSet<TileKey> = s.client.drawn().iter().map(|d| d.0).collect();
+    assert!(!drawn.is_empty());
+    assert!(drawn.iter().all(|k| k.level < 2), "{drawn:?}");
+    for k in s.client.view_set() {
+        assert!(covered(k, &drawn), "{k:?}");
+    }
+}
