@@ -198,10 +198,14 @@ mod tests {
         let mut fp = start();
         let e0 = fp.eye;
         fp.key("KeyW", true, false);
-        assert!(fp.advance(0.5));
+        assert!(fp.advance(0.2));
         let moved = fp.eye - e0;
-        assert!((moved.length() - 1.0).abs() < 1e-9);
-        assert!(moved.dot(fp.forward()) > 0.99);
+        assert!((moved.length() - 0.4).abs() < 1e-9);
+        // A long stall (tab in the background) moves at most a quarter second's worth.
+        let e1 = fp.eye;
+        assert!(fp.advance(10.0));
+        assert!(((fp.eye - e1).length() - 0.5).abs() < 1e-9);
+        assert!(moved.normalize().dot(fp.forward()) > 0.999);
         fp.key("KeyW", false, false);
         fp.key("KeyE", true, true);
         let e1 = fp.eye;
