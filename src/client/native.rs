@@ -268,7 +268,7 @@ fn fetch_http(
     };
     let etag = text(reqwest::header::ETAG);
     let (range_start, total) = match text(reqwest::header::CONTENT_RANGE) {
-        Some(cr) if status == 206 => parse_content_range(&cr),
+        Some(cr) if status == 206 => super::url::parse_content_range(&cr),
         _ => (None, resp.content_length()),
     };
     if tx
@@ -287,18 +287,6 @@ fn fetch_http(
         return Ok(true); // the client recorded the error from the status; body not needed
     }
     pump(resp, job, tx)
-}
-
-/// `bytes START-END/TOTAL` -> (START, TOTAL).
-fn parse_content_range(v: &str) -> (Option<u64>, Option<u64>) {
-    let Some(rest) = v.trim().strip_prefix("bytes ") else {
-        return (None, None);
-    };
-    let (range, total) = rest.split_once('/').unwrap_or((rest, "*"));
-    let start = range
-        .split_once('-')
-        .and_then(|(a, _)| a.trim().parse().ok());
-    (start, total.trim().parse().ok())
 }
 
 fn fetch_file(job: &Job, tx: &Sender<Event>) -> Result<bool, String> {
@@ -358,11 +346,14 @@ mod tests {
     #[test]
     fn content_range_parsing() {
         assert_eq!(
-            parse_content_range("bytes 100-199/1000"),
+            super::url::parse_content_range("bytes 100-199/1000"),
             (Some(100), Some(1000))
         );
-        assert_eq!(parse_content_range("bytes 5-9/*"), (Some(5), None));
-        assert_eq!(parse_content_range("items 1-2/3"), (None, None));
+        assert_eq!(
+            super::url::parse_content_range("bytes 5-9/*"),
+            (Some(5), None)
+        );
+        assert_eq!(super::url::parse_content_range("items 1-2/3"), (None, None));
         assert!(is_http("HTTP://x/y") && !is_http("file:///x") && !is_http("/tmp/x"));
     }
 }

@@ -63,6 +63,18 @@ pub fn resolve(base: &str, rel: &str) -> Result<String, UrlError> {
     Ok(format!("{base}{}", segs.join("/")))
 }
 
+/// `bytes START-END/TOTAL` -> (START, TOTAL).
+pub fn parse_content_range(v: &str) -> (Option<u64>, Option<u64>) {
+    let Some(rest) = v.trim().strip_prefix("bytes ") else {
+        return (None, None);
+    };
+    let (range, total) = rest.split_once('/').unwrap_or((rest, "*"));
+    let start = range
+        .split_once('-')
+        .and_then(|(a, _)| a.trim().parse().ok());
+    (start, total.trim().parse().ok())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

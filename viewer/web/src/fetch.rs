@@ -108,18 +108,6 @@ fn js_err(e: JsValue) -> String {
         .unwrap_or_else(|| format!("{e:?}"))
 }
 
-/// `Content-Range: bytes START-END/TOTAL` -> (START, TOTAL).
-fn content_range(v: &str) -> (Option<u64>, Option<u64>) {
-    let Some(rest) = v.trim().strip_prefix("bytes ") else {
-        return (None, None);
-    };
-    let (span, total) = rest.split_once('/').unwrap_or((rest, "*"));
-    let start = span
-        .split_once('-')
-        .and_then(|(a, _)| a.trim().parse().ok());
-    (start, total.trim().parse().ok())
-}
-
 async fn transfer(
     shared: &Rc<RefCell<Shared>>,
     req: &FetchRequest,
@@ -157,7 +145,7 @@ async fn transfer(
     let (mut start, mut total) = (None, None);
     if status == 206 {
         if let Some(cr) = h.get("Content-Range").ok().flatten() {
-            (start, total) = content_range(&cr);
+            (start, total) = splat2tiles::client::url::parse_content_range(&cr);
         }
     } else {
         total = h
@@ -197,17 +185,5 @@ async fn transfer(
             return Ok(());
         }
         s.client.on_data(req.id, &bytes, now_s());
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::content_range;
-
-    #[test]
-    fn content_range_parses_start_and_total() {
-        assert_eq!(content_range("bytes 100-199/5000"), (Some(100), Some(5000)));
-        assert_eq!(content_range("bytes 7-9/*"), (Some(7), None));
-        assert_eq!(content_range("items 1-2/3"), (None, None));
     }
 }
