@@ -268,7 +268,7 @@ fn fetch_http(
     };
     let etag = text(reqwest::header::ETAG);
     let (range_start, total) = match text(reqwest::header::CONTENT_RANGE) {
-        Some(cr) if status == 206 => super::url::parse_content_range(&cr),
+        Some(cr) if status == 206 => crate::client::url::parse_content_range(&cr),
         _ => (None, resp.content_length()),
     };
     if tx
@@ -346,14 +346,17 @@ mod tests {
     #[test]
     fn content_range_parsing() {
         assert_eq!(
-            super::url::parse_content_range("bytes 100-199/1000"),
+            crate::client::url::parse_content_range("bytes 100-199/1000"),
             (Some(100), Some(1000))
         );
         assert_eq!(
-            super::url::parse_content_range("bytes 5-9/*"),
+            crate::client::url::parse_content_range("bytes 5-9/*"),
             (Some(5), None)
         );
-        assert_eq!(super::url::parse_content_range("items 1-2/3"), (None, None));
+        assert_eq!(
+            crate::client::url::parse_content_range("items 1-2/3"),
+            (None, None)
+        );
         assert!(is_http("HTTP://x/y") && !is_http("file:///x") && !is_http("/tmp/x"));
     }
 }
