@@ -83,7 +83,7 @@ impl ViewArgs {
 
 /// Loads `tileset.json` (errors name the file).
 pub fn open_tileset(path: &Path) -> anyhow::Result<LoadedTileset> {
-    load_tileset(path).with_context(|| format!("{}: cannot load the tileset", path.display()))
+    load_tileset(path).context("cannot load the tileset")
 }
 
 /// The camera `splat2tiles render` would use for this tileset and these arguments.

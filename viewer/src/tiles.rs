@@ -19,7 +19,7 @@ pub enum TileUpdate {
         /// Renderer id.
         id: u64,
         /// Tile-local splats.
-        splats: Splats,
+        splats: Box<Splats>,
         /// Tile-to-world matrix.
         tile_to_world: DMat4,
     },
@@ -160,7 +160,7 @@ impl StaticTiles {
                     self.loaded.insert(id);
                     out.push(TileUpdate::Insert {
                         id,
-                        splats,
+                        splats: Box::new(splats),
                         tile_to_world: content_model(&self.ts, &node),
                     });
                 }
