@@ -3,6 +3,7 @@
 
 #[cfg(feature = "native")]
 pub mod cli;
+pub mod client;
 pub mod convert;
 pub mod encode;
 pub mod frame;

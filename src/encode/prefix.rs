@@ -48,8 +48,8 @@ pub fn prefix_layout(prefix: &[u8]) -> Result<Option<PrefixLayout>, GlbError> {
             expected: "JSON",
         });
     }
-    let bin_header = 20 + json_len;
-    if prefix.len() < bin_header + 8 {
+    let bin_header = 20usize.saturating_add(json_len);
+    if prefix.len() < bin_header.saturating_add(8) {
         return Ok(None);
     }
     if u32_at(prefix, bin_header + 4) != CHUNK_BIN {
@@ -83,7 +83,8 @@ pub fn prefix_layout(prefix: &[u8]) -> Result<Option<PrefixLayout>, GlbError> {
         return Err(not_prefix("accessors outside the interleaved bufferView"));
     }
     Ok(Some(PrefixLayout {
-        first_record: bin_header + 8 + view.byte_offset as usize,
+        first_record: (bin_header + 8)
+            .saturating_add(usize::try_from(view.byte_offset).unwrap_or(usize::MAX)),
         stride: stride as usize,
         count,
         doc,
@@ -112,12 +113,13 @@ pub fn decode_prefix(prefix: &[u8]) -> Result<(Splats, usize), GlbError> {
         return Ok((Splats::new(degree), consumed));
     }
     let bin = &prefix[layout.first_record..consumed];
-    let splats = decode_records(&layout.doc, bin, k)?;
+    let (splats, _) = decode_records(&layout.doc, bin, k)?;
     Ok((splats, consumed))
 }
 
-/// Decodes `k` whole splat records (`records.len() == k * stride`) with the tile's JSON cut to them.
-fn decode_records(full: &Gltf, records: &[u8], k: usize) -> Result<Splats, GlbError> {
+/// Decodes `k` whole splat records (`records.len() == k * stride`) with the tile's JSON cut to
+/// them; also returns the splat node's world matrix.
+fn decode_records(full: &Gltf, records: &[u8], k: usize) -> Result<(Splats, [f64; 16]), GlbError> {
     // A glb of just these records: same JSON with counts and lengths cut to k, view at offset 0.
     let mut doc = full.clone();
     for a in &mut doc.accessors {
@@ -127,7 +129,8 @@ fn decode_records(full: &Gltf, records: &[u8], k: usize) -> Result<Splats, GlbEr
     doc.buffer_views[0].byte_length = records.len() as u64;
     doc.buffers[0].byte_length = records.len() as u64;
     let glb = write_gltf_glb(&doc, Some(records))?;
-    Ok(read_tile_glb(&glb)?.splats)
+    let t = read_tile_glb(&glb)?;
+    Ok((t.splats, t.node_matrix))
 }
 
 /// Incremental decoder of one interleaved tile arriving in chunks (a streamed download).
@@ -147,6 +150,8 @@ pub struct PrefixStream {
     decoded: usize,
     /// Bytes pushed so far.
     received: u64,
+    /// World matrix of the splat node, once a splat has been decoded.
+    node_matrix: Option<[f64; 16]>,
 }
 
 impl PrefixStream {
@@ -189,7 +194,8 @@ impl PrefixStream {
             }
             return Ok(Splats::new(sh_degree_of(&layout.doc)));
         }
-        let splats = decode_records(&layout.doc, &self.pending[..k * layout.stride], k)?;
+        let (splats, node) = decode_records(&layout.doc, &self.pending[..k * layout.stride], k)?;
+        self.node_matrix = Some(node);
         self.pending.drain(..k * layout.stride);
         self.decoded += k;
         if self.decoded == layout.count {
@@ -211,6 +217,11 @@ impl PrefixStream {
     /// Bytes pushed so far (where a resumed download's `Range: bytes=N-` starts).
     pub fn received(&self) -> u64 {
         self.received
+    }
+
+    /// World matrix of the tile's splat node (column-major), known once a splat was decoded.
+    pub fn node_matrix(&self) -> Option<[f64; 16]> {
+        self.node_matrix
     }
 
     /// True once every splat of the tile has been returned.

@@ -86,9 +86,35 @@ pub fn plan_step(
     memory_budget: u64,
 ) -> (Vec<Candidate>, Plan) {
     let firsts = first_visibility(cat, current, predicted, cfg);
+    plan_visible(
+        cat,
+        current.pos,
+        &firsts,
+        cfg,
+        bandwidth,
+        resident,
+        memory_budget,
+    )
+}
+
+/// The quality-selection half of [`plan_step`] for visibility computed by the caller: `firsts`
+/// holds `(tile, seconds until first visible)` (0 = visible now), `pos` is the camera position
+/// (tileset frame) for distances. Tiles visible now that the planner could not fit are appended
+/// at Low.
+pub fn plan_visible(
+    cat: &TileCatalog,
+    pos: glam::DVec3,
+    firsts: &[(usize, f64)],
+    cfg: &PlanStepConfig,
+    bandwidth: f64,
+    resident: impl Fn(usize) -> Option<Level>,
+    memory_budget: u64,
+) -> (Vec<Candidate>, Plan) {
     let mut cands = Vec::with_capacity(firsts.len());
-    for (tile, tf) in firsts {
-        let t = &cat.tiles[tile];
+    for &(tile, tf) in firsts {
+        let Some(t) = cat.tiles.get(tile) else {
+            continue;
+        };
         let base = resident(tile).map(|l| t.variants[l.index()].utility);
         if resident(tile) == Some(Level::Best) {
             continue;
@@ -109,7 +135,7 @@ pub fn plan_step(
         cands.push(Candidate {
             tile,
             deadline: tf.max(cfg.urgent_s),
-            distance: t.bbox.distance(current.pos),
+            distance: t.bbox.distance(pos),
             variants,
         });
     }

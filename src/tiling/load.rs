@@ -118,7 +118,7 @@ fn f64_rows(s: &Subtree, table: u32, prop: &str, width: usize) -> Option<Vec<Vec
     let t = s.json.property_tables.get(table as usize)?;
     let bytes = s.view(t.properties.get(prop)?.values)?;
     let n = t.count as usize;
-    if bytes.len() < n * width * 8 {
+    if bytes.len() < n.checked_mul(width * 8)? {
         return None;
     }
     Some(
@@ -139,7 +139,7 @@ fn u32_rows(s: &Subtree, table: u32, prop: &str) -> Option<Vec<u32>> {
     let t = s.json.property_tables.get(table as usize)?;
     let bytes = s.view(t.properties.get(prop)?.values)?;
     let n = t.count as usize;
-    if bytes.len() < n * 4 {
+    if bytes.len() < n.checked_mul(4)? {
         return None;
     }
     Some(
@@ -149,18 +149,73 @@ fn u32_rows(s: &Subtree, table: u32, prop: &str) -> Option<Vec<u32>> {
     )
 }
 
-/// Loads `tileset.json` and walks its subtrees.
-pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
-    let bytes = read(path)?;
-    let tileset: Tileset = serde_json::from_slice(&bytes).map_err(|e| LoadError::Json {
-        path: path.to_path_buf(),
-        msg: e.to_string(),
-    })?;
-    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
-    let unsupported = |msg: &str| LoadError::Unsupported {
-        path: path.to_path_buf(),
-        msg: msg.to_string(),
-    };
+/// Why `tileset.json` or a subtree could not be parsed (no file names: callers add them).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ParseError {
+    /// JSON did not parse.
+    #[error("{0}")]
+    Json(String),
+    /// Not an implicit tileset we can walk, or unreadable subtree contents.
+    #[error("{0}")]
+    Unsupported(String),
+    /// The subtree binary framing is malformed.
+    #[error("{0}")]
+    Subtree(#[from] subtree::SubtreeError),
+}
+
+/// What an implicit-tileset reader needs from `tileset.json` (parsed from bytes, no I/O).
+#[derive(Debug, Clone)]
+pub struct ImplicitRoot {
+    /// The parsed `tileset.json`.
+    pub tileset: Tileset,
+    /// Subdivision scheme.
+    pub scheme: Scheme,
+    /// Levels per subtree file (1..=16).
+    pub subtree_levels: u32,
+    /// Levels in the whole tree.
+    pub available_levels: u32,
+    /// Subtree URI template (relative to the tileset, unresolved).
+    pub subtree_template: String,
+    /// Content URI template of the root, when it has content.
+    pub content_template: Option<String>,
+    /// Root transform (identity when absent).
+    pub root_transform: DMat4,
+}
+
+/// One available tile as its subtree lists it; the content URI is expanded but not resolved.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SubtreeTile {
+    /// Implicit address.
+    pub key: TileKey,
+    /// Expanded content URI (relative to the tileset), when the tile has content.
+    pub content_uri: Option<String>,
+    /// Tight box from `TILE_BOUNDING_BOX` metadata, if present (tileset frame).
+    pub bounding_box: Option<[f64; 12]>,
+    /// Geometric error (metadata, else the implicit halving rule).
+    pub geometric_error: f64,
+    /// Splat count from content metadata, if present.
+    pub splat_count: Option<u32>,
+    /// Bytes per variant (Best, High, Medium, Low; 0 = not written) from content metadata.
+    pub variant_bytes: Option<[u32; 4]>,
+    /// Utility per variant (-1 = not measured) from content metadata.
+    pub variant_utility: Option<[f32; 4]>,
+}
+
+/// The tiles of one subtree file and the roots of its available child subtrees.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SubtreeTiles {
+    /// Available tiles, by level then Morton order.
+    pub tiles: Vec<SubtreeTile>,
+    /// Roots of the child subtrees to read next.
+    pub child_subtrees: Vec<TileKey>,
+}
+
+/// Parses `tileset.json` bytes of an implicit tileset.
+pub fn parse_tileset_json(bytes: &[u8]) -> Result<ImplicitRoot, ParseError> {
+    let tileset: Tileset =
+        serde_json::from_slice(bytes).map_err(|e| ParseError::Json(e.to_string()))?;
+    let unsupported = |msg: &str| ParseError::Unsupported(msg.to_string());
     let implicit = tileset
         .root
         .implicit_tiling
@@ -175,111 +230,173 @@ pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
     if levels == 0 || levels > 16 {
         return Err(unsupported("subtreeLevels must be within 1..=16 here"));
     }
-    let content_template = tileset.root.content.as_ref().map(|c| c.uri.clone());
+    if implicit.available_levels > 31 {
+        return Err(unsupported("availableLevels must be at most 31 here"));
+    }
     let root_transform = match &tileset.root.transform {
-        Some(t) if t.len() == 16 => DMat4::from_cols_slice(t),
-        Some(_) => return Err(unsupported("root transform must have 16 numbers")),
+        Some(t) if t.len() == 16 && t.iter().all(|v| v.is_finite()) => DMat4::from_cols_slice(t),
+        Some(_) => return Err(unsupported("root transform must have 16 finite numbers")),
         None => DMat4::IDENTITY,
     };
+    if !tileset.root.geometric_error.is_finite() {
+        return Err(unsupported("root geometricError must be finite"));
+    }
+    Ok(ImplicitRoot {
+        content_template: tileset.root.content.as_ref().map(|c| c.uri.clone()),
+        subtree_template: implicit.subtrees.uri.clone(),
+        scheme,
+        subtree_levels: levels,
+        available_levels: implicit.available_levels,
+        root_transform,
+        tileset,
+    })
+}
+
+fn f32_rows<const W: usize>(s: &Subtree, table: u32, prop: &str) -> Option<Vec<[f32; W]>> {
+    let t = s.json.property_tables.get(table as usize)?;
+    let bytes = s.view(t.properties.get(prop)?.values)?;
+    let n = t.count as usize;
+    if bytes.len() < n.checked_mul(W * 4)? {
+        return None;
+    }
+    Some(
+        bytes
+            .chunks_exact(W * 4)
+            .take(n)
+            .map(|r| std::array::from_fn(|c| f32::from_le_bytes(word(r, c))))
+            .collect(),
+    )
+}
+
+fn word(b: &[u8], i: usize) -> [u8; 4] {
+    [b[i * 4], b[i * 4 + 1], b[i * 4 + 2], b[i * 4 + 3]]
+}
+
+fn u32x4_rows(s: &Subtree, table: u32, prop: &str) -> Option<Vec<[u32; 4]>> {
+    let t = s.json.property_tables.get(table as usize)?;
+    let bytes = s.view(t.properties.get(prop)?.values)?;
+    let n = t.count as usize;
+    if bytes.len() < n.checked_mul(16)? {
+        return None;
+    }
+    Some(
+        bytes
+            .chunks_exact(16)
+            .take(n)
+            .map(|r| std::array::from_fn(|c| u32::from_le_bytes(word(r, c))))
+            .collect(),
+    )
+}
+
+/// Most tiles on a subtree's last level we accept (hostile `subtreeLevels` would allocate).
+const MAX_SUBTREE_LEAVES: u64 = 1 << 22;
+
+/// Parses one subtree file (bytes) whose root tile is `root`.
+pub fn parse_subtree_tiles(
+    ts: &ImplicitRoot,
+    root: TileKey,
+    bytes: &[u8],
+) -> Result<SubtreeTiles, ParseError> {
+    let levels = ts.subtree_levels;
+    let scheme = ts.scheme;
+    let s = subtree::read_subtree(bytes)?;
+    let bad = |msg: &str| ParseError::Unsupported(msg.to_string());
     let arity = scheme.arity();
+    if arity
+        .checked_pow(levels)
+        .is_none_or(|n| n > MAX_SUBTREE_LEAVES)
+    {
+        return Err(bad(
+            "subtree too large (more than 2^22 tiles on its last level)",
+        ));
+    }
     let n_tiles = subtree::tile_count(arity, levels) as usize;
+    let avail = s
+        .bits(&s.json.tile_availability, n_tiles)
+        .ok_or_else(|| bad("tile availability unreadable"))?;
+    let content = match s.json.content_availability.first() {
+        Some(a) => s
+            .bits(a, n_tiles)
+            .ok_or_else(|| bad("content availability unreadable"))?,
+        None => vec![false; n_tiles],
+    };
+    let boxes = s
+        .json
+        .tile_metadata
+        .and_then(|t| f64_rows(&s, t, "boundingBox", 12));
+    let errors = s
+        .json
+        .tile_metadata
+        .and_then(|t| f64_rows(&s, t, "geometricError", 1));
+    let content_table = s
+        .json
+        .content_metadata
+        .as_ref()
+        .and_then(|v| v.first().copied());
+    let counts = content_table.and_then(|t| u32_rows(&s, t, "splatCount"));
+    let vbytes = content_table.and_then(|t| u32x4_rows(&s, t, "variantBytes"));
+    let vutil = content_table.and_then(|t| f32_rows::<4>(&s, t, "variantUtility"));
     let mut tiles = Vec::new();
-    let mut queue = vec![TileKey::ROOT];
-    while let Some(root) = queue.pop() {
-        if root.level >= implicit.available_levels {
-            continue;
-        }
-        let uri = expand_template(&implicit.subtrees.uri, root);
-        let spath = resolve_inside(&dir, &uri).ok_or_else(|| {
-            unsupported(&format!("subtree URI '{uri}' leaves the tileset folder"))
-        })?;
-        let s = subtree::read_subtree(&read(&spath)?).map_err(|source| LoadError::Subtree {
-            path: spath.clone(),
-            source,
-        })?;
-        let bad = |msg: &str| LoadError::Unsupported {
-            path: spath.clone(),
-            msg: msg.to_string(),
+    let mut content_row = 0;
+    // Tile indices grow with the level, then the Morton index: rows follow that order.
+    let available = (0..levels).flat_map(|rl| {
+        let first = subtree::tile_count(arity, rl) as usize;
+        (0..arity.pow(rl)).map(move |m| (rl, m, first + m as usize))
+    });
+    for (row, (rl, m, idx)) in available.filter(|&(_, _, idx)| avail[idx]).enumerate() {
+        let (x, y, z) = scheme.decode(m);
+        let key = TileKey {
+            level: root.level + rl,
+            x: (root.x << rl) + x,
+            y: (root.y << rl) + y,
+            z: (root.z << rl) + z,
         };
-        let avail = s
-            .bits(&s.json.tile_availability, n_tiles)
-            .ok_or_else(|| bad("tile availability unreadable"))?;
-        let content = match s.json.content_availability.first() {
-            Some(a) => s
-                .bits(a, n_tiles)
-                .ok_or_else(|| bad("content availability unreadable"))?,
-            None => vec![false; n_tiles],
+        let implicit_error = ts.tileset.root.geometric_error / f64::powi(2.0, key.level as i32);
+        let has_content = content[idx];
+        let content_uri = match (&ts.content_template, has_content) {
+            (Some(t), true) => Some(expand_template(t, key)),
+            _ => None,
         };
-        let boxes = s
-            .json
-            .tile_metadata
-            .and_then(|t| f64_rows(&s, t, "boundingBox", 12));
-        let errors = s
-            .json
-            .tile_metadata
-            .and_then(|t| f64_rows(&s, t, "geometricError", 1));
-        let counts = s
-            .json
-            .content_metadata
-            .as_ref()
-            .and_then(|v| v.first().copied())
-            .and_then(|t| u32_rows(&s, t, "splatCount"));
-        let mut content_row = 0;
-        // Tile indices grow with the level, then the Morton index: rows follow that order.
-        let available = (0..levels).flat_map(|rl| {
-            let first = subtree::tile_count(arity, rl) as usize;
-            (0..arity.pow(rl)).map(move |m| (rl, m, first + m as usize))
-        });
-        for (row, (rl, m, idx)) in available.filter(|&(_, _, idx)| avail[idx]).enumerate() {
-            let (x, y, z) = scheme.decode(m);
-            let key = TileKey {
-                level: root.level + rl,
-                x: (root.x << rl) + x,
-                y: (root.y << rl) + y,
-                z: (root.z << rl) + z,
-            };
-            let implicit_error = tileset.root.geometric_error / f64::powi(2.0, key.level as i32);
-            let has_content = content[idx];
-            let content_path = match (&content_template, has_content) {
-                (Some(t), true) => {
-                    let uri = expand_template(t, key);
-                    Some(resolve_inside(&dir, &uri).ok_or_else(|| {
-                        unsupported(&format!("content URI '{uri}' leaves the tileset folder"))
-                    })?)
-                }
-                _ => None,
-            };
-            tiles.push(LoadedTile {
-                key,
-                content: content_path,
-                bounding_box: boxes
-                    .as_ref()
-                    .and_then(|b| b.get(row))
-                    .map(|v| v.as_slice().try_into().expect("12 values")),
-                geometric_error: errors
-                    .as_ref()
-                    .and_then(|e| e.get(row))
-                    .map(|v| v[0])
-                    .unwrap_or(implicit_error),
-                splat_count: if has_content {
-                    counts.as_ref().and_then(|c| c.get(content_row)).copied()
-                } else {
-                    None
-                },
-            });
-            if has_content {
-                content_row += 1;
+        fn row_of<T: Copy>(v: &Option<Vec<T>>, has: bool, row: usize) -> Option<T> {
+            if has {
+                v.as_ref().and_then(|c| c.get(row)).copied()
+            } else {
+                None
             }
         }
-        let children = s
-            .bits(
-                &s.json.child_subtree_availability,
-                arity.pow(levels) as usize,
-            )
-            .ok_or_else(|| bad("child subtree availability unreadable"))?;
+        tiles.push(SubtreeTile {
+            key,
+            content_uri,
+            bounding_box: boxes
+                .as_ref()
+                .and_then(|b| b.get(row))
+                .and_then(|v| v.as_slice().try_into().ok())
+                .filter(|b: &[f64; 12]| b.iter().all(|c| c.is_finite())),
+            geometric_error: errors
+                .as_ref()
+                .and_then(|e| e.get(row))
+                .map(|v| v[0])
+                .filter(|e| e.is_finite())
+                .unwrap_or(implicit_error),
+            splat_count: row_of(&counts, has_content, content_row),
+            variant_bytes: row_of(&vbytes, has_content, content_row),
+            variant_utility: row_of(&vutil, has_content, content_row),
+        });
+        if has_content {
+            content_row += 1;
+        }
+    }
+    let children = s
+        .bits(
+            &s.json.child_subtree_availability,
+            arity.pow(levels) as usize,
+        )
+        .ok_or_else(|| bad("child subtree availability unreadable"))?;
+    let mut child_subtrees = vec![];
+    if root.level + levels < ts.available_levels {
         for (m, _) in children.iter().enumerate().filter(|(_, b)| **b) {
             let (x, y, z) = scheme.decode(m as u64);
-            queue.push(TileKey {
+            child_subtrees.push(TileKey {
                 level: root.level + levels,
                 x: (root.x << levels) + x,
                 y: (root.y << levels) + y,
@@ -287,11 +404,69 @@ pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
             });
         }
     }
+    Ok(SubtreeTiles {
+        tiles,
+        child_subtrees,
+    })
+}
+
+/// Loads `tileset.json` and walks its subtrees.
+pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
+    let bytes = read(path)?;
+    let parsed = |path: &Path, e: ParseError| match e {
+        ParseError::Json(msg) => LoadError::Json {
+            path: path.to_path_buf(),
+            msg,
+        },
+        ParseError::Unsupported(msg) => LoadError::Unsupported {
+            path: path.to_path_buf(),
+            msg,
+        },
+        ParseError::Subtree(source) => LoadError::Subtree {
+            path: path.to_path_buf(),
+            source,
+        },
+    };
+    let root = parse_tileset_json(&bytes).map_err(|e| parsed(path, e))?;
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let unsupported = |msg: &str| LoadError::Unsupported {
+        path: path.to_path_buf(),
+        msg: msg.to_string(),
+    };
+    let mut tiles = Vec::new();
+    let mut queue = vec![TileKey::ROOT];
+    while let Some(sroot) = queue.pop() {
+        if sroot.level >= root.available_levels {
+            continue;
+        }
+        let uri = expand_template(&root.subtree_template, sroot);
+        let spath = resolve_inside(&dir, &uri).ok_or_else(|| {
+            unsupported(&format!("subtree URI '{uri}' leaves the tileset folder"))
+        })?;
+        let st =
+            parse_subtree_tiles(&root, sroot, &read(&spath)?).map_err(|e| parsed(&spath, e))?;
+        for t in st.tiles {
+            let content = match &t.content_uri {
+                Some(uri) => Some(resolve_inside(&dir, uri).ok_or_else(|| {
+                    unsupported(&format!("content URI '{uri}' leaves the tileset folder"))
+                })?),
+                None => None,
+            };
+            tiles.push(LoadedTile {
+                key: t.key,
+                content,
+                bounding_box: t.bounding_box,
+                geometric_error: t.geometric_error,
+                splat_count: t.splat_count,
+            });
+        }
+        queue.extend(st.child_subtrees);
+    }
     Ok(LoadedTileset {
         dir,
-        tileset,
-        scheme,
-        root_transform,
+        scheme: root.scheme,
+        root_transform: root.root_transform,
+        tileset: root.tileset,
         tiles,
     })
 }

@@ -1,0 +1,612 @@
+//! The sans-IO streaming client driven by an in-test transport over the converted plant tileset:
+//! convergence to `select_tiles`, pause/resume with Range + If-Range, budget, refusals, errors.
+
+mod common;
+
+use common::scene;
+use glam::{DMat4, DVec3};
+use splat2tiles::client::{
+    Action, ClientConfig, FetchRequest, PredictorKind, RequestId, SceneUpdate, StreamClient,
+};
+use splat2tiles::convert::{ConvertOptions, convert};
+use splat2tiles::encode::read_tile_glb;
+use splat2tiles::render::camera::Camera;
+use splat2tiles::render::cli::{content_model, select_tiles};
+use splat2tiles::splat::Splats;
+use splat2tiles::stream::Level;
+use splat2tiles::tiling::TileKey;
+use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
+use splat2tiles::variants::{Variant, VariantOptions, content_uri};
+use std::collections::{BTreeSet, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// Body chunk size of the fake transport.
+const CHUNK: usize = 7 * 1024;
+/// Seconds per simulated step.
+const DT: f64 = 0.02;
+
+/// The plant converted once (Best + Low, small tiles, no utility renders) for every test.
+fn plant() -> &'static Path {
+    static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    &DIR.get_or_init(|| {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("plant");
+        let opts = ConvertOptions {
+            max_splats_per_tile: 8192,
+            variants: VariantOptions {
+                variants: vec![Variant::Best, Variant::Low],
+                measure_utility: false,
+                ..VariantOptions::default()
+            },
+            ..ConvertOptions::default()
+        };
+        convert(&scene("plant.splat"), &out, &opts).expect("convert plant.splat");
+        (tmp, out)
+    })
+    .1
+}
+
+/// A copy of the plant tileset in a fresh folder (tests that break files).
+fn plant_copy() -> (tempfile::TempDir, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let dst = tmp.path().join("ts");
+    copy_dir(plant(), &dst);
+    (tmp, dst)
+}
+
+fn copy_dir(src: &Path, dst: &Path) {
+    std::fs::create_dir_all(dst).unwrap();
+    for e in std::fs::read_dir(src).unwrap() {
+        let p = e.unwrap().path();
+        let to = dst.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &to);
+        } else {
+            std::fs::copy(&p, &to).unwrap();
+        }
+    }
+}
+
+/// FNV-1a of a file's bytes, as a quoted ETag.
+fn etag_of(bytes: &[u8], version: u32) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in bytes {
+        h = (h ^ *b as u64).wrapping_mul(0x100_0000_01b3);
+    }
+    format!("\"{h:016x}-{version}\"")
+}
+
+struct Transfer {
+    req: FetchRequest,
+    body: Vec<u8>,
+    pos: usize,
+    responded: bool,
+}
+
+/// Serves files from disk with Range + If-Range semantics, one chunk per transfer per pump.
+#[derive(Default)]
+struct Fake {
+    live: Vec<Transfer>,
+    fetched: Vec<FetchRequest>,
+    aborted: Vec<RequestId>,
+    /// Per path: bumped to change the validator without changing the bytes.
+    versions: HashMap<String, u32>,
+}
+
+impl Fake {
+    fn apply(&mut self, actions: Vec<Action>) {
+        for a in actions {
+            match a {
+                Action::Fetch(f) => {
+                    self.fetched.push(f.clone());
+                    self.live.push(Transfer {
+                        req: f,
+                        body: vec![],
+                        pos: 0,
+                        responded: false,
+                    });
+                }
+                Action::Abort { id } => {
+                    self.aborted.push(id);
+                    self.live.retain(|t| t.req.id != id);
+                }
+            }
+        }
+    }
+
+    /// Delivers one response head or chunk per live transfer; finished ones get `on_done`.
+    fn pump(&mut self, c: &mut StreamClient, now: f64) {
+        let mut finished = vec![];
+        for t in self.live.iter_mut() {
+            if !t.responded {
+                t.responded = true;
+                let Ok(bytes) = std::fs::read(&t.req.url) else {
+                    c.on_response(t.req.id, 404, None, None, None);
+                    finished.push((t.req.id, false));
+                    continue;
+                };
+                let version = self.versions.get(&t.req.url).copied().unwrap_or(0);
+                let tag = etag_of(&bytes, version);
+                let len = bytes.len() as u64;
+                let ranged = t.req.range_start > 0
+                    && t.req.if_range.as_deref().is_none_or(|v| v == tag)
+                    && t.req.range_start < len;
+                if ranged {
+                    t.body = bytes[t.req.range_start as usize..].to_vec();
+                    c.on_response(
+                        t.req.id,
+                        206,
+                        Some(&tag),
+                        Some(t.req.range_start),
+                        Some(len),
+                    );
+                } else {
+                    t.body = bytes;
+                    c.on_response(t.req.id, 200, Some(&tag), None, Some(len));
+                }
+                continue;
+            }
+            let end = (t.pos + CHUNK).min(t.body.len());
+            c.on_data(t.req.id, &t.body[t.pos..end], now);
+            t.pos = end;
+            if t.pos == t.body.len() {
+                finished.push((t.req.id, true));
+            }
+        }
+        for (id, done) in finished {
+            self.live.retain(|t| t.req.id != id);
+            if done {
+                c.on_done(id, now);
+            }
+        }
+    }
+}
+
+/// What the renderer would hold: scene id -> (key, level, splats, tile_to_world).
+#[derive(Default)]
+struct Scene {
+    objects: HashMap<u64, (TileKey, Level, Splats, DMat4)>,
+}
+
+impl Scene {
+    fn apply(&mut self, ups: Vec<SceneUpdate>) {
+        for u in ups {
+            match u {
+                SceneUpdate::Insert {
+                    tile,
+                    key,
+                    level,
+                    splats,
+                    tile_to_world,
+                } => {
+                    let old = self
+                        .objects
+                        .insert(tile, (key, level, splats, tile_to_world));
+                    assert!(old.is_none(), "scene id {tile} inserted twice");
+                }
+                SceneUpdate::Append { tile, splats } => {
+                    let o = self.objects.get_mut(&tile).expect("append to a live id");
+                    for i in 0..splats.len() {
+                        o.2.push_from(&splats, i);
+                    }
+                }
+                SceneUpdate::Remove { tile } => {
+                    assert!(self.objects.remove(&tile).is_some(), "remove of unknown id");
+                }
+            }
+        }
+    }
+}
+
+struct Session {
+    client: StreamClient,
+    fake: Fake,
+    scene: Scene,
+    t: f64,
+}
+
+impl Session {
+    fn new(dir: &Path, cfg: ClientConfig) -> Session {
+        let url = dir.join("tileset.json").to_str().unwrap().to_string();
+        Session {
+            client: StreamClient::new(&url, cfg),
+            fake: Fake::default(),
+            scene: Scene::default(),
+            t: 0.0,
+        }
+    }
+
+    fn step(&mut self, cam: &Camera) {
+        let acts = self.client.update(self.t, cam);
+        self.fake.apply(acts);
+        self.fake.pump(&mut self.client, self.t);
+        let ups = self.client.take_updates();
+        self.scene.apply(ups);
+        self.t += DT;
+    }
+
+    /// Steps until the client is idle (panics after `max` steps).
+    fn run_idle(&mut self, cam: &Camera, max: usize) {
+        for _ in 0..max {
+            self.step(cam);
+            if self.client.is_idle() && self.fake.live.is_empty() {
+                // One more update: the plan after the last completion asks for nothing.
+                self.step(cam);
+                if self.client.is_idle() && self.fake.live.is_empty() {
+                    return;
+                }
+            }
+        }
+        panic!("not idle after {max} steps: {:?}", self.client.stats());
+    }
+}
+
+fn cfg(levels: Vec<Level>) -> ClientConfig {
+    ClientConfig {
+        levels,
+        predictor: PredictorKind::Reactive,
+        max_concurrent: 4,
+        ..ClientConfig::default()
+    }
+}
+
+/// Camera looking at the plant from `dist` times the root box's radius, from direction `dir`.
+fn camera(ts: &LoadedTileset, dir: DVec3, dist: f64) -> Camera {
+    let root = ts.tiles.iter().find(|t| t.key == TileKey::ROOT).unwrap();
+    let b = root.bounding_box.unwrap();
+    let c = DVec3::new(b[0], b[1], b[2]);
+    let r = (DVec3::new(b[3], b[4], b[5])
+        + DVec3::new(b[6], b[7], b[8])
+        + DVec3::new(b[9], b[10], b[11]))
+    .length();
+    let eye = c + dir.normalize() * r * dist;
+    Camera::look_at(1280, 720, 50.0, eye, c, DVec3::Z)
+}
+
+fn key_path(ts: &LoadedTileset, k: TileKey) -> PathBuf {
+    ts.dir.join(content_uri(ts.scheme, k, Variant::Best))
+}
+
+fn assert_same(a: &Splats, b: &Splats, what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: splat count");
+    for i in 0..a.len() {
+        assert_eq!(a.get(i), b.get(i), "{what}: splat {i}");
+        assert_eq!(a.rest_of(i), b.rest_of(i), "{what}: SH of splat {i}");
+    }
+}
+
+/// The scene equals the tiles `select_tiles` picks, splat for splat, with the same matrices.
+fn assert_scene_is_selection(s: &Session, ts: &LoadedTileset, cam: &Camera) {
+    let want: BTreeSet<PathBuf> = select_tiles(ts, cam, 16.0).into_iter().collect();
+    let drawn: BTreeSet<PathBuf> = s
+        .client
+        .drawn()
+        .iter()
+        .map(|(k, l, _)| {
+            assert_eq!(*l, Level::Best);
+            key_path(ts, *k)
+        })
+        .collect();
+    assert_eq!(drawn, want, "drawn tiles vs select_tiles");
+    let resident: BTreeSet<PathBuf> = s
+        .client
+        .resident()
+        .iter()
+        .map(|(k, _)| key_path(ts, *k))
+        .collect();
+    assert!(resident.is_superset(&want));
+    assert_eq!(s.scene.objects.len(), want.len(), "scene objects");
+    for (key, level, splats, m) in s.scene.objects.values() {
+        let path = key_path(ts, *key);
+        assert_eq!(*level, Level::Best);
+        let t = read_tile_glb(&std::fs::read(&path).unwrap()).unwrap();
+        assert_same(splats, &t.splats, &path.display().to_string());
+        let expect = content_model(ts, &t.node_matrix);
+        assert!(m.abs_diff_eq(expect, 1e-12), "matrix of {}", path.display());
+    }
+    let st = s.client.stats();
+    let n: u64 = s.scene.objects.values().map(|o| o.2.len() as u64).sum();
+    assert_eq!(st.resident_splats, n);
+}
+
+#[test]
+fn converges_to_select_tiles_for_a_static_camera() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    // Far: the whole plant is in the frustum, so culling changes nothing; near: culling off,
+    // the client's selection is exactly `select_tiles`'.
+    for (dir, dist, cull) in [
+        (DVec3::new(1.0, -1.0, 0.6), 2.5, true),
+        (DVec3::new(-1.0, 0.3, 0.4), 1.3, false),
+    ] {
+        let cam = camera(&ts, dir, dist);
+        let picked = select_tiles(&ts, &cam, 16.0);
+        assert!(picked.len() > 1, "the view must refine the root");
+        let mut c = cfg(vec![Level::Best]);
+        c.frustum_cull = cull;
+        let mut s = Session::new(plant(), c);
+        s.run_idle(&cam, 20_000);
+        assert_scene_is_selection(&s, &ts, &cam);
+        let st = s.client.stats();
+        assert_eq!(st.errors, 0, "{:?}", st.last_errors);
+        assert_eq!(st.pending_fetches, 0);
+        // Every fetch stayed inside the tileset folder.
+        for f in &s.fake.fetched {
+            assert!(f.url.starts_with(plant().to_str().unwrap()), "{}", f.url);
+        }
+    }
+}
+
+#[test]
+fn abort_mid_body_then_resume_with_range_gives_the_same_splats() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    // The whole plant in view (frustum culling removes nothing).
+    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
+    let target = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 0.0).center();
+    let away = Camera::look_at(
+        1280,
+        720,
+        50.0,
+        cam.center(),
+        cam.center() * 2.0 - target,
+        DVec3::Z,
+    );
+    for change_validator in [false, true] {
+        let (_tmp, dir) = plant_copy();
+        let mut s = Session::new(&dir, cfg(vec![Level::Best]));
+        // Stream until some content transfer is mid-body.
+        let mut mid = None;
+        for _ in 0..2000 {
+            s.step(&cam);
+            mid = s
+                .fake
+                .live
+                .iter()
+                .find(|t| {
+                    t.req.url.ends_with(".glb") && t.pos > CHUNK && t.pos + CHUNK < t.body.len()
+                })
+                .map(|t| (t.req.id, t.req.url.clone(), t.pos as u64));
+            if mid.is_some() {
+                break;
+            }
+        }
+        let (id, url, pos) = mid.expect("a transfer mid-body");
+        // Look away: every content transfer is paused.
+        s.step(&away);
+        assert!(s.fake.aborted.contains(&id), "transfer {id} not aborted");
+        assert!(s.fake.live.iter().all(|t| !t.req.url.ends_with(".glb")));
+        let st = s.client.stats();
+        assert!(st.paused_tiles >= 1, "{st:?}");
+        if change_validator {
+            *s.fake.versions.entry(url.clone()).or_default() += 1;
+        }
+        // Look back: the tile is resumed from where it stopped, with If-Range.
+        s.run_idle(&cam, 20_000);
+        let resumed: Vec<&FetchRequest> = s
+            .fake
+            .fetched
+            .iter()
+            .filter(|f| f.url == url && f.id != id)
+            .collect();
+        assert_eq!(resumed.len(), 1, "{url} fetched again once");
+        assert_eq!(resumed[0].range_start, pos, "resume point");
+        assert!(resumed[0].if_range.is_some());
+        let st = s.client.stats();
+        assert_eq!(st.restarts, change_validator as u64, "{st:?}");
+        assert!(st.resumes >= 1);
+        assert_scene_is_selection(&s, &ts, &cam);
+        // Bytes: nothing downloaded twice unless the validator changed.
+        let files: u64 = s
+            .fake
+            .fetched
+            .iter()
+            .map(|f| f.url.clone())
+            .collect::<BTreeSet<_>>()
+            .iter()
+            .map(|u| std::fs::metadata(u).unwrap().len())
+            .sum();
+        let extra = if change_validator { pos } else { 0 };
+        assert!(
+            st.bytes_received <= files + extra,
+            "{} received for {} bytes of files",
+            st.bytes_received,
+            files
+        );
+    }
+}
+
+#[test]
+fn memory_budget_is_respected_along_a_path() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    let near = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 1.2);
+    let need: u64 = select_tiles(&ts, &near, 16.0)
+        .iter()
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum();
+    let budget = need * 6 / 10;
+    let mut c = cfg(vec![Level::Best, Level::Low]);
+    c.memory_budget_bytes = budget;
+    let mut s = Session::new(plant(), c);
+    let mut max_held = 0;
+    for k in 0..1500 {
+        let a = k as f64 * 0.004;
+        let cam = camera(
+            &ts,
+            DVec3::new(a.cos(), a.sin(), 0.5),
+            1.2 + 0.5 * (a * 0.7).sin(),
+        );
+        s.step(&cam);
+        let st = s.client.stats();
+        assert!(
+            st.cache_bytes <= budget,
+            "{} > {budget} at step {k}",
+            st.cache_bytes
+        );
+        max_held = max_held.max(st.cache_bytes);
+    }
+    let st = s.client.stats();
+    assert!(st.resident_tiles > 0 && st.resident_splats > 0, "{st:?}");
+    assert!(
+        max_held > budget / 2,
+        "the budget was used ({max_held} of {budget})"
+    );
+}
+
+/// Rewrites the tileset.json of `dir` with `edit` applied to its JSON.
+fn edit_tileset(dir: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
+    let p = dir.join("tileset.json");
+    let mut v: serde_json::Value = serde_json::from_slice(&std::fs::read(&p).unwrap()).unwrap();
+    edit(&mut v);
+    std::fs::write(&p, serde_json::to_vec(&v).unwrap()).unwrap();
+}
+
+#[test]
+fn escaping_uri_templates_are_refused_and_never_fetched() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
+    for bad in [
+        "../evil/{level}/{x}/{y}/{z}.glb",
+        "http://evil.example/{level}/{x}/{y}/{z}.glb",
+        "tiles/../../{level}/{x}/{y}/{z}.glb",
+        "file:///etc/{level}.glb",
+    ] {
+        let (_tmp, dir) = plant_copy();
+        edit_tileset(&dir, |v| {
+            v["root"]["content"]["uri"] = bad.into();
+            for u in v["metadata"]["properties"]["variantUris"]
+                .as_array_mut()
+                .unwrap()
+            {
+                if !u.as_str().unwrap().is_empty() {
+                    *u = bad.into();
+                }
+            }
+        });
+        let mut s = Session::new(&dir, cfg(vec![Level::Best, Level::Low]));
+        s.run_idle(&cam, 2000);
+        let st = s.client.stats();
+        assert!(st.errors >= 1, "{bad}: no error recorded");
+        assert!(
+            st.last_errors.iter().any(|e| e.contains("refused")),
+            "{bad}: {:?}",
+            st.last_errors
+        );
+        assert!(s.scene.objects.is_empty());
+        for f in &s.fake.fetched {
+            assert!(
+                f.url.starts_with(dir.to_str().unwrap()),
+                "{bad}: fetched {}",
+                f.url
+            );
+            assert!(!f.url.ends_with(".glb"), "{bad}: fetched {}", f.url);
+        }
+    }
+    // A subtree template that climbs out: nothing but tileset.json is fetched.
+    let (_tmp, dir) = plant_copy();
+    edit_tileset(&dir, |v| {
+        v["root"]["implicitTiling"]["subtrees"]["uri"] = "../{level}.{x}.{y}.{z}.subtree".into();
+    });
+    let mut s = Session::new(&dir, cfg(vec![Level::Best]));
+    s.run_idle(&cam, 2000);
+    assert_eq!(s.fake.fetched.len(), 1, "only tileset.json");
+    assert!(s.client.stats().errors >= 1);
+}
+
+#[test]
+fn missing_truncated_and_garbled_tiles_are_errors_not_panics() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 1.3);
+    let picked = select_tiles(&ts, &cam, 16.0);
+    assert!(picked.len() >= 3);
+    let (_tmp, dir) = plant_copy();
+    let rel = |p: &Path| dir.join(p.strip_prefix(&ts.dir).unwrap());
+    std::fs::remove_file(rel(&picked[0])).unwrap();
+    let b = std::fs::read(rel(&picked[1])).unwrap();
+    std::fs::write(rel(&picked[1]), &b[..b.len() / 2]).unwrap();
+    let mut g = std::fs::read(rel(&picked[2])).unwrap();
+    g[..16].copy_from_slice(b"garbage garbage!");
+    std::fs::write(rel(&picked[2]), &g).unwrap();
+    // Garbage JSON and a subtree cut short are bootstrap errors, not panics.
+    let (_t2, broken) = plant_copy();
+    std::fs::write(broken.join("tileset.json"), b"{\"asset\": [").unwrap();
+    let mut s = Session::new(&broken, cfg(vec![Level::Best]));
+    s.run_idle(&cam, 5000);
+    assert!(s.client.stats().errors >= 1);
+    assert!(!s.client.stats().ready);
+
+    let mut s = Session::new(&dir, cfg(vec![Level::Best]));
+    s.run_idle(&cam, 40_000);
+    let st = s.client.stats();
+    let errs = st.last_errors.join("\n");
+    assert!(errs.contains("HTTP 404"), "{errs}");
+    assert!(errs.contains("truncated"), "{errs}");
+    assert!(errs.contains("bad glb"), "{errs}");
+    assert_eq!(st.failed_tiles, 3, "{st:?}");
+    // Retries with backoff, at most max_retries + 1 tries per broken tile.
+    for p in &picked[..3] {
+        let u = rel(p).to_str().unwrap().to_string();
+        let tries = s.fake.fetched.iter().filter(|f| f.url == u).count();
+        assert_eq!(tries, 4, "{u}");
+    }
+    // The other tiles of the view are resident and drawn.
+    let view: BTreeSet<PathBuf> = s
+        .client
+        .view_set()
+        .iter()
+        .map(|k| rel(&key_path(&ts, *k)))
+        .collect();
+    let drawn: BTreeSet<PathBuf> = s
+        .client
+        .drawn()
+        .iter()
+        .map(|(k, _, _)| rel(&key_path(&ts, *k)))
+        .collect();
+    let mut checked = 0;
+    for p in picked[3..].iter().filter(|p| view.contains(&rel(p))) {
+        assert!(drawn.contains(&rel(p)), "{} not drawn", p.display());
+        checked += 1;
+    }
+    assert!(checked > 0);
+}
+
+#[test]
+fn moving_the_camera_away_aborts_in_flight_fetches() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 1.3);
+    let target = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 0.0).center();
+    // Same place, looking the other way: nothing of the plant is in view.
+    let away = Camera::look_at(
+        1280,
+        720,
+        50.0,
+        cam.center(),
+        cam.center() * 2.0 - target,
+        DVec3::Z,
+    );
+    let mut s = Session::new(plant(), cfg(vec![Level::Best]));
+    let mut inflight: Vec<RequestId> = vec![];
+    for _ in 0..2000 {
+        s.step(&cam);
+        inflight = s
+            .fake
+            .live
+            .iter()
+            .filter(|t| t.req.url.ends_with(".glb"))
+            .map(|t| t.req.id)
+            .collect();
+        if inflight.len() >= 2 {
+            break;
+        }
+    }
+    assert!(inflight.len() >= 2, "content transfers in flight");
+    s.step(&away);
+    for id in &inflight {
+        assert!(s.fake.aborted.contains(id), "request {id} still running");
+    }
+    assert!(s.client.view_set().is_empty());
+    // Nothing new is fetched while looking away.
+    let before = s.fake.fetched.len();
+    s.run_idle(&away, 200);
+    assert_eq!(s.fake.fetched.len(), before);
+    assert_eq!(s.client.stats().pending_fetches, 0);
+}

@@ -1,0 +1,105 @@
+// The splat2tiles web viewer (viewer/web, wasm32 + wgpu on WebGL2) in headless Chromium, loaded
+// from a running `splat2tiles view` at BASE_URL. Streams the tileset through a throttled network,
+// turns away mid-download so in-flight tiles are paused (aborted), turns back so they resume with
+// HTTP Range, waits until everything is resident, then screenshots the canvas. Prints one JSON
+// object: the viewer's stats, HTTP statuses seen, console problems, the screenshot path.
+//
+// usage: node web_viewer.mjs BASE_URL --shot out.png [--width 480] [--height 360]
+//          [--auto-view 0] [--levels best] [--throttle BYTES_PER_S] [--timeout SECONDS]
+// Exit 0 when the run finished (the caller judges what it measured), 1 when it did not.
+import fs from 'node:fs';
+import { launch, problems, parseArgs } from './interop_harness.mjs';
+
+const { pos, opt } = parseArgs(process.argv.slice(2));
+if (pos.length !== 1 || !opt.shot) {
+  console.error('usage: node web_viewer.mjs BASE_URL --shot out.png [--width W] [--height H] ...');
+  process.exit(2);
+}
+const base = pos[0].endsWith('/') ? pos[0] : `${pos[0]}/`;
+const width = Number(opt.width ?? 480);
+const height = Number(opt.height ?? 360);
+const timeoutMs = Number(opt.timeout ?? 150) * 1000;
+const throttle = Number(opt.throttle ?? 120000);
+
+const browser = await launch({ width, height });
+const { page } = browser;
+const out = { client: 'splat2tiles web viewer', ok: false, phases: [] };
+const responses = [];
+page.on('response', (r) => {
+  const req = r.request();
+  responses.push({
+    url: r.url().replace(base, '/'),
+    status: r.status(),
+    range: req.headers()['range'] ?? null,
+    ifRange: req.headers()['if-range'] ?? null,
+  });
+});
+const stats = () => page.evaluate(() => window.splat2tiles.stats());
+const waitFor = async (what, pred, ms) => {
+  const t0 = Date.now();
+  for (;;) {
+    const s = await stats();
+    if (pred(s)) {
+      out.phases.push({ phase: what, seconds: (Date.now() - t0) / 1000, stats: s });
+      return s;
+    }
+    if (Date.now() - t0 > ms) throw new Error(`timed out waiting for: ${what}; last stats ${JSON.stringify(s)}`);
+    await page.waitForTimeout(100);
+  }
+};
+
+try {
+  const cdp = await page.context().newCDPSession(page);
+  await cdp.send('Network.enable');
+  // Bandwidth and latency only (no loss): slow enough that tiles are mid-body when we turn away.
+  await cdp.send('Network.emulateNetworkConditions', {
+    offline: false,
+    latency: 20,
+    downloadThroughput: throttle,
+    uploadThroughput: -1,
+  });
+  const qs = new URLSearchParams({
+    tileset: '/tileset.json',
+    width: String(width),
+    height: String(height),
+    autoView: String(opt['auto-view'] ?? 0),
+    levels: String(opt.levels ?? 'best'),
+    clean: '1',
+  });
+  await page.goto(`${base}viewer/index.html?${qs}`);
+  await page.waitForFunction(() => window.splat2tiles || document.title.startsWith('error'), null, {
+    timeout: 60000,
+  });
+  const title = await page.title();
+  if (title.startsWith('error')) throw new Error(title);
+
+  // 1. Some splats arrive while tile bodies are still in flight.
+  await waitFor('first splats, tiles in flight', (s) => s.residentSplats > 0 && s.pending > 0, timeoutMs);
+  // 2. Look the other way: the tiles that left the view are paused (their fetches aborted).
+  await page.evaluate(() => window.splat2tiles.turn(180, 0));
+  await waitFor('paused after turning away', (s) => s.paused > 0, 30000);
+  // 3. Turn back at full speed: paused tiles resume with Range requests, all tiles complete.
+  await cdp.send('Network.emulateNetworkConditions', {
+    offline: false,
+    latency: 0,
+    downloadThroughput: -1,
+    uploadThroughput: -1,
+  });
+  await page.evaluate(() => window.splat2tiles.turn(-180, 0));
+  out.final = await waitFor('settled', (s) => s.idle && s.settled && s.residentSplats > 0, timeoutMs);
+  // Two more frames so the last fade has been drawn at full opacity.
+  await page.waitForTimeout(300);
+  const png = await page.locator('#view').screenshot();
+  fs.writeFileSync(opt.shot, png);
+  out.info = await page.evaluate(() => window.splat2tiles.viewer.info());
+  out.ok = true;
+} catch (e) {
+  out.error = String(e?.message ?? e);
+} finally {
+  out.responses = responses;
+  out.problems = problems(browser.logs);
+  out.logs = browser.logs.slice(0, 60);
+  await browser.close();
+}
+console.log(JSON.stringify(out, null, 1));
+process.exit(out.ok ? 0 : 1);

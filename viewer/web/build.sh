@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Builds the web viewer: the `splat2tiles-web` crate for wasm32 (release), then wasm-bindgen's JS
+# glue into viewer/web/pkg/ (what `splat2tiles view` serves at /viewer/). Installs what it needs.
+set -euo pipefail
+root="$(cd "$(dirname "$0")/../.." && pwd)"
+cd "$root"
+
+rustup target add wasm32-unknown-unknown >/dev/null 2>&1 || true
+
+# wasm-bindgen-cli must be exactly the wasm-bindgen version in Cargo.lock; it is installed once
+# into target/tools (no --locked: that pins a webpki-roots version the registry no longer has).
+ver=$(awk '$0 == "name = \"wasm-bindgen\"" { getline; gsub(/[^0-9.]/, "", $0); print; exit }' Cargo.lock)
+[ -n "$ver" ] || { echo "build.sh: no wasm-bindgen in Cargo.lock" >&2; exit 1; }
+tools="$root/target/tools"
+if ! "$tools/bin/wasm-bindgen" --version 2>/dev/null | grep -qF " $ver"; then
+  echo "build.sh: installing wasm-bindgen-cli $ver into target/tools (a few minutes, once)"
+  cargo install --quiet wasm-bindgen-cli --version "$ver" --root "$tools"
+fi
+
+# No debug info in the shipped wasm (the workspace release profile keeps line tables for perf).
+CARGO_PROFILE_RELEASE_DEBUG=0 cargo build --quiet -p splat2tiles-web --release \
+  --target wasm32-unknown-unknown
+rm -rf viewer/web/pkg.tmp
+"$tools/bin/wasm-bindgen" --target web --no-typescript --out-dir viewer/web/pkg.tmp \
+  target/wasm32-unknown-unknown/release/splat2tiles_web.wasm
+rm -rf viewer/web/pkg && mv viewer/web/pkg.tmp viewer/web/pkg
+echo "build.sh: web viewer built: viewer/web/pkg ($(du -sh viewer/web/pkg | cut -f1))"

@@ -1,0 +1,203 @@
+//! The browser's side of the sans-IO client: each `FetchRequest` becomes a Fetch API call with an
+//! AbortController, a fetch priority and `Range`/`If-Range` when resuming; body chunks stream in.
+
+use std::cell::RefCell;
+use std::collections::{HashMap, HashSet};
+use std::rc::Rc;
+
+use js_sys::{Reflect, Uint8Array};
+use splat2tiles::client::{FetchRequest, RequestId, StreamClient};
+use wasm_bindgen::{JsCast, JsValue};
+use wasm_bindgen_futures::JsFuture;
+use web_sys::{AbortController, Headers, ReadableStreamDefaultReader, RequestInit, Response};
+
+/// What the page's fetches and frames share: the client and the requests in flight.
+pub struct Shared {
+    /// The streaming client.
+    pub client: StreamClient,
+    /// Abort handles of the requests in flight.
+    inflight: HashMap<RequestId, AbortController>,
+    /// Requests aborted by the client whose tasks have not finished yet.
+    aborted: HashSet<RequestId>,
+    /// Requests sent with a `Range` header.
+    pub ranged: u64,
+    /// Requests aborted.
+    pub aborts: u64,
+}
+
+impl Shared {
+    /// Wraps a client.
+    pub fn new(client: StreamClient) -> Self {
+        Shared {
+            client,
+            inflight: HashMap::new(),
+            aborted: HashSet::new(),
+            ranged: 0,
+            aborts: 0,
+        }
+    }
+
+    /// Requests in flight.
+    pub fn in_flight(&self) -> usize {
+        self.inflight.len()
+    }
+}
+
+/// Seconds on the page's clock (the one requestAnimationFrame uses).
+pub fn now_s() -> f64 {
+    web_sys::window()
+        .and_then(|w| w.performance())
+        .map(|p| p.now() / 1000.0)
+        .unwrap_or(0.0)
+}
+
+/// Starts `req` in the background.
+pub fn start(shared: &Rc<RefCell<Shared>>, req: FetchRequest) {
+    let controller = match AbortController::new() {
+        Ok(c) => c,
+        Err(e) => {
+            let msg = format!("cannot create an AbortController: {e:?}");
+            shared.borrow_mut().client.on_error(req.id, &msg, now_s());
+            return;
+        }
+    };
+    {
+        let mut s = shared.borrow_mut();
+        s.inflight.insert(req.id, controller.clone());
+        if req.range_start > 0 {
+            s.ranged += 1;
+        }
+    }
+    let shared = shared.clone();
+    wasm_bindgen_futures::spawn_local(async move {
+        let result = transfer(&shared, &req, &controller).await;
+        let mut s = shared.borrow_mut();
+        s.inflight.remove(&req.id);
+        if s.aborted.remove(&req.id) {
+            return;
+        }
+        match result {
+            Ok(()) => s.client.on_done(req.id, now_s()),
+            Err(msg) => s.client.on_error(req.id, &format!("{}: {msg}", req.url), now_s()),
+        }
+    });
+}
+
+/// Aborts a request in flight (the client keeps what arrived and may resume it with Range).
+pub fn abort(shared: &Rc<RefCell<Shared>>, id: RequestId) {
+    let mut s = shared.borrow_mut();
+    if let Some(c) = s.inflight.get(&id).cloned() {
+        s.aborted.insert(id);
+        s.aborts += 1;
+        drop(s);
+        c.abort();
+    }
+}
+
+fn js_err(e: JsValue) -> String {
+    e.as_string()
+        .or_else(|| {
+            Reflect::get(&e, &"message".into())
+                .ok()
+                .and_then(|m| m.as_string())
+        })
+        .unwrap_or_else(|| format!("{e:?}"))
+}
+
+/// `Content-Range: bytes START-END/TOTAL` -> (START, TOTAL).
+fn content_range(v: &str) -> (Option<u64>, Option<u64>) {
+    let Some(rest) = v.trim().strip_prefix("bytes ") else {
+        return (None, None);
+    };
+    let (span, total) = rest.split_once('/').unwrap_or((rest, "*"));
+    let start = span.split_once('-').and_then(|(a, _)| a.trim().parse().ok());
+    (start, total.trim().parse().ok())
+}
+
+async fn transfer(
+    shared: &Rc<RefCell<Shared>>,
+    req: &FetchRequest,
+    controller: &AbortController,
+) -> Result<(), String> {
+    let window = web_sys::window().ok_or("no window")?;
+    let init = RequestInit::new();
+    init.set_method("GET");
+    init.set_signal(Some(&controller.signal()));
+    let headers = Headers::new().map_err(js_err)?;
+    if req.range_start > 0 {
+        headers
+            .set("Range", &format!("bytes={}-", req.range_start))
+            .map_err(js_err)?;
+        if let Some(etag) = &req.if_range {
+            headers.set("If-Range", etag).map_err(js_err)?;
+        }
+    }
+    init.set_headers(&headers);
+    // Fetch priority (Chromium, Safari): tiles in view first. Not in web-sys's stable API yet.
+    let priority = if req.priority >= 0.5 { "high" } else { "low" };
+    let _ = Reflect::set(&init, &"priority".into(), &priority.into());
+    let resp: Response = JsFuture::from(window.fetch_with_str_and_init(&req.url, &init))
+        .await
+        .map_err(js_err)?
+        .dyn_into()
+        .map_err(js_err)?;
+    let status = resp.status();
+    let h = resp.headers();
+    let etag = h.get("ETag").ok().flatten();
+    let (mut start, mut total) = (None, None);
+    if status == 206 {
+        if let Some(cr) = h.get("Content-Range").ok().flatten() {
+            (start, total) = content_range(&cr);
+        }
+    } else {
+        total = h
+            .get("Content-Length")
+            .ok()
+            .flatten()
+            .and_then(|v| v.trim().parse().ok());
+    }
+    {
+        let mut s = shared.borrow_mut();
+        if s.aborted.contains(&req.id) {
+            return Ok(());
+        }
+        s.client
+            .on_response(req.id, status, etag.as_deref(), start, total);
+    }
+    let Some(body) = resp.body() else {
+        return Ok(());
+    };
+    let reader: ReadableStreamDefaultReader = body.get_reader().unchecked_into();
+    loop {
+        let chunk = JsFuture::from(reader.read()).await.map_err(js_err)?;
+        if Reflect::get(&chunk, &"done".into())
+            .ok()
+            .and_then(|d| d.as_bool())
+            .unwrap_or(true)
+        {
+            return Ok(());
+        }
+        let value: Uint8Array = Reflect::get(&chunk, &"value".into())
+            .map_err(js_err)?
+            .dyn_into()
+            .map_err(js_err)?;
+        let bytes = value.to_vec();
+        let mut s = shared.borrow_mut();
+        if s.aborted.contains(&req.id) {
+            return Ok(());
+        }
+        s.client.on_data(req.id, &bytes, now_s());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::content_range;
+
+    #[test]
+    fn content_range_parses_start_and_total() {
+        assert_eq!(content_range("bytes 100-199/5000"), (Some(100), Some(5000)));
+        assert_eq!(content_range("bytes 7-9/*"), (Some(7), None));
+        assert_eq!(content_range("items 1-2/3"), (None, None));
+    }
+}

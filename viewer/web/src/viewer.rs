@@ -1,0 +1,423 @@
+//! `WebViewer`, the object the page drives: wgpu on the canvas (WebGL2), the streaming client
+//! fed by Fetch, first-person controls, and per-frame stats for the overlay and the tests.
+
+use std::cell::RefCell;
+use std::rc::Rc;
+
+use glam::DVec3;
+use serde_json::json;
+use splat2tiles::client::{Action, ClientConfig, SceneUpdate, StreamClient};
+use splat2tiles::render::camera::{self, Camera};
+use splat2tiles::stream::Level;
+use splat2tiles_viewer::{RendererConfig, SplatRenderer};
+use wasm_bindgen::prelude::*;
+use web_sys::HtmlCanvasElement;
+
+use crate::controls::FirstPerson;
+use crate::fetch::{self, Shared};
+
+/// Page options (the JSON the page passes to `create`).
+struct Options {
+    auto_view: usize,
+    levels: Vec<Level>,
+    budget_mb: f64,
+    max_sse: f64,
+    fov: f64,
+}
+
+impl Options {
+    fn parse(text: &str) -> Result<Options, String> {
+        let v: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| format!("options: {e}"))?;
+        let num = |k: &str, d: f64| v.get(k).and_then(|x| x.as_f64()).unwrap_or(d);
+        let mut levels = vec![];
+        for name in v
+            .get("levels")
+            .and_then(|l| l.as_array())
+            .into_iter()
+            .flatten()
+        {
+            let name = name.as_str().unwrap_or_default().trim().to_ascii_lowercase();
+            let level = match name.as_str() {
+                "best" => Level::Best,
+                "low" => Level::Low,
+                "high" | "medium" => {
+                    return Err(format!(
+                        "level '{name}' needs the native build (meshopt); the web viewer decodes best and low"
+                    ));
+                }
+                other => return Err(format!("unknown level '{other}' (best, low)")),
+            };
+            if !levels.contains(&level) {
+                levels.push(level);
+            }
+        }
+        if levels.is_empty() {
+            levels = vec![Level::Best, Level::Low];
+        }
+        let auto_view = num("autoView", 0.0);
+        let o = Options {
+            auto_view: if auto_view.is_finite() && auto_view >= 0.0 {
+                (auto_view as usize).min(camera::AUTO_VIEW_COUNT - 1)
+            } else {
+                0
+            },
+            levels,
+            budget_mb: num("budgetMB", 512.0),
+            max_sse: num("maxSse", 16.0),
+            fov: num("fov", camera::DEFAULT_FOV_Y_DEG),
+        };
+        if !(o.budget_mb.is_finite() && o.budget_mb > 0.0) {
+            return Err(format!("budgetMB must be positive, got {}", o.budget_mb));
+        }
+        if !(o.max_sse.is_finite() && o.max_sse > 0.0) {
+            return Err(format!("maxSse must be positive, got {}", o.max_sse));
+        }
+        if !(o.fov > 0.0 && o.fov < 180.0) {
+            return Err(format!("fov must be in (0, 180) degrees, got {}", o.fov));
+        }
+        Ok(o)
+    }
+}
+
+/// The web viewer: one per canvas.
+#[wasm_bindgen]
+pub struct WebViewer {
+    shared: Rc<RefCell<Shared>>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    renderer: SplatRenderer,
+    adapter_info: wgpu::AdapterInfo,
+    options: Options,
+    controls: Option<FirstPerson>,
+    last_frame: Option<f64>,
+    /// Exponential mean of the frame interval, seconds.
+    frame_dt: f64,
+    /// Last time a tile was inserted or removed (fades last `fade_s` from then).
+    last_change: f64,
+    fade_s: f64,
+    frames: u64,
+    drawn: usize,
+    sort_ms: f64,
+}
+
+fn js(e: impl std::fmt::Display) -> JsValue {
+    JsValue::from_str(&e.to_string())
+}
+
+#[wasm_bindgen]
+impl WebViewer {
+    /// Sets up WebGL2 on `canvas` and starts streaming `tileset_url` (absolute URL).
+    pub async fn create(
+        canvas: HtmlCanvasElement,
+        tileset_url: String,
+        width: u32,
+        height: u32,
+        options_json: String,
+    ) -> Result<WebViewer, JsValue> {
+        let options = Options::parse(&options_json).map_err(js)?;
+        let (width, height) = (width.max(1), height.max(1));
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = wgpu::Backends::GL;
+        let instance = wgpu::Instance::new(desc);
+        let surface = instance
+            .create_surface(wgpu::SurfaceTarget::Canvas(canvas))
+            .map_err(|e| js(format!("cannot use the canvas for WebGL2: {e}")))?;
+        let adapter = instance
+            .request_adapter(&wgpu::RequestAdapterOptions {
+                compatible_surface: Some(&surface),
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| js(format!("no WebGL2 adapter: {e}")))?;
+        let (device, queue) = splat2tiles_viewer::gpu::request_device(&adapter)
+            .await
+            .map_err(|e| js(format!("{e:#}")))?;
+        let caps = surface.get_capabilities(&adapter);
+        // Plain 8-bit output like the reference renderer's PNGs (no sRGB re-encoding).
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| !f.is_srgb())
+            .or_else(|| caps.formats.first().copied())
+            .ok_or_else(|| js("the canvas offers no surface format"))?;
+        let config = wgpu::SurfaceConfiguration {
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            format,
+            width,
+            height,
+            present_mode: wgpu::PresentMode::Fifo,
+            desired_maximum_frame_latency: 2,
+            alpha_mode: caps
+                .alpha_modes
+                .first()
+                .copied()
+                .unwrap_or(wgpu::CompositeAlphaMode::Opaque),
+            view_formats: vec![],
+        };
+        surface.configure(&device, &config);
+        let rcfg = RendererConfig::default();
+        let renderer = SplatRenderer::new(&device, &queue, format, rcfg);
+        let ccfg = ClientConfig {
+            width,
+            height,
+            fov_y_deg: options.fov,
+            max_sse: options.max_sse,
+            memory_budget_bytes: (options.budget_mb * 1048576.0) as u64,
+            levels: options.levels.clone(),
+            ..ClientConfig::default()
+        };
+        let client = StreamClient::new(&tileset_url, ccfg);
+        Ok(WebViewer {
+            shared: Rc::new(RefCell::new(Shared::new(client))),
+            surface,
+            config,
+            device,
+            queue,
+            renderer,
+            adapter_info: adapter.get_info(),
+            options,
+            controls: None,
+            last_frame: None,
+            frame_dt: 0.0,
+            last_change: f64::NEG_INFINITY,
+            fade_s: rcfg.fade_s,
+            frames: 0,
+            drawn: 0,
+            sort_ms: 0.0,
+        })
+    }
+
+    /// Scene bounds (world) and up, once the client has read the tileset: what
+    /// `splat2tiles render --auto-view` uses, so both start from the same camera.
+    fn scene_frame(&self) -> Option<((DVec3, DVec3), DVec3)> {
+        let s = self.shared.borrow();
+        if !s.client.stats().ready {
+            return None;
+        }
+        let root_transform = s.client.root_transform();
+        let up = root_transform
+            .transform_vector3(DVec3::Z)
+            .try_normalize()
+            .unwrap_or(DVec3::Z);
+        let cat = s.client.catalog();
+        let root = *cat.roots.first()?;
+        let pts: Vec<DVec3> = cat.tiles[root]
+            .bbox
+            .corners()
+            .iter()
+            .map(|c| root_transform.transform_point3(*c))
+            .collect();
+        let lo = pts.iter().fold(DVec3::splat(f64::MAX), |a, p| a.min(*p));
+        let hi = pts.iter().fold(DVec3::splat(f64::MIN), |a, p| a.max(*p));
+        Some(((lo, hi), up))
+    }
+
+    /// Jumps to automatic viewpoint `k` (0..=7) around the scene.
+    pub fn auto_view(&mut self, k: usize) {
+        let Some(((lo, hi), up)) = self.scene_frame() else {
+            return;
+        };
+        let k = k.min(camera::AUTO_VIEW_COUNT - 1);
+        let cam = camera::auto_views_with(
+            lo,
+            hi,
+            up,
+            self.config.width,
+            self.config.height,
+            self.options.fov,
+        )[k];
+        let speed = (hi - lo).length() * 0.15;
+        self.controls = Some(FirstPerson::from_camera(&cam, up, self.options.fov, speed));
+    }
+
+    /// Renders one frame at page time `now_s` (seconds): input, streaming, uploads, draw.
+    pub fn frame(&mut self, now_s: f64) -> Result<(), JsValue> {
+        let dt = self.last_frame.map(|t| now_s - t).unwrap_or(0.0);
+        self.last_frame = Some(now_s);
+        if dt > 0.0 {
+            self.frame_dt = if self.frame_dt == 0.0 {
+                dt
+            } else {
+                0.9 * self.frame_dt + 0.1 * dt
+            };
+        }
+        if self.controls.is_none() {
+            self.auto_view(self.options.auto_view);
+        }
+        if let Some(c) = self.controls.as_mut() {
+            c.advance(dt);
+        }
+        let cam = self.camera();
+        // Streaming: the client decides, the page fetches.
+        let actions = self.shared.borrow_mut().client.update(now_s, &cam);
+        for a in actions {
+            match a {
+                Action::Fetch(req) => fetch::start(&self.shared, req),
+                Action::Abort { id } => fetch::abort(&self.shared, id),
+            }
+        }
+        let updates = self.shared.borrow_mut().client.take_updates();
+        for u in updates {
+            self.last_change = now_s;
+            match u {
+                SceneUpdate::Insert {
+                    tile,
+                    splats,
+                    tile_to_world,
+                    ..
+                } => self.renderer.insert_tile(
+                    &self.device,
+                    &self.queue,
+                    tile,
+                    &splats,
+                    tile_to_world,
+                    now_s,
+                ),
+                SceneUpdate::Append { tile, splats } => {
+                    self.renderer
+                        .append_tile(&self.device, &self.queue, tile, &splats, now_s)
+                }
+                SceneUpdate::Remove { tile } => self.renderer.remove_tile(tile, now_s),
+            }
+        }
+        let frame = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(f) | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
+            other => {
+                // Lost/outdated (e.g. after a resize): reconfigure and draw next frame.
+                let _ = other;
+                self.surface.configure(&self.device, &self.config);
+                return Ok(());
+            }
+        };
+        let view = frame
+            .texture
+            .create_view(&wgpu::TextureViewDescriptor::default());
+        let stats = self
+            .renderer
+            .render(&self.device, &self.queue, &view, &cam, now_s);
+        self.queue.present(frame);
+        self.frames += 1;
+        self.drawn = stats.drawn;
+        if stats.sorted {
+            self.sort_ms = stats.sort_ms;
+        }
+        Ok(())
+    }
+
+    fn camera(&self) -> Camera {
+        match &self.controls {
+            Some(c) => c.camera(),
+            // Before the tileset is read: any camera; the client only asks for tileset.json.
+            None => Camera::look_at(
+                self.config.width,
+                self.config.height,
+                self.options.fov,
+                DVec3::new(0.0, -10.0, 0.0),
+                DVec3::ZERO,
+                DVec3::Z,
+            ),
+        }
+    }
+
+    /// A key went down or up (`KeyboardEvent.code`).
+    pub fn key(&mut self, code: &str, down: bool, shift: bool) {
+        if let Some(c) = self.controls.as_mut() {
+            c.key(code, down, shift);
+        }
+    }
+
+    /// Forgets held keys (focus lost).
+    pub fn release_keys(&mut self) {
+        if let Some(c) = self.controls.as_mut() {
+            c.release_keys();
+        }
+    }
+
+    /// Turns the view by `dyaw_deg` (left) and `dpitch_deg` (up).
+    pub fn look(&mut self, dyaw_deg: f64, dpitch_deg: f64) {
+        if let Some(c) = self.controls.as_mut() {
+            c.look(dyaw_deg, dpitch_deg);
+        }
+    }
+
+    /// The canvas changed size.
+    pub fn resize(&mut self, width: u32, height: u32) {
+        self.config.width = width.max(1);
+        self.config.height = height.max(1);
+        self.surface.configure(&self.device, &self.config);
+        if let Some(c) = self.controls.as_mut() {
+            c.resize(self.config.width, self.config.height);
+        }
+    }
+
+    fn stats_value(&self) -> serde_json::Value {
+        let s = self.shared.borrow();
+        let c = s.client.stats();
+        let now = fetch::now_s();
+        json!({
+            "ready": c.ready,
+            "frames": self.frames,
+            "fps": if self.frame_dt > 0.0 { 1.0 / self.frame_dt } else { 0.0 },
+            "residentSplats": self.renderer.resident_splats(),
+            "drawn": self.drawn,
+            "clientSplats": c.resident_splats,
+            "residentTiles": c.resident_tiles,
+            "cacheBytes": c.cache_bytes,
+            "gpuBytes": self.renderer.gpu_bytes(),
+            "bandwidth": c.bandwidth,
+            "pending": c.pending_fetches,
+            "inFlight": s.in_flight(),
+            "bytesReceived": c.bytes_received,
+            "paused": c.paused_tiles,
+            "aborts": s.aborts,
+            "rangedRequests": s.ranged,
+            "resumes": c.resumes,
+            "restarts": c.restarts,
+            "errors": c.errors,
+            "lastErrors": c.last_errors,
+            "sortMs": self.sort_ms,
+            "idle": s.client.is_idle() && s.in_flight() == 0,
+            "settled": now - self.last_change > self.fade_s + 0.05,
+        })
+    }
+
+    /// Stats as JSON (for scripts and tests).
+    pub fn stats_json(&self) -> String {
+        self.stats_value().to_string()
+    }
+
+    /// The overlay's text: FPS, resident splats, cache bytes, bandwidth, pending fetches.
+    pub fn overlay(&self) -> String {
+        let v = self.stats_value();
+        let f = |k: &str| v[k].as_f64().unwrap_or(0.0);
+        format!(
+            "{:5.1} fps   {:>9} splats   sort {:.1} ms\ncache {:.1} MB   {:.2} MB/s   {} pending   {} paused{}",
+            f("fps"),
+            v["residentSplats"],
+            f("sortMs"),
+            f("cacheBytes") / 1048576.0,
+            f("bandwidth") / 1048576.0,
+            v["pending"],
+            v["paused"],
+            match v["errors"].as_u64() {
+                Some(0) | None => String::new(),
+                Some(n) => format!("   {n} errors"),
+            }
+        )
+    }
+
+    /// The adapter and surface as JSON.
+    pub fn info(&self) -> String {
+        json!({
+            "adapter": self.adapter_info.name,
+            "backend": format!("{:?}", self.adapter_info.backend),
+            "driver": self.adapter_info.driver_info,
+            "format": format!("{:?}", self.config.format),
+        })
+        .to_string()
+    }
+}
