@@ -146,7 +146,11 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
     });
     drop(viewing);
     assert!(o.status.success() && v["ok"] == true, "run failed: {v:#}");
-    assert_eq!(v["problems"], Value::Array(vec![]), "console problems: {v:#}");
+    assert_eq!(
+        v["problems"],
+        Value::Array(vec![]),
+        "console problems: {v:#}"
+    );
 
     // Paused tiles came back as 206 answers to Range + If-Range requests, and nothing failed.
     let responses = v["responses"].as_array().unwrap();
@@ -173,5 +177,9 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
         resumed.len(),
         splats
     );
-    assert!(s >= MIN_SSIM, "SSIM {s:.4} < {MIN_SSIM}: {}", shot.display());
+    assert!(
+        s >= MIN_SSIM,
+        "SSIM {s:.4} < {MIN_SSIM}: {}",
+        shot.display()
+    );
 }

@@ -62,8 +62,8 @@ fn headless_static_and_trace_frames() {
     println!("binary static frame vs reference: SSIM {s:.5}");
     assert!(s >= 0.98);
 
-    // 2. Trace: 4 poses closing in on the plant, then the last one held for 1 s; tiles fade in
-    // from t = 0 and refined tiles cross-fade with their parents.
+    // 2. Trace streamed through the client: 4 poses closing in on the plant, then the last one
+    // held for 1 s (refined tiles cross-fade with their parents, then the fades are over).
     let loaded = open_tileset(&ts).unwrap();
     let (lo, hi) = tileset_bounds(&loaded).unwrap();
     let inv = loaded.root_transform.inverse();
@@ -124,6 +124,72 @@ fn headless_static_and_trace_frames() {
     let s = metrics::ssim(&cpu, &frames[4]).unwrap();
     println!("trace last frame vs reference: SSIM {s:.5}");
     assert!(s >= 0.98);
+}
+
+#[test]
+fn trace_streams_over_http() {
+    let dir = tempfile::tempdir().unwrap();
+    let ts = convert_to(
+        &scene("plant.splat"),
+        dir.path(),
+        &ConvertOptions::default(),
+    );
+    let mount = splat2tiles::serve::Mount::new("/", ts.parent().unwrap()).unwrap();
+    let server = splat2tiles::serve::Server::bind(
+        vec![mount],
+        splat2tiles::serve::ServeOptions {
+            bind: std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST),
+            port: 0,
+            quiet: true,
+            threads: 2,
+        },
+    )
+    .unwrap();
+    let addr = server.addr();
+    let stop = server.stop_handle();
+    let th = std::thread::spawn(move || server.run());
+    let loaded = open_tileset(&ts).unwrap();
+    let (lo, hi) = tileset_bounds(&loaded).unwrap();
+    let c = loaded
+        .root_transform
+        .inverse()
+        .transform_point3((lo + hi) * 0.5);
+    let r = (hi - lo).length() * 0.5;
+    let trace = Trace {
+        headers: vec![("splat2tiles-trace".into(), "1".into())],
+        poses: vec![
+            ViewPose::looking_at(0.0, c + DVec3::new(0.0, 2.5 * r, 0.5 * r), c),
+            ViewPose::looking_at(1.0, c + DVec3::new(0.0, 2.5 * r, 0.5 * r), c),
+        ],
+    };
+    let csv = dir.path().join("trace.csv");
+    std::fs::write(&csv, trace.to_csv()).unwrap();
+    let out = dir.path().join("http");
+    let o = bin()
+        .arg(format!("http://{addr}/tileset.json"))
+        .args(["--headless", "--width", "160", "--height", "96"])
+        .arg("--camera-trace")
+        .arg(&csv)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    stop.stop();
+    th.join().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let last = Image::load_png(&out.join("frame_0001.png")).unwrap();
+    assert!(mean(&last) > 0.01, "tiles streamed over HTTP are drawn");
+    // A server that is not there: a clear error naming the URL, exit 2.
+    let o = bin()
+        .arg(format!("http://{addr}/tileset.json"))
+        .args(["--headless", "--camera-trace"])
+        .arg(&csv)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("tileset.json"));
 }
 
 #[test]
