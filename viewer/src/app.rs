@@ -72,6 +72,7 @@ struct Gfx {
 }
 
 struct App {
+    size: (u32, u32),
     driver: Driver,
     pending: Vec<splat2tiles::client::SceneUpdate>,
     fly: FlyCamera,
@@ -91,8 +92,12 @@ struct App {
 impl App {
     fn init(&mut self, el: &ActiveEventLoop) -> anyhow::Result<Gfx> {
         let window = Arc::new(
-            el.create_window(Window::default_attributes().with_title("splat2tiles-viewer"))
-                .context("cannot open a window")?,
+            el.create_window(
+                Window::default_attributes()
+                    .with_title("splat2tiles-viewer")
+                    .with_inner_size(winit::dpi::PhysicalSize::new(self.size.0, self.size.1)),
+            )
+            .context("cannot open a window")?,
         );
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_with_display_handle(
             Box::new(el.owned_display_handle()),
@@ -298,6 +303,7 @@ pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
     event_loop.set_control_flow(ControlFlow::Poll);
     let now = crate::clock::now_ms() / 1e3;
     let mut app = App {
+        size: (w, h),
         driver,
         pending,
         fly,
