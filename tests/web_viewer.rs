@@ -159,6 +159,10 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
         .filter(|r| r["status"] == 206 && r["range"].is_string() && r["ifRange"].is_string())
         .collect();
     assert!(!resumed.is_empty(), "no tile was resumed with Range: {v:#}");
+    assert!(
+        !v["abortedRequests"].as_array().unwrap().is_empty(),
+        "no fetch was aborted when the view turned away: {v:#}"
+    );
     let failed: Vec<&Value> = responses
         .iter()
         .filter(|r| u(&r["status"]) >= 400)

@@ -8,6 +8,10 @@
 //! out the [`SceneUpdate`]s for the renderer. No sockets, files, threads or clocks in here.
 //!
 //! Semantics:
+//! * **Bootstrap**: `tileset.json`, then the root subtree; child subtree files are read when a
+//!   view (current or predicted) would refine into them (the tile above stays selected until
+//!   they arrive). Every URI is resolved against the tileset URL's folder; one leaving it
+//!   (`..`, another origin, a scheme, a rooted path, `%`-escapes) is refused with an error.
 //! * The **view set** is the REPLACE selection of `render::cli::select_tiles` (refine while
 //!   `geometricError * fy / (distance to the bounding sphere) > max_sse`) restricted to tiles whose
 //!   bounding sphere meets the camera's frustum.
@@ -35,9 +39,9 @@ use crate::splat::Splats;
 use crate::stream::bandwidth::EwmaBandwidth;
 use crate::stream::cache::{Cache, CacheConfig, EvictContext, Inserted};
 use crate::stream::catalog::{
-    LEVELS, Level, STAND_IN_UTILITY, TileCatalog, Variant, stand_in_variants,
+    CatalogTile, LEVELS, Level, STAND_IN_UTILITY, TileCatalog, Variant, stand_in_variants,
 };
-use crate::stream::geom::{Frustum, ViewPose};
+use crate::stream::geom::{Frustum, Obb, ViewPose};
 use crate::stream::planner::{PlanStepConfig, plan_visible};
 use crate::stream::predict::{
     ConstantVelocity, LinearExtrapolation, Predictor, Reactive, needs_fallback,
@@ -45,7 +49,7 @@ use crate::stream::predict::{
 use crate::stream::priority::priority;
 use crate::tiling::TileKey;
 use crate::tiling::load::{
-    ImplicitRoot, LoadedTile, SubtreeTile, expand_template, parse_subtree_tiles, parse_tileset_json,
+    ImplicitRoot, SubtreeTile, expand_template, parse_subtree_tiles, parse_tileset_json,
 };
 
 /// Identifies one request issued by the client.
@@ -53,6 +57,9 @@ pub type RequestId = u64;
 
 /// Largest `tileset.json` or subtree body accepted (bytes).
 pub const MAX_BOOTSTRAP_BYTES: usize = 64 << 20;
+
+/// Most tiles (plus pending subtrees) the bootstrap reads; a hostile tileset stops there.
+pub const MAX_TILES: usize = 1 << 20;
 
 /// Error messages kept in [`ClientStats::last_errors`].
 const KEPT_ERRORS: usize = 32;
@@ -289,13 +296,19 @@ struct TileInfo {
 #[derive(Debug)]
 enum Phase {
     NeedTileset,
-    Subtrees {
-        root: Box<ImplicitRoot>,
-        todo: Vec<TileKey>,
-        tiles: Vec<SubtreeTile>,
-    },
+    RootSubtree,
     Ready,
     Failed,
+}
+
+/// Load state of one subtree file.
+#[derive(Debug, Clone, Default)]
+struct SubtreeSlot {
+    inflight: bool,
+    loaded: bool,
+    given_up: bool,
+    failures: u32,
+    retry_at: f64,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -314,9 +327,14 @@ pub struct StreamClient {
     phase: Phase,
     boot_failures: u32,
     boot_retry_at: f64,
-    boot_inflight: HashMap<TileKey, RequestId>,
-    subtree_failures: HashMap<TileKey, u32>,
-    subtree_retry: HashMap<TileKey, f64>,
+    root: Option<Box<ImplicitRoot>>,
+    templates: [Option<String>; LEVELS],
+    default_variant: usize,
+    index: HashMap<TileKey, usize>,
+    subtrees: HashMap<TileKey, SubtreeSlot>,
+    by_leaf: HashMap<TileKey, Vec<TileKey>>,
+    subtree_wants: Vec<TileKey>,
+    predicted_subtrees: Vec<TileKey>,
     catalog: TileCatalog,
     info: Vec<TileInfo>,
     state: Vec<TileState>,
@@ -385,9 +403,14 @@ impl StreamClient {
             phase: Phase::NeedTileset,
             boot_failures: 0,
             boot_retry_at: f64::NEG_INFINITY,
-            boot_inflight: HashMap::new(),
-            subtree_failures: HashMap::new(),
-            subtree_retry: HashMap::new(),
+            root: None,
+            templates: Default::default(),
+            default_variant: 0,
+            index: HashMap::new(),
+            subtrees: HashMap::new(),
+            by_leaf: HashMap::new(),
+            subtree_wants: vec![],
+            predicted_subtrees: vec![],
             catalog: TileCatalog {
                 tiles: vec![],
                 roots: vec![],
@@ -489,9 +512,13 @@ impl StreamClient {
         }
         match self.phase {
             Phase::Failed => true,
-            Phase::NeedTileset | Phase::Subtrees { .. } => false,
+            Phase::NeedTileset | Phase::RootSubtree => false,
             Phase::Ready => {
                 !self.dirty
+                    && self
+                        .subtree_wants
+                        .iter()
+                        .all(|k| self.subtrees.get(k).is_none_or(|s| s.loaded || s.given_up))
                     && self.wanted.iter().all(|w| {
                         let s = &self.state[w.tile];
                         s.given_up || self.cache.level(w.tile).is_some_and(|l| l <= w.level)
@@ -566,7 +593,7 @@ impl StreamClient {
                     }));
                 }
             }
-            Phase::Subtrees { .. } => self.subtree_requests(&mut actions),
+            Phase::RootSubtree => self.request_subtrees(&[TileKey::ROOT], &mut actions),
             Phase::Ready => {
                 if camera_ok(camera) {
                     self.stream_step(camera, &mut actions);
@@ -577,18 +604,20 @@ impl StreamClient {
         actions
     }
 
-    fn subtree_requests(&mut self, actions: &mut Vec<Action>) {
-        let Phase::Subtrees { root, todo, .. } = &self.phase else {
+    /// Issues the fetches of the subtrees in `keys` that are due (not loaded, not in flight,
+    /// not waiting for a retry), while request slots are free.
+    fn request_subtrees(&mut self, keys: &[TileKey], actions: &mut Vec<Action>) {
+        let Some(template) = self.root.as_ref().map(|r| r.subtree_template.clone()) else {
             return;
         };
-        let template = root.subtree_template.clone();
-        let keys: Vec<TileKey> = todo
-            .iter()
-            .copied()
-            .filter(|k| !self.boot_inflight.contains_key(k))
-            .filter(|k| self.subtree_retry.get(k).is_none_or(|&t| self.now >= t))
-            .collect();
-        for k in keys {
+        for &k in keys {
+            let now = self.now;
+            let Some(slot) = self.subtrees.get(&k) else {
+                continue;
+            };
+            if slot.loaded || slot.given_up || slot.inflight || now < slot.retry_at {
+                continue;
+            }
             if self.requests.len() >= self.cfg.max_concurrent {
                 break;
             }
@@ -596,7 +625,9 @@ impl StreamClient {
             match url::resolve(&self.base, &uri) {
                 Ok(u) => {
                     let id = self.new_request(ReqKind::Subtree(k));
-                    self.boot_inflight.insert(k, id);
+                    if let Some(slot) = self.subtrees.get_mut(&k) {
+                        slot.inflight = true;
+                    }
                     actions.push(Action::Fetch(FetchRequest {
                         id,
                         url: u,
@@ -607,34 +638,66 @@ impl StreamClient {
                 }
                 Err(e) => {
                     self.error(format!("subtree URI refused, not fetched: {e}"));
-                    self.subtree_done(k, None);
+                    if let Some(slot) = self.subtrees.get_mut(&k) {
+                        slot.given_up = true;
+                    }
+                    if k == TileKey::ROOT {
+                        self.phase = Phase::Failed;
+                    }
                 }
             }
         }
     }
 
-    /// Records a subtree as read (`Some(tiles)`) or given up (`None`); builds the catalog
-    /// when none is left.
-    fn subtree_done(&mut self, key: TileKey, parsed: Option<crate::tiling::load::SubtreeTiles>) {
-        let Phase::Subtrees { todo, tiles, .. } = &mut self.phase else {
-            return;
-        };
-        todo.retain(|k| *k != key);
-        if let Some(p) = parsed {
-            tiles.extend(p.tiles);
-            todo.extend(p.child_subtrees);
+    /// A subtree arrived: its tiles join the catalog, its child subtrees become fetchable.
+    fn subtree_loaded(&mut self, key: TileKey, parsed: crate::tiling::load::SubtreeTiles) {
+        if let Some(slot) = self.subtrees.get_mut(&key) {
+            slot.loaded = true;
+            slot.inflight = false;
         }
-        if todo.is_empty() {
-            let Phase::Subtrees { root, tiles, .. } =
-                std::mem::replace(&mut self.phase, Phase::Ready)
-            else {
-                return;
+        self.add_tiles(parsed.tiles);
+        for c in parsed.child_subtrees {
+            if self.subtrees.len() >= MAX_TILES {
+                break;
+            }
+            if let (Some(leaf), false) = (c.parent(), self.subtrees.contains_key(&c)) {
+                self.subtrees.insert(c, SubtreeSlot::default());
+                self.by_leaf.entry(leaf).or_default().push(c);
+            }
+        }
+        if matches!(self.phase, Phase::RootSubtree) {
+            self.phase = if self.info.is_empty() {
+                self.error("no tile could be read from the tileset".into());
+                Phase::Failed
+            } else {
+                Phase::Ready
             };
-            self.build_catalog(&root, tiles);
         }
+        self.dirty = true;
     }
 
-    fn build_catalog(&mut self, root: &ImplicitRoot, tiles: Vec<SubtreeTile>) {
+    fn subtree_failed(&mut self, key: TileKey, msg: String) {
+        self.error(format!("subtree {key:?}: {msg}"));
+        let (max, base, now) = (self.cfg.max_retries, self.cfg.retry_base_s, self.now);
+        let Some(slot) = self.subtrees.get_mut(&key) else {
+            return;
+        };
+        slot.inflight = false;
+        slot.failures += 1;
+        if slot.failures > max {
+            slot.given_up = true;
+            if key == TileKey::ROOT {
+                self.phase = Phase::Failed;
+            }
+        } else {
+            slot.retry_at = now + base * f64::powi(2.0, slot.failures as i32 - 1);
+        }
+        self.dirty = true;
+    }
+
+    /// Takes the parts of `tileset.json` the client needs: variant URI templates (refusing
+    /// the ones leaving the base), transforms; then waits for the root subtree.
+    fn init_root(&mut self, root: ImplicitRoot) {
         // Variant URI templates: tileset metadata `variantUris`, else content.uri as the
         // default variant (format unknown: decoded whole, never progressively).
         let meta = root
@@ -650,13 +713,13 @@ impl StreamClient {
                     .map(|s| s.as_str().unwrap_or("").to_string())
                     .collect()
             });
-        let default_variant = meta
+        self.default_variant = meta
             .and_then(|p| p.get("defaultVariant"))
             .and_then(|v| v.as_u64())
-            .map(|v| v as usize);
+            .map_or(0, |v| (v as usize).min(LEVELS - 1));
         let mut templates: [Option<String>; LEVELS] = Default::default();
-        match (&uris, default_variant) {
-            (Some(u), _) if u.len() == LEVELS => {
+        match &uris {
+            Some(u) if u.len() == LEVELS => {
                 for (j, t) in u.iter().enumerate() {
                     if !t.is_empty() {
                         templates[j] = Some(t.clone());
@@ -664,10 +727,7 @@ impl StreamClient {
                 }
                 self.progressive[Level::Best.index()] = true;
             }
-            _ => {
-                templates[default_variant.unwrap_or(0).min(LEVELS - 1)] =
-                    root.content_template.clone()
-            }
+            _ => templates[self.default_variant] = root.content_template.clone(),
         }
         if let Some(tpl) = &root.content_template
             && let Err(e) = url::resolve(&self.base, &expand_template(tpl, TileKey::ROOT))
@@ -690,6 +750,7 @@ impl StreamClient {
                 *t = None;
             }
         }
+        self.templates = templates;
         self.root_transform = root.root_transform;
         self.inv_root = root.root_transform.inverse();
         if !self.inv_root.is_finite() {
@@ -699,55 +760,56 @@ impl StreamClient {
         }
         self.tile_to_world_base =
             root.root_transform * DMat4::from_mat3(crate::frame::y_up_to_z_up());
-        let by_key: HashMap<TileKey, &SubtreeTile> = tiles.iter().map(|t| (t.key, t)).collect();
-        let has_meta = tiles.iter().any(|t| t.variant_bytes.is_some());
-        // Catalog structure (parents first, parent links) from the shared loader's logic.
-        let loaded: Vec<LoadedTile> = tiles
-            .iter()
-            .map(|t| LoadedTile {
-                key: t.key,
-                content: t.content_uri.as_ref().map(std::path::PathBuf::from),
-                bounding_box: t.bounding_box,
-                geometric_error: t.geometric_error,
-                splat_count: t.splat_count,
-            })
-            .collect();
-        let mut cat = TileCatalog::from_loaded(&loaded, |t| {
-            let st = by_key.get(&t.key)?;
-            Some(
-                st.variant_bytes
-                    .map(|b| b.iter().copied().max().unwrap_or(0) as u64)
-                    .unwrap_or_else(|| st.splat_count.unwrap_or(16384) as u64 * 70)
-                    .max(1),
-            )
-        });
-        let mut info = Vec::with_capacity(cat.tiles.len());
-        for t in cat.tiles.iter_mut() {
-            let st = by_key.get(&t.key);
+        self.root = Some(Box::new(root));
+        self.subtrees.insert(TileKey::ROOT, SubtreeSlot::default());
+        self.phase = Phase::RootSubtree;
+    }
+
+    /// Appends the tiles of a subtree to the catalog (parents before children; a tile whose
+    /// parent is unknown, other than the root, is skipped).
+    fn add_tiles(&mut self, mut tiles: Vec<SubtreeTile>) {
+        tiles.sort_by_key(|t| (t.key.level, t.key.z, t.key.y, t.key.x));
+        for st in tiles {
+            if self.index.contains_key(&st.key) {
+                continue;
+            }
+            if self.info.len() >= MAX_TILES {
+                self.error(format!("more than {MAX_TILES} tiles: the rest is ignored"));
+                return;
+            }
+            let parent = st.key.parent().and_then(|p| self.index.get(&p).copied());
+            if parent.is_none() && st.key != TileKey::ROOT {
+                continue;
+            }
+            let best_guess = st
+                .variant_bytes
+                .map(|b| b.iter().copied().max().unwrap_or(0) as u64)
+                .unwrap_or_else(|| st.splat_count.unwrap_or(16384) as u64 * 70)
+                .max(1);
+            let stand_in = stand_in_variants(best_guess);
             let mut urls: [Option<String>; LEVELS] = Default::default();
-            let stand_in = stand_in_variants(t.variants[0].bytes);
             let mut variants = [Variant {
                 bytes: 0,
                 utility: 0.0,
             }; LEVELS];
             for j in 0..LEVELS {
-                let written = match st.and_then(|s| s.variant_bytes) {
+                let written = match st.variant_bytes {
                     Some(b) => b[j] > 0,
-                    None => !has_meta && t.has_content,
+                    None => j == self.default_variant,
                 };
                 let bytes = st
-                    .and_then(|s| s.variant_bytes)
+                    .variant_bytes
                     .map(|b| b[j] as u64)
                     .filter(|b| *b > 0)
                     .unwrap_or(stand_in[j].bytes.max(1));
                 let util = st
-                    .and_then(|s| s.variant_utility)
+                    .variant_utility
                     .map(|u| u[j] as f64)
                     .filter(|u| *u >= 0.0 && u.is_finite())
                     .unwrap_or(STAND_IN_UTILITY[j]);
-                let url = match (&templates[j], written && t.has_content) {
+                let url = match (&self.templates[j], written && st.content_uri.is_some()) {
                     (Some(tpl), true) => {
-                        url::resolve(&self.base, &expand_template(tpl, t.key)).ok()
+                        url::resolve(&self.base, &expand_template(tpl, st.key)).ok()
                     }
                     _ => None,
                 };
@@ -757,13 +819,9 @@ impl StreamClient {
                 };
                 urls[j] = url;
             }
-            t.variants = variants;
-            if urls.iter().all(|u| u.is_none()) {
-                t.has_content = false;
-            }
-            let sphere = st.and_then(|s| s.bounding_box).map(|b| {
+            let sphere = st.bounding_box.map(|b| {
                 let corners = crate::render::cli::box_corners(&b)
-                    .map(|c| root.root_transform.transform_point3(c));
+                    .map(|c| self.root_transform.transform_point3(c));
                 let centre = corners.iter().copied().sum::<DVec3>() / 8.0;
                 let radius = corners
                     .iter()
@@ -771,25 +829,36 @@ impl StreamClient {
                     .fold(0.0, f64::max);
                 (centre, radius)
             });
-            info.push(TileInfo {
-                key: t.key,
+            let me = self.catalog.tiles.len();
+            let splats = st.splat_count.unwrap_or(0) as u64;
+            self.catalog.tiles.push(CatalogTile {
+                key: st.key,
+                parent,
+                children: vec![],
+                bbox: st
+                    .bounding_box
+                    .map(|b| Obb::from_3dtiles(&b))
+                    .unwrap_or(Obb::aabb(DVec3::ZERO, DVec3::ZERO)),
+                geometric_error: st.geometric_error,
+                splats,
+                has_content: urls.iter().any(|u| u.is_some()),
+                variants,
+            });
+            match parent {
+                Some(p) => self.catalog.tiles[p].children.push(me),
+                None => self.catalog.roots.push(me),
+            }
+            self.index.insert(st.key, me);
+            self.info.push(TileInfo {
+                key: st.key,
                 urls,
                 sphere,
-                splats: t.splats,
+                splats,
             });
+            self.state.push(TileState::default());
+            self.in_view.push(false);
+            self.drawn.push(false);
         }
-        let n = cat.tiles.len();
-        if n == 0 {
-            self.error("no tile could be read from the tileset".into());
-            self.phase = Phase::Failed;
-            return;
-        }
-        self.catalog = cat;
-        self.info = info;
-        self.state = (0..n).map(|_| TileState::default()).collect();
-        self.in_view = vec![false; n];
-        self.drawn = vec![false; n];
-        self.dirty = true;
     }
 
     /// World matrix of a tile's content given its glb node matrix.
@@ -798,11 +867,14 @@ impl StreamClient {
     }
 
     /// The view set of a camera: REPLACE selection by screen-space error over the bounding
-    /// sphere (as `select_tiles`), skipping subtrees whose sphere is outside the frustum.
-    fn select(&self, cam: &Camera) -> Vec<usize> {
+    /// sphere (as `select_tiles`), skipping subtrees whose sphere is outside the frustum; plus
+    /// the unread subtree files the selection would refine into (the tile above them is
+    /// selected until they are read).
+    fn select(&self, cam: &Camera) -> (Vec<usize>, Vec<TileKey>) {
         let eye = cam.center();
         let rot_t = cam.rotation().transpose();
         let mut out = vec![];
+        let mut wants = vec![];
         let mut stack: Vec<usize> = self.catalog.roots.iter().rev().copied().collect();
         while let Some(i) = stack.pop() {
             let t = &self.catalog.tiles[i];
@@ -816,13 +888,22 @@ impl StreamClient {
                 None => 1e-9,
             };
             let sse = t.geometric_error * cam.fy / distance;
-            if !t.children.is_empty() && sse > self.cfg.max_sse {
+            let refine = sse > self.cfg.max_sse;
+            let before = wants.len();
+            if refine && let Some(below) = self.by_leaf.get(&t.key) {
+                wants.extend(below.iter().copied().filter(|k| {
+                    self.subtrees
+                        .get(k)
+                        .is_some_and(|s| !s.loaded && !s.given_up)
+                }));
+            }
+            if refine && wants.len() == before && !t.children.is_empty() {
                 stack.extend(t.children.iter().rev().copied());
             } else if t.has_content {
                 out.push(i);
             }
         }
-        out
+        (out, wants)
     }
 
     fn pose_of(&self, cam: &Camera) -> ViewPose {
@@ -849,7 +930,9 @@ impl StreamClient {
         let drop = self.history.iter().take_while(|p| p.t < keep_from).count();
         self.history.drain(..drop);
         // 2. View set.
-        let view = self.select(camera);
+        let (view, wants) = self.select(camera);
+        self.request_subtrees(&wants, actions);
+        self.subtree_wants = wants;
         let changed = view != self.view;
         self.view = view;
         self.in_view = vec![false; n];
@@ -861,7 +944,10 @@ impl StreamClient {
         if self.dirty || changed || self.now - self.last_plan >= self.cfg.replan_s {
             self.replan(camera, &pose);
         }
-        // 4. Downloads.
+        // 4. Downloads (subtrees the predicted views need, then tiles).
+        let predicted_subtrees = std::mem::take(&mut self.predicted_subtrees);
+        self.request_subtrees(&predicted_subtrees, actions);
+        self.predicted_subtrees = predicted_subtrees;
         self.schedule(actions);
         // 5. Memory, then the scene.
         self.make_room(0);
@@ -886,6 +972,7 @@ impl StreamClient {
     fn replan(&mut self, camera: &Camera, pose: &ViewPose) {
         self.last_plan = self.now;
         self.dirty = false;
+        self.predicted_subtrees.clear();
         let predicted = if needs_fallback(self.predictor.as_ref(), &self.history) {
             vec![]
         } else {
@@ -905,8 +992,14 @@ impl StreamClient {
                 ..*camera
             };
             let dt = (p.t - self.now).max(0.0);
-            for i in self.select(&cam) {
+            let (vis, wants) = self.select(&cam);
+            for i in vis {
                 first[i] = first[i].min(dt);
+            }
+            for k in wants {
+                if !self.predicted_subtrees.contains(&k) {
+                    self.predicted_subtrees.push(k);
+                }
             }
         }
         let firsts: Vec<(usize, f64)> = first
@@ -1354,21 +1447,7 @@ impl StreamClient {
                         + self.cfg.retry_base_s * f64::powi(2.0, self.boot_failures as i32 - 1);
                 }
             }
-            ReqKind::Subtree(k) => {
-                self.boot_inflight.remove(&k);
-                self.error(format!("subtree {k:?}: {msg}"));
-                let f = self.subtree_failures.entry(k).or_default();
-                *f += 1;
-                let f = *f;
-                if f > self.cfg.max_retries {
-                    self.subtree_done(k, None);
-                } else {
-                    self.subtree_retry.insert(
-                        k,
-                        self.now + self.cfg.retry_base_s * f64::powi(2.0, f as i32 - 1),
-                    );
-                }
-            }
+            ReqKind::Subtree(k) => self.subtree_failed(k, msg),
             ReqKind::Content(_) => {}
         }
     }
@@ -1381,24 +1460,16 @@ impl StreamClient {
         };
         match req.kind {
             ReqKind::Tileset => match parse_tileset_json(&req.body) {
-                Ok(root) => {
-                    self.phase = Phase::Subtrees {
-                        root: Box::new(root),
-                        todo: vec![TileKey::ROOT],
-                        tiles: vec![],
-                    };
-                }
+                Ok(root) => self.init_root(root),
                 Err(e) => self.boot_failed(ReqKind::Tileset, format!("bad tileset.json: {e}")),
             },
             ReqKind::Subtree(k) => {
-                self.boot_inflight.remove(&k);
-                let parsed = match &self.phase {
-                    Phase::Subtrees { root, .. } => parse_subtree_tiles(root, k, &req.body),
-                    _ => return,
+                let Some(root) = self.root.as_ref() else {
+                    return;
                 };
-                match parsed {
-                    Ok(p) => self.subtree_done(k, Some(p)),
-                    Err(e) => self.boot_failed(req.kind, format!("bad subtree: {e}")),
+                match parse_subtree_tiles(root, k, &req.body) {
+                    Ok(p) => self.subtree_loaded(k, p),
+                    Err(e) => self.subtree_failed(k, format!("bad subtree: {e}")),
                 }
             }
             ReqKind::Content(tile) => self.content_done(id, tile),

@@ -215,6 +215,11 @@ pub struct SubtreeTiles {
 pub fn parse_tileset_json(bytes: &[u8]) -> Result<ImplicitRoot, ParseError> {
     let tileset: Tileset =
         serde_json::from_slice(bytes).map_err(|e| ParseError::Json(e.to_string()))?;
+    implicit_root(tileset)
+}
+
+/// Checks a parsed `tileset.json` is an implicit tileset we can walk and extracts its parts.
+pub fn implicit_root(tileset: Tileset) -> Result<ImplicitRoot, ParseError> {
     let unsupported = |msg: &str| ParseError::Unsupported(msg.to_string());
     let implicit = tileset
         .root

@@ -16,8 +16,9 @@ use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
 use crate::render::camera::DEFAULT_FOV_Y_DEG;
 use crate::render::{RenderOptions, auto_views_with, render_splats, ssim};
 use crate::splat::Splats;
-use crate::tiling::load::{LoadedTileset, expand_template, resolve_inside};
-use crate::tiling::subtree::{self, read_subtree};
+use crate::tiling::load::{
+    LoadedTileset, expand_template, implicit_root, parse_subtree_tiles, resolve_inside,
+};
 use crate::tiling::{Scheme, TileKey};
 
 /// One quality level of a tile.
@@ -451,77 +452,30 @@ impl VariantRow {
 /// the subtrees' content property tables.
 pub fn content_variant_metadata(ts: &LoadedTileset) -> HashMap<TileKey, (u32, [u32; 4], [f32; 4])> {
     let mut out = HashMap::new();
-    let Some(implicit) = &ts.tileset.root.implicit_tiling else {
+    let Ok(root) = implicit_root(ts.tileset.clone()) else {
         return out;
     };
-    let levels = implicit.subtree_levels;
-    let arity = ts.scheme.arity();
-    let n_tiles = subtree::tile_count(arity, levels) as usize;
-    let roots: Vec<TileKey> = ts
+    let roots = ts
         .tiles
         .iter()
         .map(|t| t.key)
-        .filter(|k| k.level % levels == 0)
-        .collect();
-    for root in roots {
-        let uri = expand_template(&implicit.subtrees.uri, root);
+        .filter(|k| k.level % root.subtree_levels == 0);
+    for key in roots {
+        let uri = expand_template(&root.subtree_template, key);
         let Some(path) = resolve_inside(&ts.dir, &uri) else {
             continue;
         };
         let Ok(bytes) = std::fs::read(&path) else {
             continue;
         };
-        let Ok(s) = read_subtree(&bytes) else {
+        let Ok(st) = parse_subtree_tiles(&root, key, &bytes) else {
             continue;
         };
-        let Some(content) = s
-            .json
-            .content_availability
-            .first()
-            .and_then(|a| s.bits(a, n_tiles))
-        else {
-            continue;
-        };
-        let Some(table) = s
-            .json
-            .content_metadata
-            .as_ref()
-            .and_then(|v| v.first())
-            .and_then(|&t| s.json.property_tables.get(t as usize))
-        else {
-            continue;
-        };
-        let col = |name: &str, width: usize| -> Option<Vec<u8>> {
-            let b = s.view(table.properties.get(name)?.values)?;
-            (b.len() >= table.count as usize * width).then(|| b.to_vec())
-        };
-        let (Some(counts), Some(vb), Some(vu)) = (
-            col("splatCount", 4),
-            col("variantBytes", 16),
-            col("variantUtility", 16),
-        ) else {
-            continue;
-        };
-        let word = |b: &[u8], i: usize| [b[i * 4], b[i * 4 + 1], b[i * 4 + 2], b[i * 4 + 3]];
-        let mut row = 0;
-        for rl in 0..levels {
-            let first = subtree::tile_count(arity, rl) as usize;
-            for m in 0..arity.pow(rl) {
-                if !content[first + m as usize] {
-                    continue;
-                }
-                let (x, y, z) = ts.scheme.decode(m);
-                let key = TileKey {
-                    level: root.level + rl,
-                    x: (root.x << rl) + x,
-                    y: (root.y << rl) + y,
-                    z: (root.z << rl) + z,
-                };
-                let count = u32::from_le_bytes(word(&counts, row));
-                let bytes = std::array::from_fn(|i| u32::from_le_bytes(word(&vb, row * 4 + i)));
-                let util = std::array::from_fn(|i| f32::from_le_bytes(word(&vu, row * 4 + i)));
-                out.insert(key, (count, bytes, util));
-                row += 1;
+        for t in st.tiles {
+            if let (Some(count), Some(bytes), Some(util)) =
+                (t.splat_count, t.variant_bytes, t.variant_utility)
+            {
+                out.insert(t.key, (count, bytes, util));
             }
         }
     }

@@ -175,11 +175,22 @@ mod tests {
         let c0 = fp.camera();
         fp.look(180.0, 0.0);
         let away = fp.camera();
-        assert!(away.world_from_camera.z_axis.truncate().dot(c0.world_from_camera.z_axis.truncate()) < -0.9);
+        assert!(
+            away.world_from_camera
+                .z_axis
+                .truncate()
+                .dot(c0.world_from_camera.z_axis.truncate())
+                < -0.9
+        );
         fp.look(-180.0, 0.0);
         let back = fp.camera();
-        let d = (back.world_from_camera - c0.world_from_camera).abs_diff_eq(glam::DMat4::ZERO, 1e-9);
-        assert!(d, "{:?} vs {:?}", back.world_from_camera, c0.world_from_camera);
+        let d =
+            (back.world_from_camera - c0.world_from_camera).abs_diff_eq(glam::DMat4::ZERO, 1e-9);
+        assert!(
+            d,
+            "{:?} vs {:?}",
+            back.world_from_camera, c0.world_from_camera
+        );
     }
 
     #[test]
@@ -210,9 +221,20 @@ mod tests {
         assert!(!fp.advance(f64::INFINITY));
         assert!(fp.advance(1e9));
         let c = fp.camera();
-        assert!(c.world_from_camera.to_cols_array().iter().all(|v| v.is_finite()));
+        assert!(
+            c.world_from_camera
+                .to_cols_array()
+                .iter()
+                .all(|v| v.is_finite())
+        );
         let mut deg = FirstPerson::from_camera(&c, DVec3::ZERO, 50.0, f64::NAN);
         deg.look(1.0, 1.0);
-        assert!(deg.camera().world_from_camera.to_cols_array().iter().all(|v| v.is_finite()));
+        assert!(
+            deg.camera()
+                .world_from_camera
+                .to_cols_array()
+                .iter()
+                .all(|v| v.is_finite())
+        );
     }
 }

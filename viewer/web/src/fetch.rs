@@ -9,7 +9,9 @@ use js_sys::{Reflect, Uint8Array};
 use splat2tiles::client::{FetchRequest, RequestId, StreamClient};
 use wasm_bindgen::{JsCast, JsValue};
 use wasm_bindgen_futures::JsFuture;
-use web_sys::{AbortController, Headers, ReadableStreamDefaultReader, RequestInit, Response};
+use web_sys::{
+    AbortController, Headers, ReadableStreamDefaultReader, RequestCache, RequestInit, Response,
+};
 
 /// What the page's fetches and frames share: the client and the requests in flight.
 pub struct Shared {
@@ -78,7 +80,9 @@ pub fn start(shared: &Rc<RefCell<Shared>>, req: FetchRequest) {
         }
         match result {
             Ok(()) => s.client.on_done(req.id, now_s()),
-            Err(msg) => s.client.on_error(req.id, &format!("{}: {msg}", req.url), now_s()),
+            Err(msg) => s
+                .client
+                .on_error(req.id, &format!("{}: {msg}", req.url), now_s()),
         }
     });
 }
@@ -110,7 +114,9 @@ fn content_range(v: &str) -> (Option<u64>, Option<u64>) {
         return (None, None);
     };
     let (span, total) = rest.split_once('/').unwrap_or((rest, "*"));
-    let start = span.split_once('-').and_then(|(a, _)| a.trim().parse().ok());
+    let start = span
+        .split_once('-')
+        .and_then(|(a, _)| a.trim().parse().ok());
     (start, total.trim().parse().ok())
 }
 
@@ -123,6 +129,10 @@ async fn transfer(
     let init = RequestInit::new();
     init.set_method("GET");
     init.set_signal(Some(&controller.signal()));
+    // The client keeps its own bytes and resumes with Range itself. Chromium's HTTP cache would
+    // otherwise hold a truncated entry for an aborted body and make the next request for the same
+    // URL wait on that entry's cache lock.
+    init.set_cache(RequestCache::NoStore);
     let headers = Headers::new().map_err(js_err)?;
     if req.range_start > 0 {
         headers

@@ -37,7 +37,11 @@ impl Options {
             .into_iter()
             .flatten()
         {
-            let name = name.as_str().unwrap_or_default().trim().to_ascii_lowercase();
+            let name = name
+                .as_str()
+                .unwrap_or_default()
+                .trim()
+                .to_ascii_lowercase();
             let level = match name.as_str() {
                 "best" => Level::Best,
                 "low" => Level::Low,
@@ -147,6 +151,7 @@ impl WebViewer {
         let config = wgpu::SurfaceConfiguration {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
             format,
+            color_space: wgpu::SurfaceColorSpace::Auto,
             width,
             height,
             present_mode: wgpu::PresentMode::Fifo,
@@ -285,7 +290,8 @@ impl WebViewer {
             }
         }
         let frame = match self.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(f) | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
+            wgpu::CurrentSurfaceTexture::Success(f)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
             other => {
                 // Lost/outdated (e.g. after a resize): reconfigure and draw next frame.
                 let _ = other;
