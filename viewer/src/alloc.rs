@@ -146,7 +146,7 @@ pub fn page_pieces(run: Run, page_size: u32, row: u32) -> Vec<(u32, u32, u32)> {
         let local = s % page_size;
         let page_end = ((page as u64 + 1) * page_size as u64).min(end);
         let avail = (page_end - s as u64) as u32;
-        let take = if local % row != 0 {
+        let take = if !local.is_multiple_of(row) {
             (row - local % row).min(avail)
         } else if avail >= row {
             avail - avail % row

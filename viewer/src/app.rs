@@ -1,8 +1,7 @@
 //! The native window (winit 0.30): first-person controls (WASD, Q/E, drag to look, shift faster),
-//! tiles kept resident for the moving camera, and a once-per-second status line on stderr.
+//! tiles streamed by splat2tiles' client for the moving camera, a status line every second.
 
 use std::collections::HashSet;
-use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -15,9 +14,11 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-use crate::headless::{ViewArgs, open_tileset, tileset_camera};
+use splat2tiles::client::native::Driver;
+use splat2tiles::render::cli::{RenderArgs, resolve_camera};
+
+use crate::headless::ViewArgs;
 use crate::renderer::{RendererConfig, SplatRenderer};
-use crate::tiles::{StaticTiles, TileUpdate};
 
 /// Walking speed, metres per second (times 5 with shift).
 pub const WALK_SPEED: f64 = 2.0;
@@ -71,7 +72,9 @@ struct Gfx {
 }
 
 struct App {
-    tiles: StaticTiles,
+    size: (u32, u32),
+    driver: Driver,
+    pending: Vec<splat2tiles::client::SceneUpdate>,
     fly: FlyCamera,
     root: glam::DMat4,
     cfg: RendererConfig,
@@ -89,8 +92,12 @@ struct App {
 impl App {
     fn init(&mut self, el: &ActiveEventLoop) -> anyhow::Result<Gfx> {
         let window = Arc::new(
-            el.create_window(Window::default_attributes().with_title("splat2tiles-viewer"))
-                .context("cannot open a window")?,
+            el.create_window(
+                Window::default_attributes()
+                    .with_title("splat2tiles-viewer")
+                    .with_inner_size(winit::dpi::PhysicalSize::new(self.size.0, self.size.1)),
+            )
+            .context("cannot open a window")?,
         );
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_with_display_handle(
             Box::new(el.owned_display_handle()),
@@ -141,18 +148,9 @@ impl App {
         self.fly.step(fwd, right, up, fast, dt);
         let Some(g) = self.gfx.as_mut() else { return };
         let cam = self.fly.camera(g.config.width, g.config.height, self.root);
-        for u in self.tiles.update(&cam, false) {
-            match u {
-                TileUpdate::Insert {
-                    id,
-                    splats,
-                    tile_to_world,
-                } => g
-                    .renderer
-                    .insert_tile(&g.device, &g.queue, id, &splats, tile_to_world, now),
-                TileUpdate::Remove { id } => g.renderer.remove_tile(id, now),
-            }
-        }
+        let mut ups = std::mem::take(&mut self.pending);
+        ups.extend(self.driver.tick(now, &cam));
+        crate::stream::apply_updates(&mut g.renderer, &g.device, &g.queue, ups, now);
         let frame = match g.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(f)
             | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
@@ -170,24 +168,26 @@ impl App {
         self.frames += 1;
         if now - self.log_at >= 1.0 {
             let span = now - self.log_at;
-            let bytes = self.tiles.bytes_read();
+            let cs = self.driver.stats();
             eprintln!(
-                "{:.1} fps | {} resident splats in {} tiles | cache {:.1} MiB GPU, {:.1} MiB CPU | {:.2} MB/s | {} pending fetches | {}",
+                "{:.1} fps | {} resident splats in {} tiles | cache {:.1} MiB (GPU {:.1} MiB) | bandwidth {:.2} MB/s est., {:.2} MB/s received | {} pending fetches | sort {:.1} ms | {}",
                 self.frames as f64 / span,
                 stats.resident,
                 stats.tiles,
+                cs.cache_bytes as f64 / 1048576.0,
                 g.renderer.gpu_bytes() as f64 / 1048576.0,
-                g.renderer.cpu_bytes() as f64 / 1048576.0,
-                (bytes - self.bytes_at_log) as f64 / span / 1e6,
-                self.tiles.pending(),
+                cs.bandwidth / 1e6,
+                cs.bytes_received.saturating_sub(self.bytes_at_log) as f64 / span / 1e6,
+                cs.pending_fetches,
+                stats.sort_ms,
                 g.adapter
             );
-            for e in self.tiles.errors() {
-                eprintln!("tile error: {e}");
+            for e in &cs.last_errors {
+                eprintln!("stream error: {e}");
             }
             self.log_at = now;
             self.frames = 0;
-            self.bytes_at_log = bytes;
+            self.bytes_at_log = cs.bytes_received;
         }
     }
 }
@@ -233,11 +233,11 @@ impl ApplicationHandler for App {
                     }
                 }
             }
-            WindowEvent::MouseInput { state, button, .. } => {
-                if button == MouseButton::Left {
-                    self.dragging = state == ElementState::Pressed;
-                }
-            }
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Left,
+                ..
+            } => self.dragging = state == ElementState::Pressed,
             WindowEvent::CursorMoved { position, .. } => {
                 let p = (position.x, position.y);
                 if self.dragging
@@ -258,12 +258,35 @@ impl ApplicationHandler for App {
     }
 }
 
-/// Opens the window on `tileset` (a local path) with the starting camera of `v`.
-pub fn run_window(tileset: &Path, v: &ViewArgs) -> anyhow::Result<()> {
-    let ts = open_tileset(tileset)?;
-    let start = tileset_camera(&ts, tileset, v)?;
-    let root = ts.root_transform;
-    // Back to the tileset frame for the first-person pose.
+/// Opens the window on `url` (a path, `file://` or `http://` tileset.json), starting at the camera
+/// of `v` (as `splat2tiles render` resolves it against the tileset's root box).
+pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
+    let (w, h) = (v.width.unwrap_or(1280), v.height.unwrap_or(720));
+    let mut driver = crate::stream::driver(url, w, h, v.fov, v.max_sse);
+    let (pending, _) =
+        crate::stream::bootstrap(&mut driver, url, crate::clock::now_ms() / 1e3, 30.0)?;
+    let (bounds, up_default) = crate::stream::world_bounds(&driver);
+    let up = match &v.up_axis {
+        Some(s) => splat2tiles::render::camera::parse_axis(s)
+            .with_context(|| format!("--up-axis '{s}': expected one of +x,-x,+y,-y,+z,-z"))?,
+        None => up_default,
+    };
+    let ra = RenderArgs {
+        input: url.into(),
+        camera: v.camera.clone(),
+        auto_view: v.auto_view,
+        width: Some(w),
+        height: Some(h),
+        fov: v.fov,
+        up_axis: None,
+        sh_degree: v.sh_degree,
+        background: v.background.clone(),
+        output: Default::default(),
+        max_sse: v.max_sse,
+    };
+    let start = resolve_camera(&ra, up, bounds)?;
+    let root = driver.client().root_transform();
+    // Back to the tileset frame (z up) for the first-person pose.
     let local = root.inverse() * start.world_from_camera;
     let pos = local.w_axis.truncate();
     let fwd = local.z_axis.truncate();
@@ -280,7 +303,9 @@ pub fn run_window(tileset: &Path, v: &ViewArgs) -> anyhow::Result<()> {
     event_loop.set_control_flow(ControlFlow::Poll);
     let now = crate::clock::now_ms() / 1e3;
     let mut app = App {
-        tiles: StaticTiles::new(ts, v.max_sse),
+        size: (w, h),
+        driver,
+        pending,
         fly,
         root,
         cfg,

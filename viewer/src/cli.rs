@@ -76,9 +76,9 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
             bail!("--headless needs --out DIR");
         };
         if let Some(trace) = &cli.camera_trace {
-            let s = run_trace(&PathBuf::from(&cli.tileset), trace, &cli.view_args(), out)?;
+            let s = run_trace(&cli.tileset, trace, &cli.view_args(), out)?;
             println!(
-                "splat2tiles-viewer: {} | {} frames, peak {} resident splats, {:.1} MB read, {:.1} ms/frame -> {}",
+                "splat2tiles-viewer: {} | {} frames, peak {} resident splats, {:.1} MB streamed, {:.1} ms/frame -> {}",
                 s.adapter,
                 s.frames,
                 s.peak_resident,
@@ -108,5 +108,5 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    crate::app::run_window(&PathBuf::from(&cli.tileset), &cli.view_args())
+    crate::app::run_window(&cli.tileset, &cli.view_args())
 }

@@ -83,7 +83,7 @@ impl ViewArgs {
 
 /// Loads `tileset.json` (errors name the file).
 pub fn open_tileset(path: &Path) -> anyhow::Result<LoadedTileset> {
-    load_tileset(path).with_context(|| format!("{}: cannot load the tileset", path.display()))
+    load_tileset(path).context("cannot load the tileset")
 }
 
 /// The camera `splat2tiles render` would use for this tileset and these arguments.
@@ -196,18 +196,25 @@ pub struct TraceSummary {
     pub frames: usize,
     /// Most splats resident at once.
     pub peak_resident: usize,
-    /// Tile bytes read.
+    /// Bytes the client received.
     pub bytes_read: u64,
-    /// Mean wall time per frame (selection, loads, sort, draw, read-back, PNG), ms.
+    /// Mean wall time per frame (streaming until idle, sort, draw, read-back, PNG), ms.
     pub mean_ms: f64,
-    /// Load errors (each names the file).
+    /// The client's last errors (each names the URL).
     pub errors: Vec<String>,
 }
 
+/// Most wall-clock seconds spent streaming for one pose before its frame is drawn anyway.
+pub const POSE_SETTLE_S: f64 = 30.0;
+
 /// `--headless --camera-trace FILE`: one PNG per pose (`frame_0000.png`, ...) while the tiles
-/// selected for each pose stream in (inserted and removed with fades at the pose's time).
+/// stream through splat2tiles' client (`url`: a path, `file://` or `http://`).
+///
+/// Time: the client and the fades run on the trace's clock, `max(pose time, clock so far)`,
+/// advanced by the wall time spent waiting; for each pose the client is ticked until idle (all
+/// it wants for that pose is resident) or [`POSE_SETTLE_S`], then the frame is drawn.
 pub fn run_trace(
-    tileset: &Path,
+    url: &str,
     trace_path: &Path,
     v: &ViewArgs,
     out: &Path,
@@ -225,9 +232,6 @@ pub fn run_trace(
         .filter(|f| *f > 0.0 && *f < 180.0)
         .unwrap_or(v.fov);
     let (w, h) = (v.width.unwrap_or(1280), v.height.unwrap_or(720));
-    let ts = open_tileset(tileset)?;
-    let root = ts.root_transform;
-    let mut tiles = crate::tiles::StaticTiles::new(ts, v.max_sse);
     let gpu = crate::gpu::headless()?;
     let cfg = RendererConfig {
         background: v.background_rgb()?,
@@ -237,22 +241,31 @@ pub fn run_trace(
     };
     let mut r = SplatRenderer::new(&gpu.device, &gpu.queue, OFFSCREEN_FORMAT, cfg);
     let target = Offscreen::new(&gpu.device, w, h)?;
+    let mut d = crate::stream::driver(url, w, h, fov, v.max_sse);
+    let (early, t_boot) = crate::stream::bootstrap(&mut d, url, trace.poses[0].t, POSE_SETTLE_S)?;
+    crate::stream::apply_updates(&mut r, &gpu.device, &gpu.queue, early, t_boot);
+    let root = d.client().root_transform();
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let t0 = crate::clock::now_ms();
+    let wall0 = crate::clock::now_ms();
+    let mut clock = t_boot;
     let mut peak = 0;
     for (k, pose) in trace.poses.iter().enumerate() {
+        clock = clock.max(pose.t);
         let cam = Camera::from_pose(w, h, fov, root * pose.world_from_camera());
-        for u in tiles.update(&cam, true) {
-            match u {
-                crate::tiles::TileUpdate::Insert {
-                    id,
-                    splats,
-                    tile_to_world,
-                } => r.insert_tile(&gpu.device, &gpu.queue, id, &splats, tile_to_world, pose.t),
-                crate::tiles::TileUpdate::Remove { id } => r.remove_tile(id, pose.t),
+        let start = crate::clock::now_ms();
+        let mut last = start;
+        loop {
+            let ups = d.tick(clock, &cam);
+            crate::stream::apply_updates(&mut r, &gpu.device, &gpu.queue, ups, clock);
+            if d.is_idle() || (crate::clock::now_ms() - start) / 1e3 > POSE_SETTLE_S {
+                break;
             }
+            std::thread::sleep(std::time::Duration::from_millis(1));
+            let now = crate::clock::now_ms();
+            clock += (now - last) / 1e3;
+            last = now;
         }
-        let stats = r.render(&gpu.device, &gpu.queue, &target.view, &cam, pose.t);
+        let stats = r.render(&gpu.device, &gpu.queue, &target.view, &cam, clock);
         peak = peak.max(stats.resident);
         let png = out.join(format!("frame_{k:04}.png"));
         target
@@ -261,12 +274,13 @@ pub fn run_trace(
             .with_context(|| format!("{}: cannot write", png.display()))?;
     }
     let n = trace.poses.len();
+    let s = d.stats();
     Ok(TraceSummary {
         adapter: gpu.adapter_name(),
         frames: n,
         peak_resident: peak,
-        bytes_read: tiles.bytes_read(),
-        mean_ms: (crate::clock::now_ms() - t0) / n as f64,
-        errors: tiles.errors().to_vec(),
+        bytes_read: s.bytes_received,
+        mean_ms: (crate::clock::now_ms() - wall0) / n as f64,
+        errors: s.last_errors,
     })
 }

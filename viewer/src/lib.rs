@@ -11,11 +11,11 @@ pub mod app;
 pub mod cli;
 pub mod clock;
 pub mod gpu;
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(feature = "native")]
 pub mod headless;
 pub mod renderer;
 pub mod sort;
-#[cfg(not(target_arch = "wasm32"))]
-pub mod tiles;
+#[cfg(feature = "native")]
+pub mod stream;
 
 pub use renderer::{FrameStats, RendererConfig, SplatRenderer};

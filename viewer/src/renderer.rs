@@ -35,6 +35,13 @@ pub const fn sh_texels(degree: u8) -> u32 {
     (3 * d * d).div_ceil(4)
 }
 
+// Every texture fits WebGL2's 2048-texel limit, and pages are whole rows.
+const _: () = assert!(
+    PAGE_ROW * sh_texels(3) <= 2048
+        && TILES_PER_ROW * TILE_TEXELS <= 2048
+        && PAGE_SPLATS.is_multiple_of(PAGE_ROW)
+);
+
 /// Settings of a [`SplatRenderer`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RendererConfig {
@@ -1148,9 +1155,6 @@ mod tests {
             [1, 3, 7, 12],
             "3 (d+1)^2 floats in RGBA texels"
         );
-        assert!(PAGE_ROW * sh_texels(3) <= 2048, "fits WebGL2's 2048 texels");
-        assert!(TILES_PER_ROW * TILE_TEXELS <= 2048);
-        assert_eq!(PAGE_SPLATS % PAGE_ROW, 0);
     }
 
     #[test]

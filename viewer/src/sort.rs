@@ -74,15 +74,17 @@ impl RadixSorter {
             return;
         }
         // All digit histograms in one read of the keys.
-        let mut hist = vec![[0u32; BUCKETS]; PASSES];
+        let mut hist = [[0u32; BUCKETS]; PASSES];
         for &p in &self.pairs {
             let k = (p >> 32) as u32;
             for (pass, h) in hist.iter_mut().enumerate() {
                 h[((k >> (pass as u32 * DIGIT_BITS)) as usize) & (BUCKETS - 1)] += 1;
             }
         }
-        self.tmp.clear();
-        self.tmp.resize(n, 0);
+        // Scratch keeps its length between sorts: no zero-fill of n pairs per call.
+        if self.tmp.len() < n {
+            self.tmp.resize(n, 0);
+        }
         for (pass, h) in hist.iter().enumerate() {
             // Every key has the same digit: this pass would not move anything.
             if h.iter().any(|&c| c as usize == n) {
@@ -95,14 +97,15 @@ impl RadixSorter {
                 sum += c;
             }
             let shift = 32 + pass as u32 * DIGIT_BITS;
+            let dst = &mut self.tmp[..n];
             for &p in &self.pairs {
                 let d = ((p >> shift) as usize) & (BUCKETS - 1);
-                // SAFETY-free indexing: offsets stay below n by construction of the histogram.
                 let o = &mut offs[d];
-                self.tmp[*o as usize] = p;
+                dst[*o as usize] = p;
                 *o += 1;
             }
             std::mem::swap(&mut self.pairs, &mut self.tmp);
+            self.pairs.truncate(n);
         }
     }
 }

@@ -1,6 +1,6 @@
 //! Hostile splats (NaN, Inf, zero and 1e30 scales, opacity 0 and 1, antipodal quaternions, a
-//! splat on the camera plane) render without panic or GPU validation error, and the tile life
-//! cycle (fade in, append, replace, remove, slot reuse) behaves.
+//! splat on the camera plane) render without panic or GPU validation error; the tile life cycle
+//! (fade in, append, replace, remove, slot reuse) and the lazy re-sort behave.
 
 mod common;
 
@@ -191,4 +191,66 @@ fn tiles_fade_append_replace_and_free() {
     assert_eq!(mean(&empty), 0.0);
     assert_eq!(r.resident_splats(), 0);
     assert!(r.cpu_bytes() < 1 << 20);
+}
+
+#[test]
+fn resorts_lazily_and_worker_order_arrives() {
+    let g = gpu();
+    let all = normal();
+    let cam0 = cam();
+    let t = Offscreen::new(&g.device, cam0.width, cam0.height).unwrap();
+    // Blocking: decisions are deterministic frame by frame.
+    let cfg = RendererConfig {
+        blocking_sort: true,
+        ..RendererConfig::default()
+    };
+    let mut r = SplatRenderer::new(&g.device, &g.queue, OFFSCREEN_FORMAT, cfg);
+    r.insert_tile(&g.device, &g.queue, 1, &all, DMat4::IDENTITY, 0.0);
+    let mut at = |c: &Camera, now: f64| r.render(&g.device, &g.queue, &t.view, c, now);
+    assert!(at(&cam0, 1.0).sorted, "resident set changed");
+    assert!(!at(&cam0, 1.1).sorted, "nothing changed");
+    let moved = |d: DVec3| {
+        let mut c = cam0;
+        c.world_from_camera.w_axis += d.extend(0.0);
+        c
+    };
+    assert!(
+        !at(&moved(DVec3::new(1.5, 0.0, 0.0)), 1.2).sorted,
+        "1.5 m < 2 m"
+    );
+    assert!(
+        at(&moved(DVec3::new(2.5, 0.0, 0.0)), 1.3).sorted,
+        "2.5 m > 2 m"
+    );
+    // Turning: 10 degrees about the up axis keeps the order, 20 (from the last sort) re-sorts.
+    let turned = |deg: f64| {
+        let mut c = moved(DVec3::new(2.5, 0.0, 0.0));
+        let rot = glam::DMat4::from_rotation_z(deg.to_radians());
+        let pos = c.world_from_camera.w_axis;
+        c.world_from_camera = rot * c.world_from_camera;
+        c.world_from_camera.w_axis = pos;
+        c
+    };
+    assert!(!at(&turned(10.0), 1.4).sorted, "10 deg < 15 deg");
+    assert!(at(&turned(20.0), 1.5).sorted, "20 deg > 15 deg");
+    // Worker thread (non-blocking): the first frames may draw nothing, the order then arrives.
+    let mut w = SplatRenderer::new(
+        &g.device,
+        &g.queue,
+        OFFSCREEN_FORMAT,
+        RendererConfig::default(),
+    );
+    w.insert_tile(&g.device, &g.queue, 7, &all, DMat4::IDENTITY, 0.0);
+    let mut drawn = 0;
+    for k in 0..2000 {
+        let s = w.render(&g.device, &g.queue, &t.view, &cam0, 1.0 + k as f64 * 1e-3);
+        drawn = s.drawn;
+        if drawn == all.len() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    assert_eq!(drawn, all.len(), "the worker's order was applied");
+    let img = t.read(&g.device, &g.queue).unwrap();
+    assert!(mean(&img) > 0.01);
 }

@@ -1,0 +1,105 @@
+//! Streaming for the native front-ends: splat2tiles' sans-IO client run by its native driver
+//! (file and HTTP fetches on worker threads), its scene updates fed to the renderer.
+
+use anyhow::bail;
+use glam::{DMat4, DVec3};
+use splat2tiles::client::native::Driver;
+use splat2tiles::client::{ClientConfig, SceneUpdate};
+use splat2tiles::render::camera::Camera;
+
+use crate::renderer::SplatRenderer;
+
+/// Applies the client's scene updates to the renderer at time `now_s` (inserts fade in, removes
+/// fade out, appends grow a tile being downloaded).
+pub fn apply_updates(
+    r: &mut SplatRenderer,
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    updates: Vec<SceneUpdate>,
+    now_s: f64,
+) {
+    for u in updates {
+        match u {
+            SceneUpdate::Insert {
+                tile,
+                splats,
+                tile_to_world,
+                ..
+            } => r.insert_tile(device, queue, tile, &splats, tile_to_world, now_s),
+            SceneUpdate::Append { tile, splats } => {
+                r.append_tile(device, queue, tile, &splats, now_s)
+            }
+            SceneUpdate::Remove { tile } => r.remove_tile(tile, now_s),
+        }
+    }
+}
+
+/// A driver for `url` (path, `file://` or `http://`) planning for `width x height` frames.
+pub fn driver(url: &str, width: u32, height: u32, fov_y_deg: f64, max_sse: f64) -> Driver {
+    Driver::new(
+        url,
+        ClientConfig {
+            width,
+            height,
+            fov_y_deg,
+            max_sse,
+            ..ClientConfig::default()
+        },
+    )
+}
+
+/// Ticks `d` (with a placeholder camera) until the tileset and its subtrees are loaded, on a clock
+/// starting at `start_s`; errors name the URL. Returns the scene updates produced meanwhile and
+/// the clock at the end.
+pub fn bootstrap(
+    d: &mut Driver,
+    url: &str,
+    start_s: f64,
+    timeout_s: f64,
+) -> anyhow::Result<(Vec<SceneUpdate>, f64)> {
+    let t0 = crate::clock::now_ms();
+    let cam = Camera::from_pose(64, 64, 50.0, DMat4::IDENTITY);
+    let mut updates = Vec::new();
+    loop {
+        let waited = (crate::clock::now_ms() - t0) / 1e3;
+        let now = start_s + waited;
+        updates.extend(d.tick(now, &cam));
+        let s = d.stats();
+        if s.ready {
+            return Ok((updates, now));
+        }
+        if d.is_idle() {
+            bail!(
+                "{url}: cannot load the tileset: {}",
+                s.last_errors.join("; ")
+            );
+        }
+        if waited > timeout_s {
+            bail!("{url}: tileset not loaded after {timeout_s} s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+}
+
+/// World-space bounds of the root tiles' boxes and the tileset's up direction (root +z).
+pub fn world_bounds(d: &Driver) -> (Option<(DVec3, DVec3)>, DVec3) {
+    let c = d.client();
+    let root = c.root_transform();
+    let up = root
+        .transform_vector3(DVec3::Z)
+        .try_normalize()
+        .unwrap_or(DVec3::Z);
+    let cat = c.catalog();
+    let mut b: Option<(DVec3, DVec3)> = None;
+    for &i in &cat.roots {
+        let Some(t) = cat.tiles.get(i) else { continue };
+        for p in t.bbox.corners() {
+            let w = root.transform_point3(p);
+            b = Some(match b {
+                Some((lo, hi)) => (lo.min(w), hi.max(w)),
+                None => (w, w),
+            });
+        }
+    }
+    (b, up)
+}
