@@ -66,11 +66,16 @@ fn view(dir: &Path, log: &Path) -> Viewing {
         .stderr(std::fs::File::create(log).unwrap())
         .spawn()
         .expect("start splat2tiles view");
-    let mut out = BufReader::new(child.stdout.take().unwrap());
+    let stdout = child.stdout.take();
+    // Owned by the guard from here on: any panic below kills and reaps the server.
+    let mut viewing = Viewing {
+        child,
+        base: String::new(),
+    };
+    let mut out = BufReader::new(stdout.expect("piped stdout"));
     loop {
         let mut line = String::new();
-        if out.read_line(&mut line).unwrap() == 0 {
-            let _ = child.kill();
+        if out.read_line(&mut line).unwrap_or(0) == 0 {
             panic!(
                 "splat2tiles view exited before printing its URL; stderr:\n{}",
                 std::fs::read_to_string(log).unwrap_or_default()
@@ -78,10 +83,8 @@ fn view(dir: &Path, log: &Path) -> Viewing {
         }
         if let Some(rest) = line.split("http://127.0.0.1:").nth(1) {
             let port: String = rest.chars().take_while(char::is_ascii_digit).collect();
-            return Viewing {
-                child,
-                base: format!("http://127.0.0.1:{port}/"),
-            };
+            viewing.base = format!("http://127.0.0.1:{port}/");
+            return viewing;
         }
     }
 }
