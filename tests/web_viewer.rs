@@ -171,7 +171,7 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
         .filter(|r| u(&r["status"]) >= 400)
         .collect();
     assert!(failed.is_empty(), "failed requests: {failed:?}");
-    let fin = &v["final"]["stats"];
+    let fin = &v["final"];
     assert!(u(&fin["paused"]) == 0 && u(&fin["errors"]) == 0, "{fin:#}");
     assert_eq!(u(&fin["residentSplats"]), splats, "{fin:#}");
 
