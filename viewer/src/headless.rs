@@ -210,9 +210,11 @@ pub const POSE_SETTLE_S: f64 = 30.0;
 /// `--headless --camera-trace FILE`: one PNG per pose (`frame_0000.png`, ...) while the tiles
 /// stream through splat2tiles' client (`url`: a path, `file://` or `http://`).
 ///
-/// Time: the client and the fades run on the trace's clock, `max(pose time, clock so far)`,
-/// advanced by the wall time spent waiting; for each pose the client is ticked until idle (all
-/// it wants for that pose is resident) or [`POSE_SETTLE_S`], then the frame is drawn.
+/// Time: the client runs on the trace's clock, `max(pose time, clock so far)`, advanced by the
+/// wall time spent waiting (its bandwidth estimate needs real durations); for each pose it is
+/// ticked until idle (all it wants for that pose is resident) or [`POSE_SETTLE_S`]. The renderer
+/// (fades) runs on the pose times alone: what arrives while waiting at pose k is inserted at pose
+/// k's time and the frame is drawn at it, so frames do not depend on how fast the machine is.
 pub fn run_trace(
     url: &str,
     trace_path: &Path,
@@ -243,20 +245,24 @@ pub fn run_trace(
     let target = Offscreen::new(&gpu.device, w, h)?;
     let mut d = crate::stream::driver(url, w, h, fov, v.max_sse);
     let (early, t_boot) = crate::stream::bootstrap(&mut d, url, trace.poses[0].t, POSE_SETTLE_S)?;
-    crate::stream::apply_updates(&mut r, &gpu.device, &gpu.queue, early, t_boot);
+    let t_first = trace.poses[0].t;
+    crate::stream::apply_updates(&mut r, &gpu.device, &gpu.queue, early, t_first);
     let root = d.client().root_transform();
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let wall0 = crate::clock::now_ms();
     let mut clock = t_boot;
+    let mut t_render = t_first;
     let mut peak = 0;
     for (k, pose) in trace.poses.iter().enumerate() {
         clock = clock.max(pose.t);
         let cam = Camera::from_pose(w, h, fov, root * pose.world_from_camera());
+        // Fades run on the trace's own times (kept monotonic).
+        t_render = t_render.max(pose.t);
         let start = crate::clock::now_ms();
         let mut last = start;
         loop {
             let ups = d.tick(clock, &cam);
-            crate::stream::apply_updates(&mut r, &gpu.device, &gpu.queue, ups, clock);
+            crate::stream::apply_updates(&mut r, &gpu.device, &gpu.queue, ups, t_render);
             if d.is_idle() || (crate::clock::now_ms() - start) / 1e3 > POSE_SETTLE_S {
                 break;
             }
@@ -265,7 +271,7 @@ pub fn run_trace(
             clock += (now - last) / 1e3;
             last = now;
         }
-        let stats = r.render(&gpu.device, &gpu.queue, &target.view, &cam, clock);
+        let stats = r.render(&gpu.device, &gpu.queue, &target.view, &cam, t_render);
         peak = peak.max(stats.resident);
         let png = out.join(format!("frame_{k:04}.png"));
         target
