@@ -8,8 +8,8 @@ use std::io::Write;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
 
-/// Worker threads answering requests (I/O bound; a handful covers a browser's parallel fetches).
-const THREADS: usize = 8;
+/// Most connections served at once, one thread each (browsers keep 6 per host open and idle).
+const THREADS: usize = 256;
 
 /// Arguments of `serve`.
 #[derive(Debug, Args)]

@@ -1,12 +1,14 @@
 //! A static HTTP/1.1 file server for tilesets and the web viewer (`splat2tiles serve` / `view`):
 //! GET/HEAD/OPTIONS, single byte ranges, strong ETags, precompressed `.br`/`.gz` siblings, CORS.
 //!
-//! HTTP framing (request parsing, keep-alive, `Expect`, HEAD bodies) is `tiny_http`'s; this
-//! module decides the answer ([`answer`], a pure function of the request and the files) and runs
-//! a few worker threads. Range requests on a precompressed answer refer to the encoded bytes,
+//! HTTP framing (request heads, keep-alive, Content-Length) is [`http`]'s, one thread per
+//! connection (tiny_http was dropped: its connection pool left a burst of browser connections
+//! unanswered until an idle one closed); this module decides the answer ([`answer`], a pure
+//! function of the request and the files). Range requests on a precompressed answer refer to the encoded bytes,
 //! whose ETag differs from the identity file's, so a download resumed with `If-Range` either
 //! continues the same encoded bytes or restarts with a full 200.
 
+pub mod http;
 pub mod range;
 pub mod resolve;
 
@@ -15,10 +17,10 @@ use resolve::{Refusal, inside, segments};
 use std::ffi::OsString;
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
-use std::net::{IpAddr, SocketAddr};
+use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, UNIX_EPOCH};
 
 /// Why a server could not start.
@@ -292,7 +294,7 @@ fn answer_inner(mounts: &[Mount], req: &Request) -> Reply {
     match req.method {
         Method::Get | Method::Head => {}
         Method::Options => {
-            // 200, not 204: tiny_http would put a Content-Length on a 204, which RFC 9110 forbids.
+            // 200, not 204: the HTTP layer always sends a Content-Length, which a 204 must not carry.
             let mut r = Reply::new(200);
             r.headers.push(("Allow", ALLOW.into()));
             r.headers
@@ -446,24 +448,39 @@ pub struct ServeOptions {
     pub port: u16,
     /// No per-request log line.
     pub quiet: bool,
-    /// Worker threads answering requests.
+    /// Most connections served at once (one thread each); beyond that a connection gets 503.
     pub threads: usize,
 }
 
+/// Seconds an idle keep-alive connection is kept open.
+const IDLE_S: u64 = 30;
+
 /// Stops a running [`Server`] from another thread (Ctrl-C handler, tests).
 #[derive(Debug, Clone)]
-pub struct StopHandle(Arc<AtomicBool>);
+pub struct StopHandle {
+    stop: Arc<AtomicBool>,
+    addr: SocketAddr,
+}
 
 impl StopHandle {
     /// Asks the server to stop; [`Server::run`] returns within a fraction of a second.
     pub fn stop(&self) {
-        self.0.store(true, Ordering::SeqCst);
+        self.stop.store(true, Ordering::SeqCst);
+        // Wake the blocking accept.
+        let mut wake = self.addr;
+        if wake.ip().is_unspecified() {
+            wake.set_ip(match wake.ip() {
+                IpAddr::V4(_) => IpAddr::V4(std::net::Ipv4Addr::LOCALHOST),
+                IpAddr::V6(_) => IpAddr::V6(std::net::Ipv6Addr::LOCALHOST),
+            });
+        }
+        let _ = std::net::TcpStream::connect_timeout(&wake, Duration::from_secs(1));
     }
 }
 
 /// A bound server, not yet answering.
 pub struct Server {
-    http: Arc<tiny_http::Server>,
+    listener: TcpListener,
     mounts: Arc<Vec<Mount>>,
     addr: SocketAddr,
     opts: ServeOptions,
@@ -474,16 +491,14 @@ impl Server {
     /// Binds `opts.bind:opts.port` for `mounts`.
     pub fn bind(mounts: Vec<Mount>, opts: ServeOptions) -> Result<Self, ServeError> {
         let want = SocketAddr::new(opts.bind, opts.port);
-        let http = tiny_http::Server::http(want).map_err(|e| ServeError::Bind {
+        let bind_err = |e: std::io::Error| ServeError::Bind {
             addr: want,
             message: e.to_string(),
-        })?;
-        let addr = http.server_addr().to_ip().ok_or_else(|| ServeError::Bind {
-            addr: want,
-            message: "not an IP listener".into(),
-        })?;
+        };
+        let listener = TcpListener::bind(want).map_err(bind_err)?;
+        let addr = listener.local_addr().map_err(bind_err)?;
         Ok(Server {
-            http: Arc::new(http),
+            listener,
             mounts: Arc::new(mounts),
             addr,
             opts,
@@ -498,34 +513,57 @@ impl Server {
 
     /// A handle that stops [`Server::run`].
     pub fn stop_handle(&self) -> StopHandle {
-        StopHandle(self.stop.clone())
+        StopHandle {
+            stop: self.stop.clone(),
+            addr: self.addr,
+        }
     }
 
-    /// Answers requests on `opts.threads` workers until stopped.
+    /// Accepts connections until stopped, each answered on its own thread (keep-alive).
     pub fn run(self) {
-        let workers: Vec<_> = (0..self.opts.threads.max(1))
-            .map(|_| {
-                let http = self.http.clone();
-                let mounts = self.mounts.clone();
-                let stop = self.stop.clone();
-                let quiet = self.opts.quiet;
-                std::thread::spawn(move || {
-                    while !stop.load(Ordering::SeqCst) {
-                        match http.recv_timeout(Duration::from_millis(200)) {
-                            Ok(Some(rq)) => handle(&mounts, rq, quiet),
-                            Ok(None) => {}
-                            Err(e) => {
-                                if !quiet {
-                                    eprintln!("splat2tiles serve: connection error: {e}");
-                                }
-                            }
-                        }
+        let live = Arc::new(AtomicUsize::new(0));
+        let cap = self.opts.threads.max(1);
+        for conn in self.listener.incoming() {
+            if self.stop.load(Ordering::SeqCst) {
+                break;
+            }
+            let stream = match conn {
+                Ok(s) => s,
+                Err(e) => {
+                    if !self.opts.quiet {
+                        eprintln!("splat2tiles serve: accept failed: {e}");
                     }
-                })
-            })
-            .collect();
-        for w in workers {
-            let _ = w.join();
+                    // E.g. out of file descriptors: don't spin.
+                    std::thread::sleep(Duration::from_millis(20));
+                    continue;
+                }
+            };
+            if live.load(Ordering::SeqCst) >= cap {
+                let mut w = std::io::BufWriter::new(&stream);
+                let msg = b"too many connections\n";
+                let _ = http::write_response(
+                    &mut w,
+                    503,
+                    &[("Retry-After", "1".into())],
+                    msg.len() as u64,
+                    false,
+                    Some(&mut &msg[..]),
+                );
+                continue;
+            }
+            live.fetch_add(1, Ordering::SeqCst);
+            let (mounts, mine, stop) = (self.mounts.clone(), live.clone(), self.stop.clone());
+            let quiet = self.opts.quiet;
+            let spawned = std::thread::Builder::new()
+                .name("serve-conn".into())
+                .spawn(move || {
+                    connection(stream, &mounts, quiet, &stop);
+                    mine.fetch_sub(1, Ordering::SeqCst);
+                });
+            if spawned.is_err() {
+                // The closure and its stream were dropped: the client sees the connection close.
+                live.fetch_sub(1, Ordering::SeqCst);
+            }
         }
     }
 }
@@ -537,75 +575,117 @@ fn printable(s: &str) -> String {
         .collect()
 }
 
-/// Answers one tiny_http request and logs it.
-fn handle(mounts: &[Mount], rq: tiny_http::Request, quiet: bool) {
-    let method_name = rq.method().to_string();
-    let method = match rq.method() {
-        tiny_http::Method::Get => Method::Get,
-        tiny_http::Method::Head => Method::Head,
-        tiny_http::Method::Options => Method::Options,
-        _ => Method::Other,
+/// Serves one connection: requests one after another while the client keeps it alive.
+fn connection(stream: TcpStream, mounts: &[Mount], quiet: bool, stop: &AtomicBool) {
+    let _ = stream.set_nodelay(true);
+    let _ = stream.set_read_timeout(Some(Duration::from_secs(IDLE_S)));
+    let _ = stream.set_write_timeout(Some(Duration::from_secs(IDLE_S)));
+    let Ok(read_half) = stream.try_clone() else {
+        return;
     };
-    let req = Request {
-        method,
-        target: rq.url().to_string(),
-        headers: rq
-            .headers()
-            .iter()
-            .map(|h| (h.field.as_str().to_string(), h.value.as_str().to_string()))
-            .collect(),
-    };
-    let reply = answer(mounts, &req);
-    let status = reply.status;
-    let sent = match (&reply.body, method) {
-        (_, Method::Head) | (Body::Empty, _) => 0,
-        _ => reply.length,
-    };
-    let mut headers: Vec<tiny_http::Header> = reply
-        .headers
-        .iter()
-        .filter_map(|(k, v)| tiny_http::Header::from_bytes(k.as_bytes(), v.as_bytes()).ok())
-        .collect();
-    headers.extend(tiny_http::Header::from_bytes(
-        &b"Server"[..],
-        concat!("splat2tiles/", env!("CARGO_PKG_VERSION")).as_bytes(),
-    ));
-    let reader: Box<dyn Read + Send> = match reply.body {
-        Body::Empty => Box::new(std::io::empty()),
-        Body::Text(s) => Box::new(std::io::Cursor::new(s.into_bytes())),
-        Body::File {
-            mut file,
-            start,
-            len,
-        } => match file.seek(SeekFrom::Start(start)) {
-            Ok(_) => Box::new(file.take(len)),
-            Err(_) => Box::new(std::io::empty()),
-        },
-    };
-    let length = usize::try_from(reply.length).unwrap_or(usize::MAX);
-    let response = tiny_http::Response::new(
-        tiny_http::StatusCode(status),
-        headers,
-        reader,
-        Some(length),
-        None,
-    )
-    // Always Content-Length, never chunked: clients show progress and resume by byte offset.
-    .with_chunked_threshold(usize::MAX);
-    let result = rq.respond(response);
-    if !quiet {
-        let note = match result {
-            Ok(()) => String::new(),
-            Err(e) => format!(" ({e})"),
+    let mut reader = std::io::BufReader::new(read_half);
+    let mut writer = std::io::BufWriter::with_capacity(64 * 1024, &stream);
+    while !stop.load(Ordering::SeqCst) {
+        let head = match http::read_head(&mut reader) {
+            Ok(h) => h,
+            Err(http::HeadError::Closed) => return,
+            Err(e) => {
+                let (status, msg) = match e {
+                    http::HeadError::TooLarge => (431, "request head too large"),
+                    http::HeadError::Version => (505, "only HTTP/1.0 and HTTP/1.1"),
+                    http::HeadError::Bad(m) => (400, m),
+                    http::HeadError::Closed => return,
+                };
+                let body = format!("{msg}\n");
+                let _ = http::write_response(
+                    &mut writer,
+                    status,
+                    &[("Content-Type", "text/plain; charset=utf-8".into())],
+                    body.len() as u64,
+                    false,
+                    Some(&mut body.as_bytes()),
+                );
+                if !quiet {
+                    eprintln!("- - {status} 0 ({msg})");
+                }
+                return;
+            }
         };
-        eprintln!(
-            "{} {} {status} {sent}{note}",
-            printable(&method_name),
-            printable(&req.target)
+        if head.has_body() {
+            // Nothing served takes a body, and skipping one safely is not worth the risk.
+            let msg = b"request bodies are not accepted\n";
+            let _ = http::write_response(
+                &mut writer,
+                413,
+                &[],
+                msg.len() as u64,
+                false,
+                Some(&mut &msg[..]),
+            );
+            return;
+        }
+        let keep = head.keep_alive();
+        let method = match head.method.as_str() {
+            "GET" => Method::Get,
+            "HEAD" => Method::Head,
+            "OPTIONS" => Method::Options,
+            _ => Method::Other,
+        };
+        let req = Request {
+            method,
+            target: head.target.clone(),
+            headers: head.headers.clone(),
+        };
+        let reply = answer(mounts, &req);
+        let status = reply.status;
+        let mut headers = reply.headers;
+        headers.push((
+            "Server",
+            concat!("splat2tiles/", env!("CARGO_PKG_VERSION")).into(),
+        ));
+        let empty = matches!(reply.body, Body::Empty);
+        let mut reader_body: Box<dyn Read> = match reply.body {
+            Body::Empty => Box::new(std::io::empty()),
+            Body::Text(s) => Box::new(std::io::Cursor::new(s.into_bytes())),
+            Body::File {
+                mut file,
+                start,
+                len,
+            } => match file.seek(SeekFrom::Start(start)) {
+                Ok(_) => Box::new(file.take(len)),
+                Err(_) => Box::new(std::io::empty()),
+            },
+        };
+        // HEAD, 304 and the like announce a length but send no body.
+        let no_body = empty || method == Method::Head || matches!(status, 204 | 304);
+        let result = http::write_response(
+            &mut writer,
+            status,
+            &headers,
+            reply.length,
+            keep,
+            if no_body {
+                None
+            } else {
+                Some(&mut *reader_body)
+            },
         );
+        if !quiet {
+            let (sent, note) = match &result {
+                Ok(n) => (*n, String::new()),
+                Err(e) => (0, format!(" ({e})")),
+            };
+            eprintln!(
+                "{} {} {status} {sent}{note}",
+                printable(&head.method),
+                printable(&head.target)
+            );
+        }
+        if result.is_err() || !keep {
+            return;
+        }
     }
 }
-
 #[cfg(test)]
 mod tests {
     use super::*;
