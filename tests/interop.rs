@@ -10,7 +10,7 @@ mod common;
 use common::*;
 use serde_json::Value;
 use splat2tiles::encode::glb::{parse_json, read_glb};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::sync::Mutex;
 
@@ -33,14 +33,7 @@ fn require_browser_harness() {
             "tests/js/node_modules/{m} is missing: run `npm ci --prefix tests/js`"
         );
     }
-    let chromium = std::env::var_os("CHROMIUM")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
-    assert!(
-        chromium.is_file(),
-        "no Chromium at {} (apt-get install chromium, or set CHROMIUM)",
-        chromium.display()
-    );
+    require_chromium();
 }
 
 fn convert(out: &Path, extra: &[&str]) {

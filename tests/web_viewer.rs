@@ -41,14 +41,7 @@ fn require_harness() {
         js_dir().join("node_modules/playwright-core").is_dir(),
         "tests/js/node_modules/playwright-core is missing: run `npm ci --prefix tests/js`"
     );
-    let chromium = std::env::var_os("CHROMIUM")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
-    assert!(
-        chromium.is_file(),
-        "no Chromium at {} (apt-get install chromium, or set CHROMIUM)",
-        chromium.display()
-    );
+    require_chromium();
     assert!(
         web_dir().join("pkg/splat2tiles_web_bg.wasm").is_file(),
         "the web viewer is not built: run viewer/web/build.sh"

@@ -171,3 +171,15 @@ pub fn require_node_modules() {
         "tests/js/node_modules is missing: run `npm ci --prefix tests/js` (the .ci/run script does)"
     );
 }
+
+/// Fails (never skips) when there is no Chromium for the browser tests (`$CHROMIUM` or Debian's).
+pub fn require_chromium() {
+    let chromium = std::env::var_os("CHROMIUM")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
+    assert!(
+        chromium.is_file(),
+        "no Chromium at {} (apt-get install chromium, or set CHROMIUM)",
+        chromium.display()
+    );
+}
