@@ -1390,6 +1390,11 @@ impl StreamClient {
         let d = self.state[tile].download.as_mut().expect("checked above");
         d.shown = true;
         let (sid, level) = (d.id, d.level);
+        self.add_object(sid, tile, level, splats, m);
+    }
+
+    /// Emits a new drawable `sid` for `tile` and records its splat count.
+    fn add_object(&mut self, sid: u64, tile: usize, level: Level, splats: Splats, m: DMat4) {
         self.scene_splats.insert(sid, splats.len() as u64);
         self.updates.push(SceneUpdate::Insert {
             tile: sid,
@@ -1724,14 +1729,8 @@ impl StreamClient {
             Ok((splats, node)) => {
                 let sid = self.next_scene;
                 self.next_scene += 1;
-                self.scene_splats.insert(sid, splats.len() as u64);
-                self.updates.push(SceneUpdate::Insert {
-                    tile: sid,
-                    key: self.info[i].key,
-                    level,
-                    splats,
-                    tile_to_world: self.tile_to_world(&node),
-                });
+                let m = self.tile_to_world(&node);
+                self.add_object(sid, i, level, splats, m);
                 if let Some((old, _)) = self.state[i].shown.replace((sid, level)) {
                     self.remove_object(old);
                 }
