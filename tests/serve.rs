@@ -111,6 +111,12 @@ fn send(
     req.push_str("\r\n");
     s.write_all(req.as_bytes()).unwrap();
     let mut r = BufReader::new(s);
+    let resp = read_answer_head(&mut r, target);
+    (resp, r)
+}
+
+/// Reads the status line and header fields of an answer (the body is left in `r`).
+fn read_answer_head(r: &mut BufReader<TcpStream>, target: &str) -> Resp {
     let mut status_line = String::new();
     r.read_line(&mut status_line).unwrap();
     let status: u16 = status_line
@@ -129,14 +135,11 @@ fn send(
         let (k, v) = line.split_once(':').expect("header line");
         hs.push((k.trim().to_string(), v.trim().to_string()));
     }
-    (
-        Resp {
-            status,
-            headers: hs,
-            body: Vec::new(),
-        },
-        r,
-    )
+    Resp {
+        status,
+        headers: hs,
+        body: Vec::new(),
+    }
 }
 
 /// A whole request: head and body (read to the close); checks Content-Length against the body.
@@ -612,31 +615,11 @@ fn concurrent_requests_are_all_answered() {
 
 /// Reads one keep-alive answer (head and exactly Content-Length body bytes) from `r`.
 fn read_kept(r: &mut BufReader<TcpStream>) -> (u16, Vec<u8>) {
-    let mut status_line = String::new();
-    r.read_line(&mut status_line).unwrap();
-    let status = status_line
-        .split_whitespace()
-        .nth(1)
-        .unwrap()
-        .parse()
-        .unwrap();
-    let mut len = 0usize;
-    loop {
-        let mut line = String::new();
-        r.read_line(&mut line).unwrap();
-        let line = line.trim_end();
-        if line.is_empty() {
-            break;
-        }
-        if let Some((k, v)) = line.split_once(':')
-            && k.eq_ignore_ascii_case("content-length")
-        {
-            len = v.trim().parse().unwrap();
-        }
-    }
+    let resp = read_answer_head(r, "keep-alive request");
+    let len: usize = resp.header("Content-Length").unwrap().parse().unwrap();
     let mut body = vec![0u8; len];
     r.read_exact(&mut body).unwrap();
-    (status, body)
+    (resp.status, body)
 }
 
 #[test]
