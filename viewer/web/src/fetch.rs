@@ -21,8 +21,6 @@ pub struct Shared {
     inflight: HashMap<RequestId, AbortController>,
     /// Requests aborted by the client whose tasks have not finished yet.
     aborted: HashSet<RequestId>,
-    /// Requests sent with a `Range` header.
-    pub ranged: u64,
     /// Requests aborted.
     pub aborts: u64,
 }
@@ -34,7 +32,6 @@ impl Shared {
             client,
             inflight: HashMap::new(),
             aborted: HashSet::new(),
-            ranged: 0,
             aborts: 0,
         }
     }
@@ -63,13 +60,10 @@ pub fn start(shared: &Rc<RefCell<Shared>>, req: FetchRequest) {
             return;
         }
     };
-    {
-        let mut s = shared.borrow_mut();
-        s.inflight.insert(req.id, controller.clone());
-        if req.range_start > 0 {
-            s.ranged += 1;
-        }
-    }
+    shared
+        .borrow_mut()
+        .inflight
+        .insert(req.id, controller.clone());
     let shared = shared.clone();
     wasm_bindgen_futures::spawn_local(async move {
         let result = transfer(&shared, &req, &controller).await;

@@ -380,7 +380,6 @@ impl WebViewer {
             "bytesReceived": c.bytes_received,
             "paused": c.paused_tiles,
             "aborts": s.aborts,
-            "rangedRequests": s.ranged,
             "resumes": c.resumes,
             "restarts": c.restarts,
             "errors": c.errors,
