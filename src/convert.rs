@@ -5,6 +5,7 @@ use crate::frame::geo::{Geodetic, mercator_unit};
 use crate::frame::{UpAxis, node_matrix, source_to_tileset};
 use crate::io::{self, ReadError, Scene};
 use crate::lod::{LodOptions, ParentTile, build_parents, default_leaf_radius};
+use crate::output::{OutputError, Staging};
 use crate::splat::Splats;
 use crate::splat::importance::sort_indices_by_importance;
 use crate::tiling::subtree::{self, Column, SubtreeData, Table};
@@ -65,6 +66,9 @@ pub struct ConvertOptions {
     pub lod: LodOptions,
     /// Quality variants per tile, target profile, utility measurement.
     pub variants: VariantOptions,
+    /// Memory budget in bytes (`--memory-limit`): inputs whose in-memory conversion is
+    /// estimated above it are refused before anything is allocated.
+    pub memory_limit: u64,
 }
 
 impl Default for ConvertOptions {
@@ -82,6 +86,7 @@ impl Default for ConvertOptions {
             progress: false,
             lod: LodOptions::default(),
             variants: VariantOptions::default(),
+            memory_limit: crate::limits::MemoryLimit::machine_default().bytes(),
         }
     }
 }
@@ -97,6 +102,8 @@ pub struct ConvertReport {
     pub dropped_non_finite: usize,
     /// Zero or non-finite quaternions replaced by the identity while reading.
     pub repaired_rotations: usize,
+    /// Splats whose finite log-scales overflow `exp` (counted among the non-finite ones).
+    pub overflowed_scales: usize,
     /// SH degree of the output.
     pub sh_degree: u8,
     /// Up axis used.
@@ -125,6 +132,9 @@ pub struct ConvertReport {
     pub lod_seconds: f64,
     /// Per content tile: what its variants cost and are worth.
     pub contents: Vec<(TileKey, ContentFacts)>,
+    /// Notes about the output folder (leftovers of interrupted runs cleaned, an earlier result
+    /// that could not be deleted); the command line prints them on stderr.
+    pub notes: Vec<String>,
 }
 
 /// Why a conversion failed. Nothing is left at the output path when it does.
@@ -136,7 +146,7 @@ pub enum ConvertError {
     Read(#[from] ReadError),
     /// A splat holds NaN/Inf and the policy is to fail.
     #[error(
-        "{file}: {location}: splat {index} has a NaN or infinite value (use --non-finite drop to skip such splats)"
+        "{file}: {location}: splat {index} has a NaN or infinite value{note} (use --non-finite drop to skip such splats)"
     )]
     NonFinite {
         /// Input file.
@@ -145,6 +155,8 @@ pub enum ConvertError {
         location: String,
         /// Splat index.
         index: usize,
+        /// Extra explanation (finite log-scales that overflow).
+        note: String,
     },
     /// No splat is left to tile.
     #[error("{file}: no splats to convert{why}")]
@@ -175,6 +187,47 @@ pub enum ConvertError {
         /// Why not.
         why: String,
     },
+    /// The output folder is refused, busy, unwritable, or the run was interrupted.
+    #[error(transparent)]
+    Out(#[from] OutputError),
+}
+
+impl ConvertError {
+    /// Whether an interrupt (Ctrl-C, SIGTERM) stopped the run.
+    pub fn is_interrupt(&self) -> bool {
+        matches!(self, ConvertError::Out(OutputError::Interrupted))
+    }
+
+    /// Names the user's output path instead of the staging folder in file errors.
+    fn relocated(self, staging: &Path, output: &Path) -> Self {
+        let swap = |p: PathBuf| match p.strip_prefix(staging) {
+            Ok(rel) => output.join(rel),
+            Err(_) => p,
+        };
+        match self {
+            ConvertError::Io { path, what, source } => ConvertError::Io {
+                path: swap(path),
+                what,
+                source,
+            },
+            ConvertError::Content(ContentError::Io { path, source }) => {
+                ConvertError::Content(ContentError::Io {
+                    path: swap(path),
+                    source,
+                })
+            }
+            e => e,
+        }
+    }
+}
+
+/// Stops the pipeline when an interrupt arrived (polled between tiles).
+fn check_interrupt() -> Result<(), ConvertError> {
+    if crate::output::interrupted() {
+        Err(OutputError::Interrupted.into())
+    } else {
+        Ok(())
+    }
 }
 
 fn io_err<'a>(
@@ -196,7 +249,7 @@ pub fn convert(
 ) -> Result<ConvertReport, ConvertError> {
     let start = Instant::now();
     let spinner = spinner(opts.progress, format!("reading {}", input.display()));
-    let scene = io::read_path(input)?;
+    let scene = io::read_path_limited(input, opts.memory_limit)?;
     spinner.finish_and_clear();
     let mut report = convert_scene(scene, &input.display().to_string(), output, opts)?;
     report.seconds = start.elapsed().as_secs_f64();
@@ -222,6 +275,7 @@ pub fn convert_scene(
     let mut report = ConvertReport {
         splats_in: splats.len(),
         repaired_rotations: scene.repaired_rotations,
+        overflowed_scales: scene.overflowed_scales,
         sh_degree: splats.sh_degree,
         up_axis: up.to_string(),
         ..Default::default()
@@ -229,17 +283,33 @@ pub fn convert_scene(
     if let Some(i) = splats.first_non_finite() {
         match opts.non_finite {
             NonFinitePolicy::Fail => {
+                let note = if scene.overflowed_scales > 0 {
+                    format!(
+                        " ({} splats have finite log-scales too large for exp(), e.g. above 88.7: \
+                         their scale overflows)",
+                        scene.overflowed_scales
+                    )
+                } else {
+                    String::new()
+                };
                 return Err(ConvertError::NonFinite {
                     file: name.to_string(),
                     location: scene.locator.describe(i),
                     index: i,
+                    note,
                 });
             }
             NonFinitePolicy::Drop => report.dropped_non_finite = splats.drop_non_finite(),
         }
     }
     if splats.is_empty() {
-        let why = if report.dropped_non_finite > 0 {
+        let why = if report.dropped_non_finite > 0 && scene.overflowed_scales > 0 {
+            format!(
+                " (all {} splats had NaN or infinite values; {} of them are finite in the file but \
+                 have log-scales too large for exp(), e.g. above 88.7, so their scale overflows)",
+                report.dropped_non_finite, scene.overflowed_scales
+            )
+        } else if report.dropped_non_finite > 0 {
             format!(
                 " (all {} splats had NaN or infinite values)",
                 report.dropped_non_finite
@@ -253,7 +323,9 @@ pub fn convert_scene(
         });
     }
 
-    let staging = Staging::beside(output)?;
+    let staging = Staging::prepare(output)?;
+    let dir = staging.path().to_path_buf();
+    let relocate = |e: ConvertError| e.relocated(&dir, output);
     let a = source_to_tileset(up, opts.heading_deg);
     let layout = Layout::new(&splats, a, opts);
     let part = partition(
@@ -270,7 +342,7 @@ pub fn convert_scene(
         .par_iter_mut()
         .for_each(|l| sort_indices_by_importance(&splats, &mut l.indices));
 
-    let tiles = write_leaves(&splats, &layout, &part, staging.path(), opts)?;
+    let tiles = write_leaves(&splats, &layout, &part, &dir, opts).map_err(relocate)?;
     report.content_tiles = tiles.len();
     report.contents = tiles
         .iter()
@@ -289,7 +361,7 @@ pub fn convert_scene(
                 part.levels.saturating_sub(1),
             )
         });
-        let parents = write_parents(&splats, &layout, &part, r, opts, staging.path())?;
+        let parents = write_parents(&splats, &layout, &part, r, opts, &dir).map_err(relocate)?;
         for (key, p) in parents {
             let t = tree.get_mut(&key).expect("parents are tree tiles");
             t.splat_count = p.facts.splat_count;
@@ -316,7 +388,7 @@ pub fn convert_scene(
         })
         .clamp(1, part.levels.max(1));
     let (subtrees, subtree_bytes) =
-        write_subtrees(&tree, layout.scheme, subtree_levels, staging.path())?;
+        write_subtrees(&tree, layout.scheme, subtree_levels, &dir).map_err(relocate)?;
     report.subtrees = subtrees;
     report.bytes += subtree_bytes;
 
@@ -330,11 +402,13 @@ pub fn convert_scene(
         &opts.variants,
     );
     let json = serde_json::to_vec_pretty(&tileset).expect("tileset serialises");
-    let path = staging.path().join("tileset.json");
-    std::fs::write(&path, &json).map_err(io_err(&path, "writing"))?;
+    let path = dir.join("tileset.json");
+    std::fs::write(&path, &json)
+        .map_err(io_err(&path, "writing"))
+        .map_err(relocate)?;
     report.bytes += json.len() as u64;
 
-    staging.commit(output)?;
+    report.notes = staging.commit()?;
     if opts.keep_index_map {
         report.leaves = part
             .leaves
@@ -504,6 +578,7 @@ fn write_centred(
     dir: &Path,
     opts: &ConvertOptions,
 ) -> Result<(DVec3, DVec3, ContentFacts), ConvertError> {
+    check_interrupt()?;
     let (lo, hi) = bounds(pts);
     let centre_s = layout.a.transpose() * ((lo + hi) * 0.5);
     let facts = write_tile_contents(
@@ -672,6 +747,7 @@ fn write_subtrees(
     let mut files = 0;
     let mut bytes = 0;
     for (root, members) in &groups {
+        check_interrupt()?;
         let mut tiles = vec![false; n_tiles];
         let mut contents = vec![false; n_tiles];
         let mut child_subtrees = vec![false; n_children];
@@ -823,122 +899,6 @@ fn tileset_json(
                 "georeferenced": layout.transform.is_some(),
             }
         })),
-    }
-}
-
-/// Staging folders of conversions in progress, removed by the interrupt handler.
-static ACTIVE_STAGING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
-
-/// Installs a Ctrl-C / SIGTERM handler that removes unfinished output folders and exits with
-/// 130, so an interrupted conversion leaves nothing behind. Call once, from the binary.
-pub fn remove_staging_on_interrupt() {
-    #[cfg(feature = "native")]
-    let _ = ctrlc::set_handler(|| {
-        if let Ok(dirs) = ACTIVE_STAGING.lock() {
-            for d in dirs.iter() {
-                let _ = std::fs::remove_dir_all(d);
-            }
-        }
-        eprintln!("splat2tiles: interrupted; no output written");
-        std::process::exit(130);
-    });
-}
-
-/// A temporary output folder beside the target; removed on drop unless committed.
-struct Staging {
-    path: PathBuf,
-    committed: bool,
-}
-
-impl Staging {
-    fn beside(target: &Path) -> Result<Staging, ConvertError> {
-        let name = target
-            .file_name()
-            .ok_or_else(|| ConvertError::Output {
-                path: target.to_path_buf(),
-                why: "the output must name a folder".into(),
-            })?
-            .to_string_lossy()
-            .into_owned();
-        if target.exists() {
-            let ok = target.is_dir()
-                && (target.join("tileset.json").is_file()
-                    || std::fs::read_dir(target)
-                        .map_err(io_err(target, "listing"))?
-                        .next()
-                        .is_none());
-            if !ok {
-                return Err(ConvertError::Output {
-                    path: target.to_path_buf(),
-                    why: "exists and is not an empty folder or an earlier tileset: refusing to replace it".into(),
-                });
-            }
-        }
-        let parent = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        std::fs::create_dir_all(&parent).map_err(io_err(&parent, "creating folder"))?;
-        // Leftovers of interrupted runs into the same target.
-        let prefix = format!(".{name}.s2t-tmp-");
-        if let Ok(entries) = std::fs::read_dir(&parent) {
-            for e in entries.flatten() {
-                if e.file_name().to_string_lossy().starts_with(&prefix) {
-                    let _ = std::fs::remove_dir_all(e.path());
-                }
-            }
-        }
-        let path = parent.join(format!("{prefix}{}", std::process::id()));
-        if let Ok(mut dirs) = ACTIVE_STAGING.lock() {
-            dirs.push(path.clone());
-        }
-        std::fs::create_dir_all(&path).map_err(io_err(&path, "creating folder"))?;
-        Ok(Staging {
-            path,
-            committed: false,
-        })
-    }
-
-    fn path(&self) -> &Path {
-        &self.path
-    }
-
-    /// Moves the finished folder into place, replacing an earlier result only at the very end.
-    fn commit(mut self, target: &Path) -> Result<(), ConvertError> {
-        // The interrupt handler waits on this lock, so it never runs between the two renames.
-        let _no_interrupt = ACTIVE_STAGING.lock();
-        let old = self.path.with_file_name(format!(
-            ".{}.s2t-old-{}",
-            target.file_name().unwrap_or_default().to_string_lossy(),
-            std::process::id()
-        ));
-        let had_old = target.exists();
-        if had_old {
-            std::fs::rename(target, &old)
-                .map_err(io_err(target, "moving the earlier result aside"))?;
-        }
-        if let Err(e) = std::fs::rename(&self.path, target) {
-            if had_old {
-                let _ = std::fs::rename(&old, target);
-            }
-            return Err(io_err(target, "moving the new result into place")(e));
-        }
-        self.committed = true;
-        if had_old {
-            let _ = std::fs::remove_dir_all(&old);
-        }
-        Ok(())
-    }
-}
-
-impl Drop for Staging {
-    fn drop(&mut self) {
-        if !self.committed {
-            let _ = std::fs::remove_dir_all(&self.path);
-        }
-        if let Ok(mut dirs) = ACTIVE_STAGING.lock() {
-            dirs.retain(|d| d != &self.path);
-        }
     }
 }
 

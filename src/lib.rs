@@ -8,7 +8,9 @@ pub mod convert;
 pub mod encode;
 pub mod frame;
 pub mod io;
+pub mod limits;
 pub mod lod;
+pub mod output;
 pub mod render;
 #[cfg(feature = "native")]
 pub mod serve;

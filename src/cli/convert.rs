@@ -4,6 +4,7 @@
 use crate::convert::{ConvertOptions, NonFinitePolicy, SchemeChoice, convert};
 use crate::frame::UpAxis;
 use crate::frame::geo::Geodetic;
+use crate::limits::MemoryLimit;
 use crate::lod::{LodOptions, MergeRule};
 use crate::variants::{ALL, Profile, Variant, VariantOptions};
 use clap::Args;
@@ -68,6 +69,10 @@ pub struct ConvertArgs {
     /// Do not render tiles to measure variant utilities (stored as -1).
     #[arg(long)]
     pub no_utility: bool,
+    /// Memory budget, e.g. 512MiB or 2GiB: inputs whose in-memory conversion is estimated above
+    /// it are refused before anything is allocated [default: half the RAM, at most 4GiB].
+    #[arg(long, value_parser = MemoryLimit::parse)]
+    pub memory_limit: Option<MemoryLimit>,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -104,16 +109,24 @@ pub fn run(args: ConvertArgs) -> i32 {
             measure_utility: !args.no_utility,
             ..Default::default()
         },
+        memory_limit: args
+            .memory_limit
+            .unwrap_or_else(MemoryLimit::machine_default)
+            .bytes(),
     };
-    crate::convert::remove_staging_on_interrupt();
+    crate::output::install_interrupt_handler();
     match convert(&args.input, &args.output, &opts) {
         Ok(r) => {
+            for note in &r.notes {
+                eprintln!("splat2tiles: {note}");
+            }
             if args.json {
                 let v = serde_json::json!({
                     "input": args.input, "output": args.output,
                     "splatsIn": r.splats_in, "splatsOut": r.splats_out,
                     "droppedNonFinite": r.dropped_non_finite,
                     "repairedRotations": r.repaired_rotations,
+                    "overflowedScales": r.overflowed_scales,
                     "shDegree": r.sh_degree, "upAxis": r.up_axis, "scheme": r.scheme,
                     "tiles": r.tiles, "contentTiles": r.content_tiles, "levels": r.levels,
                     "subtrees": r.subtrees, "bytes": r.bytes, "seconds": r.seconds,
@@ -137,6 +150,12 @@ pub fn run(args: ConvertArgs) -> i32 {
                     println!(
                         "  dropped {} splats with NaN or infinite values",
                         r.dropped_non_finite
+                    );
+                }
+                if r.overflowed_scales > 0 {
+                    println!(
+                        "  ({} of them are finite in the file, but their log-scales are too large for exp())",
+                        r.overflowed_scales
                     );
                 }
                 if r.repaired_rotations > 0 {
@@ -178,6 +197,10 @@ pub fn run(args: ConvertArgs) -> i32 {
                 );
             }
             0
+        }
+        Err(e) if e.is_interrupt() => {
+            eprintln!("splat2tiles: interrupted; no output written");
+            130
         }
         Err(e) => {
             eprintln!("splat2tiles: {e}");

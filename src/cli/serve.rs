@@ -1,15 +1,18 @@
 //! `splat2tiles serve` and `splat2tiles view`: serve a tileset folder over HTTP (and, for `view`,
 //! the web viewer at `/viewer/`), print the URL, and run until Ctrl-C.
 
-use crate::serve::{Mount, ServeOptions, Server};
+use crate::serve::{Mount, ServeError, ServeOptions, Server};
 use anyhow::{Context, bail};
 use clap::Args;
 use std::io::Write;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
 
-/// Most connections served at once, one thread each (browsers keep 6 per host open and idle).
-const THREADS: usize = 256;
+/// Most connections kept at once, one thread each (browsers keep 6 per host open and idle);
+/// when full, waiting connections are evicted (`serve::admission`).
+const THREADS: usize = 512;
+/// The port `view` tries first when none is given.
+const VIEW_PORT: u16 = 8080;
 
 /// Arguments of `serve`.
 #[derive(Debug, Args)]
@@ -32,9 +35,10 @@ pub struct ServeArgs {
 pub struct ViewArgs {
     /// The tileset folder (holding `tileset.json`).
     pub dir: PathBuf,
-    /// Port to listen on; 0 picks a free one (printed).
-    #[arg(long, default_value_t = 8080)]
-    pub port: u16,
+    /// Port to listen on; 0 picks a free one (printed) [default: 8080, or a free port when 8080
+    /// is taken, e.g. by another `view`].
+    #[arg(long)]
+    pub port: Option<u16>,
     /// Address to listen on; loopback unless given.
     #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST))]
     pub bind: IpAddr,
@@ -67,15 +71,33 @@ fn run_server(
     quiet: bool,
     after_bind: impl FnOnce(&str),
 ) -> anyhow::Result<()> {
-    let server = Server::bind(
-        mounts,
-        ServeOptions {
-            bind,
-            port,
-            quiet,
-            threads: THREADS,
-        },
-    )?;
+    run_server_fallback(mounts, bind, port, false, quiet, after_bind)
+}
+
+/// [`run_server`]; with `fallback`, a taken port is replaced by a free one (with a note).
+fn run_server_fallback(
+    mounts: Vec<Mount>,
+    bind: IpAddr,
+    port: u16,
+    fallback: bool,
+    quiet: bool,
+    after_bind: impl FnOnce(&str),
+) -> anyhow::Result<()> {
+    let opts = |port| ServeOptions {
+        bind,
+        port,
+        quiet,
+        threads: THREADS,
+    };
+    let server = match Server::bind(mounts.clone(), opts(port)) {
+        Err(ServeError::Bind { in_use: true, .. }) if fallback => {
+            eprintln!(
+                "splat2tiles: port {port} is taken (another `view` or server?); using a free port"
+            );
+            Server::bind(mounts, opts(0))?
+        }
+        r => r?,
+    };
     let stop = server.stop_handle();
     ctrlc::set_handler(move || stop.stop()).context("cannot install the Ctrl-C handler")?;
     after_bind(&base_url(server.addr()));
@@ -140,7 +162,9 @@ pub fn run_view(args: &ViewArgs) -> anyhow::Result<()> {
         Mount::new("/viewer/", &args.web_dir)?,
     ];
     let shown = args.dir.display().to_string();
-    run_server(mounts, args.bind, args.port, args.quiet, |url| {
+    let port = args.port.unwrap_or(VIEW_PORT);
+    let fallback = args.port.is_none();
+    run_server_fallback(mounts, args.bind, port, fallback, args.quiet, |url| {
         let page = format!("{url}viewer/index.html?tileset=/tileset.json");
         say(&format!("serving {shown} at {url}"));
         say(&format!("viewer: {page}"));

@@ -88,6 +88,30 @@ pub enum ReadErrorKind {
     /// A valid file using something this reader does not support.
     #[error("unsupported: {0}")]
     Unsupported(String),
+    /// Converting the input in memory would exceed the memory limit (`--memory-limit`).
+    #[error("{}", over_limit(*.count, *.estimated, *.limit))]
+    OverMemoryLimit {
+        /// Splats the input declares (or implies), when known.
+        count: Option<u64>,
+        /// Estimated bytes of converting it in memory.
+        estimated: u64,
+        /// The limit in bytes.
+        limit: u64,
+    },
+}
+
+/// The message of [`ReadErrorKind::OverMemoryLimit`].
+fn over_limit(count: Option<u64>, estimated: u64, limit: u64) -> String {
+    use crate::limits::human;
+    let what = match count {
+        Some(n) => format!("{n} declared splats need an estimated {}", human(estimated)),
+        None => format!("the input is larger than {}", human(estimated)),
+    };
+    format!(
+        "{what} in memory, more than the memory limit of {} (raise it with --memory-limit SIZE \
+         if the machine has the memory)",
+        human(limit)
+    )
 }
 
 /// A reader failure naming the file and, where it applies, the byte offset or line.
@@ -137,6 +161,8 @@ impl std::error::Error for ReadError {
 pub(crate) struct Ctx<'a> {
     /// The file name errors print.
     pub name: &'a str,
+    /// Memory limit in bytes for holding the input and its splats.
+    pub limit: u64,
 }
 
 impl Ctx<'_> {
@@ -153,6 +179,29 @@ impl Ctx<'_> {
     /// An error without a position.
     pub fn whole(&self, kind: ReadErrorKind) -> ReadError {
         ReadError::new(self.name, Location::None, kind)
+    }
+
+    /// Refuses (error at `byte`, where the count is declared) when `count` splats of SH
+    /// `degree`, with `held` input bytes in memory, would exceed the memory limit.
+    pub fn check_memory(
+        &self,
+        byte: u64,
+        count: u64,
+        degree: u8,
+        held: u64,
+    ) -> Result<(), ReadError> {
+        let estimated = crate::limits::in_memory_estimate(count, degree, held);
+        if estimated > self.limit {
+            return Err(self.at(
+                byte,
+                ReadErrorKind::OverMemoryLimit {
+                    count: Some(count),
+                    estimated,
+                    limit: self.limit,
+                },
+            ));
+        }
+        Ok(())
     }
 
     /// A `BadHeader` error at a byte offset.

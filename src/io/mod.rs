@@ -18,6 +18,7 @@ pub use spz::MAX_SPZ_POINTS;
 use std::fmt;
 use std::path::Path;
 
+use crate::limits::MemoryLimit;
 use crate::splat::Splats;
 
 pub use error::{Location, ReadError, ReadErrorKind};
@@ -128,38 +129,128 @@ pub struct Scene {
     pub locator: Locator,
     /// Quaternions that were zero or non-finite and were replaced by the identity.
     pub repaired_rotations: usize,
+    /// Splats whose log-scales are finite in the file but too large for `exp` in f32 (their
+    /// linear scale is infinite): named separately so reports do not blame the file for NaN/Inf.
+    pub overflowed_scales: usize,
 }
 
-/// Reads a scene file; the path is what errors print.
+/// Reads a scene file under the machine's default memory limit; the path is what errors print.
 pub fn read_path(path: &Path) -> Result<Scene, ReadError> {
-    let name = path.display().to_string();
-    let bytes = std::fs::read(path)
-        .map_err(|e| ReadError::new(&name, Location::None, ReadErrorKind::Io(e)))?;
-    read_bytes(&name, &bytes)
+    read_path_limited(path, MemoryLimit::machine_default().bytes())
 }
 
-/// Reads a scene held in memory; `name` is what errors print and its extension is the fallback
-/// for format detection.
+/// Longest prefix read before the format and the declared size are checked (a PLY header is at
+/// most [`ply::MAX_HEADER_BYTES`]).
+const HEAD_BYTES: u64 = 1 << 20;
+
+/// Reads a scene file, refusing before allocating when converting it would take more than
+/// `limit` bytes: the magic bytes and the declared size (PLY header, `.splat` length) are checked
+/// on a bounded prefix first, and no more than `limit` bytes are ever read (devices and pipes
+/// included).
+pub fn read_path_limited(path: &Path, limit: u64) -> Result<Scene, ReadError> {
+    use std::io::Read;
+    let name = path.display().to_string();
+    let cx = error::Ctx { name: &name, limit };
+    let io_err = |e| cx.whole(ReadErrorKind::Io(e));
+    let file = std::fs::File::open(path).map_err(io_err)?;
+    let meta = file.metadata().map_err(io_err)?;
+    if meta.is_dir() {
+        return Err(cx.whole(ReadErrorKind::Io(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "is a folder, not a scene file",
+        ))));
+    }
+    // Regular files tell their size; devices and pipes do not (read up to the limit then).
+    let known_len = meta.is_file().then_some(meta.len());
+    let mut reader = file;
+    let mut bytes = Vec::new();
+    (&mut reader)
+        .take(HEAD_BYTES.min(limit))
+        .read_to_end(&mut bytes)
+        .map_err(io_err)?;
+    let kind = detect(&cx, &bytes)?;
+    let total = known_len.unwrap_or(bytes.len() as u64);
+    match kind {
+        Kind::Ply => ply::check_declared(&cx, &bytes, total)?,
+        Kind::Splat => splat_file::check_declared(&cx, total)?,
+        // Compressed: the declared count is checked once the header is decompressed.
+        Kind::Spz if total > limit => {
+            return Err(cx.whole(ReadErrorKind::OverMemoryLimit {
+                count: None,
+                estimated: total,
+                limit,
+            }));
+        }
+        Kind::Spz => {}
+    }
+    if let Some(len) = known_len {
+        bytes.reserve_exact(len.saturating_sub(bytes.len() as u64).min(limit) as usize);
+    }
+    let room = limit.saturating_sub(bytes.len() as u64).saturating_add(1);
+    (&mut reader)
+        .take(room)
+        .read_to_end(&mut bytes)
+        .map_err(io_err)?;
+    if bytes.len() as u64 > limit {
+        return Err(cx.whole(ReadErrorKind::OverMemoryLimit {
+            count: None,
+            estimated: bytes.len() as u64,
+            limit,
+        }));
+    }
+    read_detected(&cx, kind, &bytes)
+}
+
+/// Reads a scene held in memory under the machine's default memory limit; `name` is what errors
+/// print and its extension is the fallback for format detection.
 pub fn read_bytes(name: &str, bytes: &[u8]) -> Result<Scene, ReadError> {
-    let cx = error::Ctx { name };
+    read_bytes_limited(name, bytes, MemoryLimit::machine_default().bytes())
+}
+
+/// [`read_bytes`] with an explicit memory limit in bytes (declared counts are checked against
+/// it before anything is allocated or decompressed).
+pub fn read_bytes_limited(name: &str, bytes: &[u8], limit: u64) -> Result<Scene, ReadError> {
+    let cx = error::Ctx { name, limit };
+    let kind = detect(&cx, bytes)?;
+    read_detected(&cx, kind, bytes)
+}
+
+/// The reader a file's first bytes (or, without magic bytes, its extension) call for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Ply,
+    Spz,
+    Splat,
+}
+
+fn read_detected(cx: &error::Ctx, kind: Kind, bytes: &[u8]) -> Result<Scene, ReadError> {
+    match kind {
+        Kind::Ply => ply::read(cx, bytes),
+        Kind::Spz => spz::read(cx, bytes),
+        Kind::Splat => splat_file::read(cx, bytes),
+    }
+}
+
+/// Detects the format from the magic bytes, then the extension (`.splat` has no magic).
+fn detect(cx: &error::Ctx, bytes: &[u8]) -> Result<Kind, ReadError> {
     if bytes.is_empty() {
         return Err(cx.whole(ReadErrorKind::Empty));
     }
     if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") {
-        return ply::read(&cx, bytes);
+        return Ok(Kind::Ply);
     }
     if bytes.starts_with(&[0x1f, 0x8b])
         || bytes.starts_with(&spz::ZSTD_MAGIC)
         || bytes.starts_with(&spz::NGSP_MAGIC)
     {
-        return spz::read(&cx, bytes);
+        return Ok(Kind::Spz);
     }
-    let ext = Path::new(name)
+    let ext = Path::new(cx.name)
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
-        Some("splat") => splat_file::read(&cx, bytes),
+        Some("splat") => Ok(Kind::Splat),
         Some("ply") => Err(cx.at(
             0,
             ReadErrorKind::UnknownFormat("a .ply file must start with the line 'ply'".into()),

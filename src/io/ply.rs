@@ -12,7 +12,7 @@ use super::{InputFormat, Locator, PlyEncoding, Scene};
 use crate::splat::{self, Splats, sh_rest_count};
 
 /// Longest header we accept (trainer headers are about 1.5 kB).
-const MAX_HEADER_BYTES: usize = 1 << 20;
+pub(crate) const MAX_HEADER_BYTES: usize = 1 << 20;
 /// Records decoded per parallel task.
 const CHUNK: usize = 8192;
 
@@ -132,6 +132,9 @@ fn parse_header(cx: &Ctx, bytes: &[u8]) -> Result<Header, ReadError> {
     let mut line_no = 0u64;
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
+    // Property names of the current element (a set: headers with tens of thousands of
+    // properties must not take quadratic time).
+    let mut names: std::collections::HashSet<String> = std::collections::HashSet::new();
     loop {
         let at = pos as u64;
         let Some(nl) = bytes[pos..limit].iter().position(|&b| b == b'\n') else {
@@ -187,6 +190,7 @@ fn parse_header(cx: &Ctx, bytes: &[u8]) -> Result<Header, ReadError> {
                     props: Vec::new(),
                     at,
                 });
+                names.clear();
             }
             "property" => {
                 let Some(el) = elements.last_mut() else {
@@ -210,7 +214,7 @@ fn parse_header(cx: &Ctx, bytes: &[u8]) -> Result<Header, ReadError> {
                     ),
                     _ => return Err(cx.header(at, format!("malformed property line '{line}'"))),
                 };
-                if el.props.iter().any(|p| p.name == name) {
+                if !names.insert(name.to_string()) {
                     return Err(cx.header(
                         at,
                         format!("duplicate property '{name}' in element '{}'", el.name),
@@ -404,22 +408,49 @@ struct Out<'a> {
     rest: &'a mut [f32],
 }
 
-/// Converts one vertex into the model's conventions; returns true when the quaternion was
-/// replaced by the identity.
+/// What converting one vertex had to note.
+#[derive(Debug, Clone, Copy, Default)]
+struct Notes {
+    /// Quaternions replaced by the identity.
+    repaired: usize,
+    /// Finite log-scales whose `exp` overflows f32.
+    overflowed: usize,
+}
+
+impl std::ops::Add for Notes {
+    type Output = Notes;
+    fn add(self, o: Notes) -> Notes {
+        Notes {
+            repaired: self.repaired + o.repaired,
+            overflowed: self.overflowed + o.overflowed,
+        }
+    }
+}
+
+/// Converts one vertex into the model's conventions; notes a quaternion replaced by the
+/// identity and a finite log-scale that overflows.
 #[inline(always)]
-fn convert<S: Src>(s: &S, lay: &Layout, o: Out<'_>) -> bool {
+fn convert<S: Src>(s: &S, lay: &Layout, o: Out<'_>) -> Notes {
     let f = &lay.fixed;
     *o.pos = [s.f64(f[0]), s.f64(f[1]), s.f64(f[2])];
     *o.sh0 = [s.f32(f[3]), s.f32(f[4]), s.f32(f[5])];
     *o.opacity = splat::sigmoid(s.f32(f[6]));
-    *o.scale = [s.f32(f[7]).exp(), s.f32(f[8]).exp(), s.f32(f[9]).exp()];
+    let log_scale = [s.f32(f[7]), s.f32(f[8]), s.f32(f[9])];
+    *o.scale = log_scale.map(f32::exp);
+    let overflowed = log_scale
+        .iter()
+        .zip(o.scale.iter())
+        .any(|(l, e)| l.is_finite() && !e.is_finite());
     let q = [s.f32(f[11]), s.f32(f[12]), s.f32(f[13]), s.f32(f[10])];
     let repaired = q.iter().any(|v| !v.is_finite()) || q.iter().all(|v| *v == 0.0);
     *o.rot = splat::normalize_quat(q);
     for (d, fld) in o.rest.iter_mut().zip(&lay.rest) {
         *d = s.f32(*fld);
     }
-    repaired
+    Notes {
+        repaired: repaired as usize,
+        overflowed: overflowed as usize,
+    }
 }
 
 /// Reads a PLY file (starting with `ply\n`).
@@ -430,7 +461,10 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
     };
     let ascii = h.encoding == PlyEncoding::Ascii;
     let lay = layout(cx, &h.elements[vi], ascii)?;
-    let (splats, locator, repaired) = if ascii {
+    let v = &h.elements[vi];
+    let total = bytes.len() as u64;
+    cx.check_memory(v.at, holdable(&h, v, total), lay.degree, total)?;
+    let (splats, locator, notes) = if ascii {
         read_ascii(cx, bytes, &h, vi, &lay)?
     } else {
         read_binary(cx, bytes, &h, vi, &lay)?
@@ -441,8 +475,41 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
             encoding: h.encoding,
         },
         locator,
-        repaired_rotations: repaired,
+        repaired_rotations: notes.repaired,
+        overflowed_scales: notes.overflowed,
     })
+}
+
+/// Checks the vertex count the header in `head` (the file's first bytes) declares against the
+/// memory limit, for a file of `total` bytes, before the body is read.
+pub(crate) fn check_declared(cx: &Ctx, head: &[u8], total: u64) -> Result<(), ReadError> {
+    let h = parse_header(cx, head)?;
+    let Some(v) = h.elements.iter().find(|e| e.name == "vertex") else {
+        return Err(cx.header(h.end_at, "no 'vertex' element in the header"));
+    };
+    let rest = v
+        .props
+        .iter()
+        .filter(|p| p.name.starts_with("f_rest_"))
+        .count();
+    let degree = match rest {
+        45.. => 3,
+        24.. => 2,
+        9.. => 1,
+        _ => 0,
+    };
+    cx.check_memory(v.at, holdable(&h, v, total), degree, total)
+}
+
+/// The vertex count that matters for memory: the declared one, or fewer when a file of `total`
+/// bytes cannot hold that many records (the reader then reports the truncation).
+fn holdable(h: &Header, v: &Element, total: u64) -> u64 {
+    let per = if h.encoding == PlyEncoding::Ascii {
+        2 * v.props.len() as u64
+    } else {
+        v.fixed_size().unwrap_or(1) as u64
+    };
+    v.count.min(total / per.max(1))
 }
 
 /// Skips one element's binary data starting at `pos`; returns the new position.
@@ -525,7 +592,7 @@ fn read_binary(
     h: &Header,
     vi: usize,
     lay: &Layout,
-) -> Result<(Splats, Locator, usize), ReadError> {
+) -> Result<(Splats, Locator, Notes), ReadError> {
     let be = h.encoding == PlyEncoding::BinaryBigEndian;
     let mut pos = h.body;
     for el in &h.elements[..vi] {
@@ -574,7 +641,7 @@ fn read_binary(
 }
 
 /// Decodes `n` fixed-size vertex records in parallel chunks.
-fn decode_binary(body: &[u8], n: usize, lay: &Layout, be: bool) -> (Splats, usize) {
+fn decode_binary(body: &[u8], n: usize, lay: &Layout, be: bool) -> (Splats, Notes) {
     let k = lay.rest.len();
     let mut s = Splats {
         positions: vec![[0.0; 3]; n],
@@ -607,7 +674,7 @@ fn decode_binary(body: &[u8], n: usize, lay: &Layout, be: bool) -> (Splats, usiz
     )
         .into_par_iter()
         .map(|(p, sc, r, o, d, rest, recs)| {
-            let mut repaired = 0usize;
+            let mut notes = Notes::default();
             for i in 0..p.len() {
                 let rec = &recs[i * stride..(i + 1) * stride];
                 let out = Out {
@@ -622,16 +689,16 @@ fn decode_binary(body: &[u8], n: usize, lay: &Layout, be: bool) -> (Splats, usiz
                         &mut rest[i * k..(i + 1) * k]
                     },
                 };
-                let fixed = if fast {
-                    convert(&LeF32(rec), lay, out)
-                } else {
-                    convert(&AnyBin { rec, be }, lay, out)
-                };
-                repaired += fixed as usize;
+                notes = notes
+                    + if fast {
+                        convert(&LeF32(rec), lay, out)
+                    } else {
+                        convert(&AnyBin { rec, be }, lay, out)
+                    };
             }
-            repaired
+            notes
         })
-        .sum();
+        .reduce(Notes::default, |a, b| a + b);
     (s, repaired)
 }
 
@@ -664,7 +731,7 @@ fn read_ascii(
     h: &Header,
     vi: usize,
     lay: &Layout,
-) -> Result<(Splats, Locator, usize), ReadError> {
+) -> Result<(Splats, Locator, Notes), ReadError> {
     let mut lines = Lines {
         bytes,
         pos: h.body,
@@ -697,7 +764,7 @@ fn read_ascii(
     let mut vals = vec![0.0f64; nprops];
     let k = lay.rest.len();
     let mut rest = vec![0.0f32; k];
-    let mut repaired = 0usize;
+    let mut repaired = Notes::default();
     for i in 0..v.count {
         let (ln, raw) = lines.next_line().ok_or_else(|| eof(&lines, v, i))?;
         let text = std::str::from_utf8(raw)
@@ -745,7 +812,7 @@ fn read_ascii(
             sh0: &mut one.sh0,
             rest: &mut rest,
         };
-        repaired += convert(&Vals(&vals), lay, out) as usize;
+        repaired = repaired + convert(&Vals(&vals), lay, out);
         s.push(one, rest.as_chunks::<3>().0);
         line_of.push(ln);
     }

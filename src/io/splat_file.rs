@@ -18,6 +18,11 @@ fn f32_at(r: &[u8], off: usize) -> f32 {
     f32::from_le_bytes([r[off], r[off + 1], r[off + 2], r[off + 3]])
 }
 
+/// Checks the splat count a `.splat` file of `total` bytes implies against the memory limit.
+pub(crate) fn check_declared(cx: &Ctx, total: u64) -> Result<(), ReadError> {
+    cx.check_memory(0, total / RECORD as u64, 0, total)
+}
+
 /// Reads a `.splat` body (its length must be a multiple of 32).
 pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
     let whole = bytes.len() / RECORD * RECORD;
@@ -36,6 +41,7 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
         ));
     }
     let n = bytes.len() / RECORD;
+    check_declared(cx, bytes.len() as u64)?;
     let decoded: Vec<Decoded> = bytes
         .par_chunks(RECORD)
         .map(|r| {
@@ -79,5 +85,6 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
             stride: RECORD as u64,
         },
         repaired_rotations: repaired,
+        overflowed_scales: 0,
     })
 }

@@ -105,6 +105,7 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
             // An uncompressed legacy payload (some tools write it so).
             2 | 3 => {
                 let h = parse_common(cx, bytes, 0, "")?;
+                cx.check_memory(8, h.n as u64, h.degree, bytes.len() as u64)?;
                 decode_legacy(cx, h, &bytes[16..], "")
             }
             v => Err(cx.at(4, ReadErrorKind::Unsupported(format!("SPZ version {v}")))),
@@ -143,6 +144,13 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
         ));
     }
     let data = h.data_len();
+    // Before anything is decompressed: the arrays and the splats must fit the memory limit.
+    cx.check_memory(
+        8,
+        h.n as u64,
+        h.degree,
+        (bytes.len() as u64).saturating_add(data),
+    )?;
     let most = (bytes.len() as u64)
         .saturating_mul(ratio)
         .saturating_add(4096);
@@ -162,9 +170,23 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
         0
     };
     let mut body = Vec::with_capacity(data.min(1 << 26) as usize);
-    dec.take(data + slack + 1)
-        .read_to_end(&mut body)
-        .map_err(derr)?;
+    let cap = data + slack;
+    dec.take(cap + 1).read_to_end(&mut body).map_err(derr)?;
+    if body.len() as u64 > cap {
+        return Err(cx.at(
+            16 + cap,
+            ReadErrorKind::Decompress(format!(
+                "the {what} stream holds more than the {data} bytes{} that {} points need; \
+                 stopped decompressing there (a decompression bomb, or a wrong point count)",
+                if slack > 0 {
+                    format!(" (+{slack} of extension records)")
+                } else {
+                    String::new()
+                },
+                h.n
+            )),
+        ));
+    }
     decode_legacy(cx, h, &body, note)
 }
 
@@ -306,6 +328,8 @@ fn read_v4(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
             },
         ));
     }
+    let raw_total: u64 = streams.iter().map(|s| s.3).sum();
+    cx.check_memory(8, h.n as u64, h.degree, len.saturating_add(raw_total))?;
     let decoded: Vec<Vec<u8>> = streams
         .par_iter()
         .map(|&(i, at, comp, raw)| unzstd(cx, i, at, comp, raw))
@@ -413,6 +437,7 @@ fn build(h: Header, a: &[&[u8]]) -> Scene {
         format: InputFormat::Spz { version: h.version },
         locator: Locator::Index,
         repaired_rotations: repaired,
+        overflowed_scales: 0,
     }
 }
 

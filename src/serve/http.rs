@@ -30,6 +30,8 @@ pub enum HeadError {
     Version,
     /// Malformed (400), with what was wrong.
     Bad(&'static str),
+    /// The head did not arrive before the deadline (408).
+    Timeout,
 }
 
 impl Head {
@@ -70,6 +72,14 @@ pub fn read_head<R: BufRead>(r: &mut R) -> Result<Head, HeadError> {
         let n = match r.by_ref().take(room).read_until(b'\n', &mut buf) {
             Ok(n) => n,
             Err(_) if buf.is_empty() => return Err(HeadError::Closed),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
+                ) =>
+            {
+                return Err(HeadError::Timeout);
+            }
             Err(_) => return Err(HeadError::Bad("connection failed inside the request head")),
         };
         if n == 0 {
@@ -160,6 +170,7 @@ pub fn reason(status: u16) -> &'static str {
         403 => "Forbidden",
         404 => "Not Found",
         405 => "Method Not Allowed",
+        408 => "Request Timeout",
         413 => "Content Too Large",
         416 => "Range Not Satisfiable",
         431 => "Request Header Fields Too Large",

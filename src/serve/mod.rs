@@ -8,19 +8,22 @@
 //! whose ETag differs from the identity file's, so a download resumed with `If-Range` either
 //! continues the same encoded bytes or restarts with a full 200.
 
+pub mod admission;
+mod connection;
 pub mod http;
 pub mod range;
 pub mod resolve;
+
+use admission::Admission;
 
 use range::{RangeRequest, parse_range};
 use resolve::{Refusal, inside, segments};
 use std::ffi::OsString;
 use std::fs::File;
-use std::io::{Read, Seek, SeekFrom};
-use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
+use std::net::{IpAddr, SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, UNIX_EPOCH};
 
 /// Why a server could not start.
@@ -35,12 +38,14 @@ pub enum ServeError {
         source: std::io::Error,
     },
     /// The address could not be bound.
-    #[error("cannot listen on {addr}: {message}")]
+    #[error("cannot listen on {addr}: {message}{}", if *.in_use { " (another server uses this port; pass --port 0 to pick a free one, or another --port)" } else { "" })]
     Bind {
         /// Address and port asked for.
         addr: SocketAddr,
         /// The OS's reason.
         message: String,
+        /// The port is taken (`EADDRINUSE`).
+        in_use: bool,
     },
 }
 
@@ -448,12 +453,10 @@ pub struct ServeOptions {
     pub port: u16,
     /// No per-request log line.
     pub quiet: bool,
-    /// Most connections served at once (one thread each); beyond that a connection gets 503.
+    /// Most connections kept at once (one thread each); beyond that a newcomer evicts a waiting
+    /// connection, or gets 503 when all are busy answering.
     pub threads: usize,
 }
-
-/// Seconds an idle keep-alive connection is kept open.
-const IDLE_S: u64 = 30;
 
 /// Stops a running [`Server`] from another thread (Ctrl-C handler, tests).
 #[derive(Debug, Clone)]
@@ -493,6 +496,7 @@ impl Server {
         let want = SocketAddr::new(opts.bind, opts.port);
         let bind_err = |e: std::io::Error| ServeError::Bind {
             addr: want,
+            in_use: e.kind() == std::io::ErrorKind::AddrInUse,
             message: e.to_string(),
         };
         let listener = TcpListener::bind(want).map_err(bind_err)?;
@@ -519,10 +523,10 @@ impl Server {
         }
     }
 
-    /// Accepts connections until stopped, each answered on its own thread (keep-alive).
+    /// Accepts connections until stopped, each answered on its own thread (keep-alive). When
+    /// full, a newcomer evicts a waiting connection ([`admission`]); 503 only when all are busy.
     pub fn run(self) {
-        let live = Arc::new(AtomicUsize::new(0));
-        let cap = self.opts.threads.max(1);
+        let admission = Admission::new(self.opts.threads);
         for conn in self.listener.incoming() {
             if self.stop.load(Ordering::SeqCst) {
                 break;
@@ -538,7 +542,12 @@ impl Server {
                     continue;
                 }
             };
-            if live.load(Ordering::SeqCst) >= cap {
+            let ip = stream
+                .peer_addr()
+                .map(|a| a.ip())
+                .unwrap_or(IpAddr::V4(std::net::Ipv4Addr::UNSPECIFIED));
+            let Some(ticket) = admission.admit(ip, &stream) else {
+                let _ = stream.set_write_timeout(Some(Duration::from_secs(1)));
                 let mut w = std::io::BufWriter::new(&stream);
                 let msg = b"too many connections\n";
                 let _ = http::write_response(
@@ -550,142 +559,17 @@ impl Server {
                     Some(&mut &msg[..]),
                 );
                 continue;
-            }
-            live.fetch_add(1, Ordering::SeqCst);
-            let (mounts, mine, stop) = (self.mounts.clone(), live.clone(), self.stop.clone());
-            let quiet = self.opts.quiet;
-            let spawned = std::thread::Builder::new()
-                .name("serve-conn".into())
-                .spawn(move || {
-                    connection(stream, &mounts, quiet, &stop);
-                    mine.fetch_sub(1, Ordering::SeqCst);
-                });
-            if spawned.is_err() {
-                // The closure and its stream were dropped: the client sees the connection close.
-                live.fetch_sub(1, Ordering::SeqCst);
-            }
-        }
-    }
-}
-
-/// Control characters replaced, so a hostile target cannot drive the terminal.
-fn printable(s: &str) -> String {
-    s.chars()
-        .map(|c| if c.is_control() { '?' } else { c })
-        .collect()
-}
-
-/// Serves one connection: requests one after another while the client keeps it alive.
-fn connection(stream: TcpStream, mounts: &[Mount], quiet: bool, stop: &AtomicBool) {
-    let _ = stream.set_nodelay(true);
-    let _ = stream.set_read_timeout(Some(Duration::from_secs(IDLE_S)));
-    let _ = stream.set_write_timeout(Some(Duration::from_secs(IDLE_S)));
-    let Ok(read_half) = stream.try_clone() else {
-        return;
-    };
-    let mut reader = std::io::BufReader::new(read_half);
-    let mut writer = std::io::BufWriter::with_capacity(64 * 1024, &stream);
-    while !stop.load(Ordering::SeqCst) {
-        let head = match http::read_head(&mut reader) {
-            Ok(h) => h,
-            Err(http::HeadError::Closed) => return,
-            Err(e) => {
-                let (status, msg) = match e {
-                    http::HeadError::TooLarge => (431, "request head too large"),
-                    http::HeadError::Version => (505, "only HTTP/1.0 and HTTP/1.1"),
-                    http::HeadError::Bad(m) => (400, m),
-                    http::HeadError::Closed => return,
-                };
-                let body = format!("{msg}\n");
-                let _ = http::write_response(
-                    &mut writer,
-                    status,
-                    &[("Content-Type", "text/plain; charset=utf-8".into())],
-                    body.len() as u64,
-                    false,
-                    Some(&mut body.as_bytes()),
-                );
-                if !quiet {
-                    eprintln!("- - {status} 0 ({msg})");
-                }
-                return;
-            }
-        };
-        if head.has_body() {
-            // Nothing served takes a body, and skipping one safely is not worth the risk.
-            let msg = b"request bodies are not accepted\n";
-            let _ = http::write_response(
-                &mut writer,
-                413,
-                &[],
-                msg.len() as u64,
-                false,
-                Some(&mut &msg[..]),
-            );
-            return;
-        }
-        let keep = head.keep_alive();
-        let method = match head.method.as_str() {
-            "GET" => Method::Get,
-            "HEAD" => Method::Head,
-            "OPTIONS" => Method::Options,
-            _ => Method::Other,
-        };
-        let req = Request {
-            method,
-            target: head.target.clone(),
-            headers: head.headers.clone(),
-        };
-        let reply = answer(mounts, &req);
-        let status = reply.status;
-        let mut headers = reply.headers;
-        headers.push((
-            "Server",
-            concat!("splat2tiles/", env!("CARGO_PKG_VERSION")).into(),
-        ));
-        let empty = matches!(reply.body, Body::Empty);
-        let mut reader_body: Box<dyn Read> = match reply.body {
-            Body::Empty => Box::new(std::io::empty()),
-            Body::Text(s) => Box::new(std::io::Cursor::new(s.into_bytes())),
-            Body::File {
-                mut file,
-                start,
-                len,
-            } => match file.seek(SeekFrom::Start(start)) {
-                Ok(_) => Box::new(file.take(len)),
-                Err(_) => Box::new(std::io::empty()),
-            },
-        };
-        // HEAD, 304 and the like announce a length but send no body.
-        let no_body = empty || method == Method::Head || matches!(status, 204 | 304);
-        let result = http::write_response(
-            &mut writer,
-            status,
-            &headers,
-            reply.length,
-            keep,
-            if no_body {
-                None
-            } else {
-                Some(&mut *reader_body)
-            },
-        );
-        if !quiet {
-            let (sent, note) = match &result {
-                Ok(n) => (*n, String::new()),
-                Err(e) => (0, format!(" ({e})")),
             };
-            eprintln!(
-                "{} {} {status} {sent}{note}",
-                printable(&head.method),
-                printable(&head.target)
-            );
-        }
-        if result.is_err() || !keep {
-            return;
+            let (mounts, stop) = (self.mounts.clone(), self.stop.clone());
+            let quiet = self.opts.quiet;
+            // A failed spawn drops the closure, its stream and ticket: the client sees a close.
+            let _ = std::thread::Builder::new()
+                .name("serve-conn".into())
+                .spawn(move || connection::serve(stream, &ticket, &mounts, quiet, &stop));
         }
     }
 }
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -5,13 +5,30 @@ set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$root"
 
-rustup target add wasm32-unknown-unknown >/dev/null 2>&1 || true
+# Cargo's output folder: CARGO_TARGET_DIR when set (relative to the repository root, as cargo
+# takes it from here), else target/.
+target_dir="${CARGO_TARGET_DIR:-target}"
+case "$target_dir" in /*) ;; *) target_dir="$root/$target_dir" ;; esac
+
+# The wasm32 target: installed through rustup when missing; a failure is reported, not hidden.
+if ! rustc --print sysroot >/dev/null 2>&1 || \
+   [ ! -d "$(rustc --print sysroot)/lib/rustlib/wasm32-unknown-unknown" ]; then
+  if ! command -v rustup >/dev/null 2>&1; then
+    echo "build.sh: the Rust wasm32-unknown-unknown target is missing and rustup is not installed;" >&2
+    echo "build.sh: install Rust with rustup (https://rustup.rs), then rerun" >&2
+    exit 1
+  fi
+  rustup target add wasm32-unknown-unknown || {
+    echo "build.sh: 'rustup target add wasm32-unknown-unknown' failed (offline?)" >&2
+    exit 1
+  }
+fi
 
 # wasm-bindgen-cli must be exactly the wasm-bindgen version in Cargo.lock; it is installed once
-# into target/tools (no --locked: that pins a webpki-roots version the registry no longer has).
+# into TARGET/tools (no --locked: that pins a webpki-roots version the registry no longer has).
 ver=$(awk '$0 == "name = \"wasm-bindgen\"" { getline; gsub(/[^0-9.]/, "", $0); print; exit }' Cargo.lock)
 [ -n "$ver" ] || { echo "build.sh: no wasm-bindgen in Cargo.lock" >&2; exit 1; }
-tools="$root/target/tools"
+tools="$target_dir/tools"
 if ! "$tools/bin/wasm-bindgen" --version 2>/dev/null | grep -qF " $ver"; then
   echo "build.sh: installing wasm-bindgen-cli $ver into target/tools (a few minutes, once)"
   cargo install --quiet wasm-bindgen-cli --version "$ver" --root "$tools"
@@ -22,6 +39,6 @@ CARGO_PROFILE_RELEASE_DEBUG=0 cargo build --quiet -p splat2tiles-web --release \
   --target wasm32-unknown-unknown
 rm -rf viewer/web/pkg.tmp
 "$tools/bin/wasm-bindgen" --target web --no-typescript --out-dir viewer/web/pkg.tmp \
-  target/wasm32-unknown-unknown/release/splat2tiles_web.wasm
+  "$target_dir/wasm32-unknown-unknown/release/splat2tiles_web.wasm"
 rm -rf viewer/web/pkg && mv viewer/web/pkg.tmp viewer/web/pkg
 echo "build.sh: web viewer built: viewer/web/pkg ($(du -sh viewer/web/pkg | cut -f1))"

@@ -1,0 +1,53 @@
+//! Hostile situations and inputs, generated at test time (no committed blobs): output folders
+//! that are not ours, concurrent and interrupted runs, decompression bombs, sparse and endless
+//! files, overflowing values, slow HTTP clients, and the README's first command in a plain clone.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod inputs;
+mod memory;
+mod output;
+mod plain_clone;
+mod serve_soak;
+mod signal;
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// Runs `splat2tiles convert ARGS...`.
+pub fn convert(args: &[&str]) -> Output {
+    Command::new(common::bin())
+        .arg("convert")
+        .args(args)
+        .args(["--quiet", "--no-utility"])
+        .output()
+        .expect("run splat2tiles convert")
+}
+
+/// Stderr of a finished command as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Hidden entries (staging, lock, moved-aside folders) in `dir`.
+pub fn hidden(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Whether `chattr +i` works here (root ignores permission bits, so tests that need a file
+/// operation to fail use the immutable attribute instead).
+pub fn set_immutable(path: &Path, on: bool) -> bool {
+    Command::new("chattr")
+        .arg(if on { "+i" } else { "-i" })
+        .arg(path)
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
