@@ -82,3 +82,33 @@ pub fn in_memory_estimate(count: u64, degree: u8, held: u64) -> u64 {
     let per = splat_bytes(degree).saturating_mul(2).saturating_add(56);
     count.saturating_mul(per).saturating_add(held)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_binary_and_decimal_sizes() {
+        assert_eq!(MemoryLimit::parse("64MiB").unwrap().bytes(), 64 << 20);
+        assert_eq!(MemoryLimit::parse("2GiB").unwrap().bytes(), 2 << 30);
+        assert_eq!(MemoryLimit::parse("2gib").unwrap().bytes(), 2 << 30);
+        assert_eq!(MemoryLimit::parse("1.5GB").unwrap().bytes(), 1_500_000_000);
+        assert!(MemoryLimit::parse("lots").is_err());
+        assert!(
+            MemoryLimit::parse("12")
+                .unwrap_err()
+                .contains("at least 1MiB")
+        );
+    }
+
+    #[test]
+    fn default_is_capped_and_estimates_grow_with_count_and_degree() {
+        let d = MemoryLimit::machine_default().bytes();
+        assert!(d <= DEFAULT_CAP && d >= 1 << 20);
+        assert_eq!(splat_bytes(0), 68);
+        assert_eq!(splat_bytes(3), 68 + 12 * 15);
+        assert!(in_memory_estimate(10, 3, 0) > in_memory_estimate(10, 0, 0));
+        assert_eq!(in_memory_estimate(u64::MAX, 3, 5), u64::MAX);
+        assert_eq!(human(64 << 20), "64.0 MiB");
+    }
+}

@@ -144,13 +144,6 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
         ));
     }
     let data = h.data_len();
-    // Before anything is decompressed: the arrays and the splats must fit the memory limit.
-    cx.check_memory(
-        8,
-        h.n as u64,
-        h.degree,
-        (bytes.len() as u64).saturating_add(data),
-    )?;
     let most = (bytes.len() as u64)
         .saturating_mul(ratio)
         .saturating_add(4096);
@@ -164,6 +157,14 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
             )),
         ));
     }
+    // Before anything more is decompressed: the arrays and the splats must fit the memory limit
+    // (an exact-size bomb passes the ratio check above).
+    cx.check_memory(
+        8,
+        h.n as u64,
+        h.degree,
+        (bytes.len() as u64).saturating_add(data),
+    )?;
     let slack = if h.flags & FLAG_EXTENSIONS != 0 {
         EXT_SLACK
     } else {

@@ -239,3 +239,43 @@ impl Drop for Staging {
         self.lock.take();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn staging_is_removed_on_drop_and_commit_writes_the_marker() {
+        let tmp = tempfile::tempdir().unwrap();
+        let target = tmp.path().join("out");
+        let st = Staging::prepare(&target).unwrap();
+        let staged = st.path().to_path_buf();
+        assert!(staged.is_dir());
+        drop(st);
+        assert!(!staged.exists());
+        assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 0);
+        let st = Staging::prepare(&target).unwrap();
+        std::fs::write(st.path().join("tileset.json"), "{}").unwrap();
+        assert!(st.commit().unwrap().is_empty());
+        assert_eq!(
+            marker::read(&target).unwrap().entries,
+            ["tileset.json".to_string()].into()
+        );
+        // Nothing hidden is left beside it; a second run may replace it.
+        assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 1);
+        assert!(guard::check_target(&target).unwrap());
+    }
+
+    #[test]
+    fn two_stagings_for_one_target_in_one_process_refuse() {
+        let tmp = tempfile::tempdir().unwrap();
+        let target = tmp.path().join("out");
+        let first = Staging::prepare(&target).unwrap();
+        let e = Staging::prepare(&target).unwrap_err();
+        assert!(matches!(e, OutputError::Busy { .. }), "{e}");
+        assert!(
+            first.path().is_dir(),
+            "the first run's staging is untouched"
+        );
+    }
+}

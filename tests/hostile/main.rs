@@ -5,6 +5,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod busy_port;
 mod inputs;
 mod memory;
 mod output;

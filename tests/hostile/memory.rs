@@ -45,9 +45,22 @@ fn exact_size_zstd_bomb_is_refused_under_the_default_limit() {
     let mut enc =
         zstd::stream::write::Encoder::new(std::fs::File::create(&input).unwrap(), 1).unwrap();
     enc.write_all(&spz_v2_header(n, 3)).unwrap();
-    write_zeros(&mut enc, spz_v2_data_len(n as u64, 3));
-    enc.finish().unwrap();
-    assert!(std::fs::metadata(&input).unwrap().len() < 1 << 20);
+    let data = spz_v2_data_len(n as u64, 3);
+    write_zeros(&mut enc, data);
+    let mut f = enc.finish().unwrap();
+    // Exact-size: big enough for the reader's ratio check (32768:1) to let it through; a
+    // skippable frame (which decoders pass over) makes up any shortfall.
+    let len = std::fs::metadata(&input).unwrap().len();
+    let need = data / 32768 + 1;
+    if len < need {
+        let pad = (need - len) as u32;
+        f.write_all(&[0x50, 0x2a, 0x4d, 0x18]).unwrap();
+        f.write_all(&pad.to_le_bytes()).unwrap();
+        write_zeros(&mut f, pad as u64);
+    }
+    drop(f);
+    let len = std::fs::metadata(&input).unwrap().len();
+    assert!(len < 1 << 20, "{len}");
     assert_refused(&input, &[], &["67108864 declared splats", "memory limit"]);
 }
 
