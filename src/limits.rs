@@ -104,7 +104,7 @@ mod tests {
     #[test]
     fn default_is_capped_and_estimates_grow_with_count_and_degree() {
         let d = MemoryLimit::machine_default().bytes();
-        assert!(d <= DEFAULT_CAP && d >= 1 << 20);
+        assert!((1 << 20..=DEFAULT_CAP).contains(&d));
         assert_eq!(splat_bytes(0), 68);
         assert_eq!(splat_bytes(3), 68 + 12 * 15);
         assert!(in_memory_estimate(10, 3, 0) > in_memory_estimate(10, 0, 0));

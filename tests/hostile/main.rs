@@ -5,6 +5,8 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+#[cfg(unix)]
+mod build_script;
 mod busy_port;
 mod inputs;
 mod memory;
