@@ -31,6 +31,7 @@ fn assert_refused(input: &Path, extra: &[&str], needles: &[&str]) -> String {
     assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
     assert!(!out.exists());
     assert!(hidden(dir).is_empty(), "{:?}", hidden(dir));
+    eprintln!("{}", err.trim());
     err
 }
 
