@@ -165,7 +165,7 @@ pub fn read_path_limited(path: &Path, limit: u64) -> Result<Scene, ReadError> {
     let mut reader = file;
     let mut bytes = Vec::new();
     (&mut reader)
-        .take(HEAD_BYTES.min(limit))
+        .take(HEAD_BYTES)
         .read_to_end(&mut bytes)
         .map_err(io_err)?;
     let kind = detect(&cx, &bytes)?;

@@ -77,9 +77,18 @@ fn alive(parent: &Path, name: &str, id: &str) -> bool {
                 .and_then(|m| m.modified())
                 .ok()
                 .and_then(|t| SystemTime::now().duration_since(t).ok());
-            age.is_none_or(|a| a < FRESH)
+            age.is_none_or(|a| a < FRESH) && !process_gone(id)
         }
     }
+}
+
+/// Whether the process of run `id` (`PID-SEQ`) is known to be gone (Linux `/proc`); `false`
+/// when this cannot be told.
+fn process_gone(id: &str) -> bool {
+    let Some(pid) = id.split('-').next().filter(|p| p.parse::<u32>().is_ok()) else {
+        return false;
+    };
+    Path::new("/proc/self").exists() && !Path::new("/proc").join(pid).exists()
 }
 
 /// Run ids with any sibling of `name` in `parent`, except `ours`.

@@ -140,6 +140,9 @@ fn leftovers_of_a_killed_run_are_cleaned_by_the_next_run() {
     age(&lock_path, 3600);
     // A staging folder whose lock file is gone entirely (killed while cleaning up).
     std::fs::create_dir_all(tmp.path().join(".out.s2t-tmp-424243-0")).unwrap();
+    // A run killed a moment ago (its lock file is fresh, but its process is gone).
+    std::fs::create_dir_all(tmp.path().join(".out.s2t-tmp-3999999-0")).unwrap();
+    File::create(tmp.path().join(".out.s2t-lock-3999999-0")).unwrap();
     // Another output's leftovers are not ours to touch.
     let other = tmp.path().join(".other.s2t-tmp-424242-0");
     std::fs::create_dir_all(&other).unwrap();
