@@ -20,7 +20,8 @@ use std::path::PathBuf;
 pub struct ConvertArgs {
     /// Input scene: trainer PLY (binary or ascii), antimatter15 .splat, or Niantic .spz (v2-v4).
     pub input: PathBuf,
-    /// Output folder (created; an earlier tileset there is replaced only when the new one is complete).
+    /// Output folder: absent, empty, or an earlier splat2tiles output (replaced only when the new
+    /// one is complete); any other folder is refused, never deleted.
     #[arg(short, long)]
     pub output: PathBuf,
     /// Most splats per leaf tile.
