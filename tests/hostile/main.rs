@@ -8,6 +8,7 @@ mod common;
 #[cfg(unix)]
 mod build_script;
 mod busy_port;
+mod fuzz_seeds;
 mod inputs;
 mod memory;
 mod output;
