@@ -9,6 +9,7 @@
 
 mod error;
 mod ply;
+mod ply_header;
 mod ply_write;
 mod splat_file;
 mod spz;
@@ -140,7 +141,7 @@ pub fn read_path(path: &Path) -> Result<Scene, ReadError> {
 }
 
 /// Longest prefix read before the format and the declared size are checked (a PLY header is at
-/// most [`ply::MAX_HEADER_BYTES`]).
+/// most [`ply_header::MAX_HEADER_BYTES`]).
 const HEAD_BYTES: u64 = 1 << 20;
 
 /// Reads a scene file, refusing before allocating when converting it would take more than
@@ -171,7 +172,7 @@ pub fn read_path_limited(path: &Path, limit: u64) -> Result<Scene, ReadError> {
     let kind = detect(&cx, &bytes)?;
     let total = known_len.unwrap_or(bytes.len() as u64);
     match kind {
-        Kind::Ply => ply::check_declared(&cx, &bytes, total)?,
+        Kind::Ply => ply_header::check_declared(&cx, &bytes, total)?,
         Kind::Splat => splat_file::check_declared(&cx, total)?,
         // Compressed: the declared count is checked once the header is decompressed.
         Kind::Spz if total > limit => {

@@ -152,7 +152,7 @@ mod tests {
     use std::net::TcpListener;
 
     #[test]
-    fn full_registry_evicts_the_busiest_addresss_oldest_waiter_and_spares_busy_ones() {
+    fn full_registry_evicts_the_busiest_addresses_oldest_waiter_and_spares_busy_ones() {
         let l = TcpListener::bind("127.0.0.1:0").unwrap();
         let addr = l.local_addr().unwrap();
         let conns: Vec<TcpStream> = (0..4).map(|_| TcpStream::connect(addr).unwrap()).collect();
