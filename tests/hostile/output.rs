@@ -235,6 +235,7 @@ fn two_real_runs_into_one_folder_the_second_refuses_the_first_completes() {
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("big.splat");
     write_splat(&input, 1_500_000);
+    let small = small_input(tmp.path());
     let out = tmp.path().join("out");
     let mut first = Command::new(bin())
         .args([
@@ -261,17 +262,15 @@ fn two_real_runs_into_one_folder_the_second_refuses_the_first_completes() {
         assert!(first.try_wait().unwrap().is_none(), "first run ended early");
         std::thread::sleep(Duration::from_millis(5));
     }
-    let second = convert(&[s(&input), "-o", s(&out), "--max-splats", "4000"]);
+    // A quick second run into the same folder while the first writes: it must refuse. (It used
+    // to delete the first's staging folder as leftovers and finish first; the first then
+    // renamed a half-written folder into place and exited 0.)
+    let second = convert(&[s(&small), "-o", s(&out)]);
     let err = stderr(&second);
+    assert_eq!(second.status.code(), Some(2), "{err}");
+    assert!(err.contains("another splat2tiles run"), "{err}");
     let first = first.wait_with_output().unwrap();
     assert!(first.status.success(), "first run: {}", stderr(&first));
-    if second.status.success() {
-        // Only possible when the first had already committed; then both outputs were whole.
-        eprintln!("second run started after the first finished");
-    } else {
-        assert_eq!(second.status.code(), Some(2), "{err}");
-        assert!(err.contains("another splat2tiles run"), "{err}");
-    }
     let v = Command::new(bin())
         .args(["validate", s(&out.join("tileset.json"))])
         .output()
@@ -282,5 +281,7 @@ fn two_real_runs_into_one_folder_the_second_refuses_the_first_completes() {
         "{}",
         String::from_utf8_lossy(&v.stdout)
     );
+    let ts = std::fs::read_to_string(out.join("tileset.json")).unwrap();
+    assert!(ts.contains("\"splats\": 1500000"), "the first run's output");
     assert!(hidden(tmp.path()).is_empty(), "{:?}", hidden(tmp.path()));
 }
