@@ -711,9 +711,7 @@ pub(crate) fn validate(
                     queue.push((key, false));
                 } else if parent_ok && key.level < al {
                     let child_uri = expand_template(&subtrees_uri, key);
-                    if crate::tiling::load::resolve_inside(&ctx.dir, &child_uri)
-                        .is_some_and(|f| f.is_file())
-                    {
+                    if ctx.lookup(&child_uri).is_some_and(|f| f.is_file()) {
                         ctx.push(Issue::SUBTREE_FILE_UNREFERENCED(
                             child_uri,
                             format!(
