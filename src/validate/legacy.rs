@@ -92,7 +92,7 @@ fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
     .iter()
     .enumerate()
     {
-        if i > 0 && lens[i] > 0 && at % 8 != 0 {
+        if i > 0 && lens[i] > 0 && !at.is_multiple_of(8) {
             ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
                 format!("{name}@byte {at}"),
                 format!("the {what} starts at byte {at}, not on an 8-byte boundary"),
@@ -175,7 +175,7 @@ fn glb_payload(ctx: &mut Ctx<'_>, payload: &[u8], name: &str, offset: usize) {
         ));
         return;
     }
-    if offset % 8 != 0 {
+    if !offset.is_multiple_of(8) {
         ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
             format!("{name}@byte {offset}"),
             format!("the embedded glb starts at byte {offset}, not on an 8-byte boundary"),
@@ -211,7 +211,7 @@ fn composite(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
             ));
             return;
         }
-        if at % 8 != 0 {
+        if !at.is_multiple_of(8) {
             ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
                 format!("{name}@byte {at}"),
                 format!("inner tile {i} starts at byte {at}, not on an 8-byte boundary"),
