@@ -389,7 +389,10 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
         t.edit_tileset(|v| v["root"]["transform"] = json!(vec![0.0; 16]))
     });
     m.insert("implicit_root_children", |t| {
-        t.edit_tileset(|v| v["root"]["children"] = json!([]))
+        t.edit_tileset(|v| {
+            let child = json!({"boundingVolume": v["root"]["boundingVolume"].clone(), "geometricError": 0.0});
+            v["root"]["children"] = json!([child]);
+        })
     });
     m.insert("implicit_root_metadata", |t| {
         t.edit_tileset(|v| v["root"]["metadata"] = json!({"class": "tile"}))
@@ -800,6 +803,13 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:GLOW"] = a;
         })
     });
+    m.insert("subtree_property_tables_empty", |t| {
+        edit_subtree(&t.leaf_subtree(), |j, _| {
+            j["propertyTables"] = json!([]);
+            j.as_object_mut().unwrap().remove("tileMetadata");
+            j.as_object_mut().unwrap().remove("contentMetadata");
+        })
+    });
     // URIs, symbolic links (issue 13)
     m.insert("percent_encoded_folder", |t| {
         std::fs::rename(t.dir.join("tiles"), t.dir.join("my tiles")).unwrap();
@@ -823,6 +833,9 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             v.as_object_mut().unwrap().remove("extensionsUsed");
             v.as_object_mut().unwrap().remove("extensionsRequired");
         })
+    });
+    m.insert("version_1_0", |t| {
+        t.edit_tileset(|v| v["asset"]["version"] = json!("1.0"))
     });
     m.insert("zip_content", |t| {
         std::fs::write(t.dir.join("a.3tz"), b"PK\x03\x04\x14\x00\x00\x00\x00\x00").unwrap();

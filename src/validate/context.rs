@@ -57,6 +57,9 @@ pub(crate) struct Ctx<'a> {
     pub visited: std::collections::HashSet<PathBuf>,
     /// Issues pushed in the whole run, nested external tilesets included (bounded).
     pub pushed: usize,
+    /// The tileset being checked is 3D Tiles 1.0 without `3DTILES_content_gltf` declared: a glTF
+    /// content is then reported (once).
+    pub gltf_undeclared: bool,
     /// Options.
     pub opts: &'a ValidateOptions,
     /// Issues found so far.
@@ -93,6 +96,7 @@ impl<'a> Ctx<'a> {
             chain: Vec::new(),
             visited: std::collections::HashSet::new(),
             pushed: 0,
+            gltf_undeclared: false,
             opts,
             issues: Vec::new(),
             memory: None,

@@ -19,9 +19,15 @@ const KNOWN: &[&str] = &[
 const WITHOUT_OBJECT: &[&str] = &["3DTILES_content_gltf"];
 
 /// Every extension name found as a key of an `extensions` object, with the first JSON pointer
-/// where it appears (iterative walk: the JSON is depth-bounded, but no recursion is needed).
-pub(crate) fn found_extensions(root: &Value) -> BTreeMap<String, String> {
+/// where it appears, and the pointers of `extensions` members that are not objects and of
+/// `extras` that are not objects (marked "extras") (iterative
+/// walk: the JSON is depth-bounded, but no recursion is needed).
+#[allow(clippy::type_complexity)]
+pub(crate) fn found_extensions(
+    root: &Value,
+) -> (BTreeMap<String, String>, Vec<(String, &'static str)>) {
     let mut out = BTreeMap::new();
+    let mut bad = Vec::new();
     let mut stack: Vec<(&Value, String)> = vec![(root, String::new())];
     while let Some((v, ptr)) = stack.pop() {
         match v {
@@ -35,6 +41,20 @@ pub(crate) fn found_extensions(root: &Value) -> BTreeMap<String, String> {
                             out.entry(name.clone())
                                 .or_insert_with(|| format!("{p}/{name}"));
                         }
+                    } else if k == "extensions" {
+                        bad.push((p.clone(), "extensions must be an object"));
+                    }
+                    if k == "extras" && !child.is_object() {
+                        bad.push((p.clone(), "extras"));
+                    }
+                    if k == "extensions"
+                        && let Some(exts) = child.as_object()
+                    {
+                        for (name, e) in exts {
+                            if !e.is_object() {
+                                bad.push((format!("{p}/{name}"), "an extension must be an object"));
+                            }
+                        }
                     }
                     stack.push((child, p));
                 }
@@ -47,7 +67,7 @@ pub(crate) fn found_extensions(root: &Value) -> BTreeMap<String, String> {
             _ => {}
         }
     }
-    out
+    (out, bad)
 }
 
 /// Reads `key` as an array of unique strings; reports type errors and duplicates.
@@ -104,7 +124,17 @@ pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> Vec<String> {
             ));
         }
     }
-    let found = found_extensions(v);
+    let (found, bad) = found_extensions(v);
+    for (at, why) in bad {
+        if why == "extras" {
+            ctx.push(Issue::EXTRAS_UNEXPECTED_TYPE(
+                ctx.at(&at),
+                "extras SHOULD be an object (key/value pairs) for portability",
+            ));
+        } else {
+            ctx.push(Issue::TYPE_MISMATCH(ctx.at(&at), why));
+        }
+    }
     for (name, at) in &found {
         if !used.contains(&name.as_str()) {
             ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(

@@ -56,6 +56,7 @@ pub(crate) fn external(
     let saved_file = std::mem::replace(&mut ctx.file, name.clone());
     let saved_issues = std::mem::take(&mut ctx.issues);
     let saved_variants = std::mem::take(&mut ctx.variant_templates);
+    let saved_gltf = ctx.gltf_undeclared;
     ctx.chain.push(real);
 
     if let Some(v) = json::parse(ctx, bytes, &name) {
@@ -64,6 +65,7 @@ pub(crate) fn external(
 
     ctx.chain.pop();
     ctx.variant_templates = saved_variants;
+    ctx.gltf_undeclared = saved_gltf;
     ctx.file = saved_file;
     ctx.dir = saved_dir;
     let causes = std::mem::replace(&mut ctx.issues, saved_issues);

@@ -145,6 +145,8 @@ catalogue! {
     EXTENSION_REQUIRED_BUT_NOT_USED => Error,
     /// An extension object is present but its name is not in extensionsUsed.
     EXTENSION_FOUND_BUT_NOT_USED => Error,
+    /// An `extras` member is not a JSON object.
+    EXTRAS_UNEXPECTED_TYPE => Warning,
     /// An extension is in extensionsUsed but no object of the tileset carries it.
     EXTENSION_USED_BUT_NOT_FOUND => Warning,
     /// A required extension is unknown to this validator: not checked, and clients may refuse it.

@@ -286,6 +286,12 @@ pub(crate) fn tile(
             ));
             return;
         };
+        if children.is_empty() {
+            ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
+                format!("{path}/children"),
+                "children, when present, must not be empty",
+            ));
+        }
         if depth > 256 {
             ctx.push(Issue::VALUE_NOT_IN_RANGE(
                 path,
@@ -377,6 +383,18 @@ pub(crate) fn content_file(
     volume: Option<Volume>,
     world: DMat4,
 ) {
+    let lower = uri
+        .split(['?', '#'])
+        .next()
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if ctx.gltf_undeclared && (lower.ends_with(".glb") || lower.ends_with(".gltf")) {
+        ctx.gltf_undeclared = false;
+        ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
+            path,
+            "a glTF content in a 3D Tiles 1.0 tileset needs 3DTILES_content_gltf in extensionsUsed",
+        ));
+    }
     let Some(file) = ctx.resolve(uri, path) else {
         return;
     };
@@ -487,7 +505,9 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value, world: DMat4) {
         legacy_properties(ctx, p, &format!("{path}/properties"));
     }
     let error = non_negative(ctx, v, "geometricError", path);
-    declarations(ctx, v);
+    let used = declarations(ctx, v);
+    ctx.gltf_undeclared = v.pointer("/asset/version").and_then(Value::as_str) == Some("1.0")
+        && !used.iter().any(|u| u == "3DTILES_content_gltf");
     if v.get("schema").is_some() && v.get("schemaUri").is_some() {
         ctx.push(Issue::ONE_OF_ERROR(
             path,
@@ -634,8 +654,30 @@ fn statistics(ctx: &mut Ctx<'_>, schema: &Schema, v: &Value, path: &str) {
         ));
         return;
     };
+    if classes.is_empty() {
+        ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
+            format!("{path}/classes"),
+            "statistics classes, when present, must name at least one class",
+        ));
+    }
     for (cname, c) in classes {
         let cp = format!("{path}/classes/{cname}");
+        if !c.is_object() {
+            ctx.push(Issue::TYPE_MISMATCH(
+                cp,
+                "a class's statistics must be an object",
+            ));
+            continue;
+        }
+        if c.get("properties")
+            .and_then(Value::as_object)
+            .is_some_and(|p| p.is_empty())
+        {
+            ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
+                format!("{cp}/properties"),
+                "statistics properties, when present, must name at least one property",
+            ));
+        }
         let Some(props) = schema.classes.get(cname) else {
             ctx.push(Issue::METADATA_CLASS_UNKNOWN(
                 cp,
