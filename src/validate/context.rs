@@ -202,9 +202,14 @@ impl<'a> Ctx<'a> {
     pub fn checked(&self, file: &Path) -> Result<PathBuf, Refused> {
         let real =
             std::fs::canonicalize(file).map_err(|e| Refused::Io(format!("cannot read: {e}")))?;
-        if let Some(root) = &self.root_real
-            && !real.starts_with(root)
-        {
+        // Fail closed: without a resolvable root nothing is known to be inside it.
+        let Some(root) = &self.root_real else {
+            return Err(Refused::Io(format!(
+                "the folder {} cannot be resolved; not read",
+                self.root.display()
+            )));
+        };
+        if !real.starts_with(root) {
             return Err(Refused::Outside(format!(
                 "a symbolic link leads out of the folder {}; not read",
                 self.root.display()
