@@ -153,3 +153,18 @@ fn r_fuzz_glb_wrongly_typed_attribute_is_reported_not_read() {
     let r = validate_glb_bytes(&std::fs::read(path).unwrap(), &ValidateOptions::default());
     assert!(r.num_errors > 0);
 }
+
+/// A fuzz crash of the `tileset` target: a legacy (b3dm/i3dm/pnts/cmpt) tile whose byteLength is
+/// shorter than its header was cut to byteLength and then read at byte 12: index out of bounds
+/// (src/validate/legacy.rs; fixed: such a header is BINARY_INVALID_LENGTH, nothing more is read).
+#[test]
+fn r_fuzz_tileset_legacy_byte_length_below_header_is_reported_not_read() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/regressions/tileset/crash-971ee15f31cae682fa1f019f4199995c875812ff");
+    let dir = tempfile::tempdir().unwrap();
+    replay_tileset(
+        dir.path(),
+        &std::fs::read(path).unwrap(),
+        &ValidateOptions::default(),
+    );
+}

@@ -64,6 +64,13 @@ fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
             return;
         }
     }
+    if byte_length < header {
+        ctx.push(Issue::BINARY_INVALID_LENGTH(
+            format!("{name}@byte 8"),
+            format!("byteLength {byte_length} is shorter than the {header}-byte {kind} header"),
+        ));
+        return;
+    }
     let b = &b[..byte_length];
     if kind == "cmpt" {
         composite(ctx, b, name, depth);
