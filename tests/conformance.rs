@@ -389,7 +389,10 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
         t.edit_tileset(|v| v["root"]["transform"] = json!(vec![0.0; 16]))
     });
     m.insert("implicit_root_children", |t| {
-        t.edit_tileset(|v| v["root"]["children"] = json!([]))
+        t.edit_tileset(|v| {
+            let child = json!({"boundingVolume": v["root"]["boundingVolume"].clone(), "geometricError": 0.0});
+            v["root"]["children"] = json!([child]);
+        })
     });
     m.insert("implicit_root_metadata", |t| {
         t.edit_tileset(|v| v["root"]["metadata"] = json!({"class": "tile"}))
@@ -800,7 +803,124 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             v["meshes"][0]["primitives"][0]["attributes"]["KHR_gaussian_splatting:GLOW"] = a;
         })
     });
+    m.insert("subtree_property_tables_empty", |t| {
+        edit_subtree(&t.leaf_subtree(), |j, _| {
+            j["propertyTables"] = json!([]);
+            j.as_object_mut().unwrap().remove("tileMetadata");
+            j.as_object_mut().unwrap().remove("contentMetadata");
+        })
+    });
+    // URIs, symbolic links (issue 13)
+    m.insert("percent_encoded_folder", |t| {
+        std::fs::rename(t.dir.join("tiles"), t.dir.join("my tiles")).unwrap();
+        retarget_content(t, "my%20tiles/best/{level}/{x}/{y}/{z}.glb");
+    });
+    m.insert("uri_percent_dot_dot", |t| {
+        retarget_content(t, "tiles/%2e%2e/%2E%2E/tiles/best/{level}/{x}/{y}/{z}.glb");
+    });
+    m.insert("symlink_to_etc_passwd", |t| symlink_glb(t, "/etc/passwd"));
+    m.insert("symlink_to_dev_zero", |t| symlink_glb(t, "/dev/zero"));
+    m.insert("deep_explicit_tree", |t| deep_tree(t, 200));
+    m.insert("deep_json_nesting", |t| deep_tree(t, 2000));
+    // other content
+    m.insert("plain_glb_content", |t| {
+        t.edit_glb(|v| {
+            v["meshes"][0]["primitives"][0]
+                .as_object_mut()
+                .unwrap()
+                .remove("extensions");
+            v["meshes"][0]["primitives"][0]["mode"] = json!(0);
+            v.as_object_mut().unwrap().remove("extensionsUsed");
+            v.as_object_mut().unwrap().remove("extensionsRequired");
+        })
+    });
+    m.insert("version_1_0", |t| {
+        t.edit_tileset(|v| v["asset"]["version"] = json!("1.0"))
+    });
+    m.insert("zip_content", |t| {
+        std::fs::write(t.dir.join("a.3tz"), b"PK\x03\x04\x14\x00\x00\x00\x00\x00").unwrap();
+    });
+    m.insert("b3dm_valid", |t| {
+        write_legacy(t, b"b3dm", 1, r#"{"BATCH_LENGTH":0}"#, true, 0)
+    });
+    m.insert("b3dm_version_2", |t| {
+        write_legacy(t, b"b3dm", 2, r#"{"BATCH_LENGTH":0}"#, true, 0)
+    });
+    m.insert("b3dm_length_wrong", |t| {
+        write_legacy(t, b"b3dm", 1, r#"{"BATCH_LENGTH":0}"#, true, 8)
+    });
+    m.insert("b3dm_batch_length_missing", |t| {
+        write_legacy(t, b"b3dm", 1, "{}", true, 0)
+    });
+    m.insert("pnts_position_missing", |t| {
+        write_legacy(t, b"pnts", 1, r#"{"POINTS_LENGTH":0}"#, false, 0)
+    });
     m
+}
+
+/// Points the implicit content template (and the Best variant's) at `uri`.
+fn retarget_content(t: &Ts, uri: &str) {
+    t.edit_tileset(|v| {
+        v["root"]["content"]["uri"] = json!(uri);
+        if v["metadata"]["properties"]["variantUris"].is_array() {
+            v["metadata"]["properties"]["variantUris"][0] = json!(uri);
+        }
+    });
+}
+
+/// Replaces the first glb by a symbolic link to `target` (outside the tileset folder).
+fn symlink_glb(t: &Ts, target: &str) {
+    let g = t.glb();
+    std::fs::remove_file(&g).unwrap();
+    std::os::unix::fs::symlink(target, &g).unwrap();
+}
+
+/// Replaces the root of a `files` tileset by a chain of `levels` explicit tiles.
+fn deep_tree(t: &Ts, levels: usize) {
+    // serde_json would refuse to write (and read) this depth itself: build the text by hand.
+    let mut text = String::from(r#"{"asset":{"version":"1.1"},"geometricError":2.0,"root":"#);
+    let open = r#"{"boundingVolume":{"box":[0,0,0,10,0,0,0,10,0,0,0,10]},"geometricError":1.0,"refine":"REPLACE","children":["#;
+    for _ in 1..levels {
+        text.push_str(open);
+    }
+    text.push_str(
+        r#"{"boundingVolume":{"box":[0,0,0,10,0,0,0,10,0,0,0,10]},"geometricError":0.0}"#,
+    );
+    for _ in 1..levels {
+        text.push_str("]}");
+    }
+    text.push('}');
+    std::fs::write(t.dir.join("tileset.json"), text).unwrap();
+}
+
+/// Writes `content.<magic>` (a 3D Tiles 1.0 tile with feature table JSON `ft` and, when `glb`,
+/// an embedded minimal glb) into a `files` tileset; `extra` bytes beyond byteLength.
+fn write_legacy(t: &Ts, magic: &[u8; 4], version: u32, ft: &str, glb: bool, extra: usize) {
+    let header = if magic == b"i3dm" { 32 } else { 28 };
+    let mut ft = ft.as_bytes().to_vec();
+    while !(header + ft.len()).is_multiple_of(8) {
+        ft.push(b' ');
+    }
+    let payload = if glb {
+        write_glb(br#"{"asset":{"version":"2.0"}}"#, None).unwrap()
+    } else {
+        vec![]
+    };
+    let total = header + ft.len() + payload.len();
+    let mut out = Vec::new();
+    out.extend_from_slice(magic);
+    out.extend_from_slice(&version.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(ft.len() as u32).to_le_bytes());
+    out.extend_from_slice(&[0u8; 12]);
+    if header == 32 {
+        out.extend_from_slice(&1u32.to_le_bytes());
+    }
+    out.extend_from_slice(&ft);
+    out.extend_from_slice(&payload);
+    out.extend(std::iter::repeat_n(0u8, extra));
+    let name = format!("content.{}", String::from_utf8_lossy(magic));
+    std::fs::write(t.dir.join(name), out).unwrap();
 }
 
 #[derive(serde::Deserialize)]
@@ -819,6 +939,15 @@ struct Case {
 struct Options {
     #[serde(default)]
     allow_remote: bool,
+    /// The tileset to validate, relative to the case copy (default `tileset.json`).
+    #[serde(default)]
+    tileset: Option<String>,
+    /// `--root`, relative to the case copy.
+    #[serde(default)]
+    root: Option<String>,
+    /// `--max-external-depth`.
+    #[serde(default)]
+    max_external_depth: Option<usize>,
 }
 
 fn load_cases() -> Vec<(String, Case)> {
@@ -881,14 +1010,27 @@ fn every_case_gives_exactly_its_expected_codes() {
     );
     for (name, case) in cases {
         let dir = scratch().join("cases").join(&name);
-        copy_dir(&base(&case.base), &dir);
+        // Base `files`: the case's own hand-written tileset in `files/` (small JSON only).
+        let from = if case.base == "files" {
+            cases_dir().join(&name).join("files")
+        } else {
+            base(&case.base)
+        };
+        copy_dir(&from, &dir);
         let t = Ts { dir: dir.clone() };
         m[case.mutation.as_str()](&t);
+        let defaults = ValidateOptions::default();
         let opts = ValidateOptions {
             allow_remote: case.options.allow_remote,
-            ..ValidateOptions::default()
+            root: case.options.root.as_ref().map(|r| dir.join(r)),
+            max_external_depth: case
+                .options
+                .max_external_depth
+                .unwrap_or(defaults.max_external_depth),
+            ..defaults
         };
-        let report = validate_tileset(&dir.join("tileset.json"), &opts).expect("readable");
+        let tileset = dir.join(case.options.tileset.as_deref().unwrap_or("tileset.json"));
+        let report = validate_tileset(&tileset, &opts).expect("readable");
         let mut expected = case.expected.clone();
         expected.sort();
         if report.codes() != expected {

@@ -2,7 +2,9 @@
 //! fuzz seed and every prefix of it must give a report or an error, never a panic. Crash inputs
 //! found by fuzzing (RELIABILITY.md) are added to `fuzz/seeds/<target>/` and replayed here.
 
-use splat2tiles::validate::{ValidateOptions, validate_glb_bytes, validate_subtree_bytes};
+use splat2tiles::validate::{
+    ValidateOptions, validate_glb_bytes, validate_subtree_bytes, validate_tileset_bytes,
+};
 use std::path::Path;
 
 fn seeds(target: &str) -> Vec<(String, Vec<u8>)> {
@@ -62,6 +64,33 @@ fn subtree_seeds_and_prefixes_never_panic() {
     }
 }
 
+/// The `tileset` fuzz target's input layout: tileset JSON, NUL, external tileset `e.json`, NUL,
+/// content `c.bin`, written into `dir` and validated.
+fn replay_tileset(dir: &Path, data: &[u8], opts: &ValidateOptions) {
+    let mut parts = data.splitn(3, |b| *b == 0);
+    let main = parts.next().unwrap_or_default();
+    std::fs::write(dir.join("e.json"), parts.next().unwrap_or_default()).unwrap();
+    std::fs::write(dir.join("c.bin"), parts.next().unwrap_or_default()).unwrap();
+    let _ = validate_tileset_bytes(main, dir, opts);
+}
+
+#[test]
+fn tileset_seeds_and_prefixes_never_panic() {
+    let opts = ValidateOptions::default();
+    let dir = tempfile::tempdir().unwrap();
+    for (name, bytes) in seeds("tileset") {
+        // Each seed's main tileset parses and is followed into its external tileset and content.
+        let main = bytes.split(|b| *b == 0).next().unwrap();
+        assert!(
+            serde_json::from_slice::<serde_json::Value>(main).is_ok(),
+            "{name}: the seed's tileset is not JSON"
+        );
+        for n in cuts(bytes.len()).into_iter().chain([bytes.len()]) {
+            replay_tileset(dir.path(), &bytes[..n], &opts);
+        }
+    }
+}
+
 #[test]
 fn scene_seeds_and_prefixes_never_panic() {
     for (target, ext) in [("ply", "ply"), ("spz", "spz"), ("splat", "splat")] {
@@ -79,7 +108,8 @@ fn fuzz_crash_regressions_replay_cleanly() {
     let opts = ValidateOptions::default();
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/regressions");
     let mut n = 0;
-    for target in ["ply", "spz", "splat", "glb", "subtree"] {
+    let scratch = tempfile::tempdir().unwrap();
+    for target in ["ply", "spz", "splat", "glb", "subtree", "tileset"] {
         for e in std::fs::read_dir(dir.join(target))
             .into_iter()
             .flatten()
@@ -101,6 +131,7 @@ fn fuzz_crash_regressions_replay_cleanly() {
                         &opts,
                     );
                 }
+                "tileset" => replay_tileset(scratch.path(), &bytes, &opts),
                 ext => {
                     let _ = splat2tiles::io::read_bytes(&format!("crash.{ext}"), &bytes);
                 }
@@ -121,4 +152,19 @@ fn r_fuzz_glb_wrongly_typed_attribute_is_reported_not_read() {
         .join("fuzz/regressions/glb/crash-1cf7a1582a61af25fe3ba96b1504d834a505c333");
     let r = validate_glb_bytes(&std::fs::read(path).unwrap(), &ValidateOptions::default());
     assert!(r.num_errors > 0);
+}
+
+/// A fuzz crash of the `tileset` target: a legacy (b3dm/i3dm/pnts/cmpt) tile whose byteLength is
+/// shorter than its header was cut to byteLength and then read at byte 12: index out of bounds
+/// (src/validate/legacy.rs; fixed: such a header is BINARY_INVALID_LENGTH, nothing more is read).
+#[test]
+fn r_fuzz_tileset_legacy_byte_length_below_header_is_reported_not_read() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/regressions/tileset/crash-971ee15f31cae682fa1f019f4199995c875812ff");
+    let dir = tempfile::tempdir().unwrap();
+    replay_tileset(
+        dir.path(),
+        &std::fs::read(path).unwrap(),
+        &ValidateOptions::default(),
+    );
 }

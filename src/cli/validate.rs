@@ -28,6 +28,13 @@ pub struct ValidateArgs {
     /// Largest decompressed size of one gzip/zstd file, in MiB.
     #[arg(long, default_value_t = 1024)]
     pub max_decompressed_mib: u64,
+    /// Folder URIs may resolve into (a served root holding several tilesets); default: the
+    /// tileset's own folder. `../` URIs are legal in 3D Tiles: widen the root to follow them.
+    #[arg(long, value_name = "DIR")]
+    pub root: Option<PathBuf>,
+    /// Deepest chain of external tilesets followed.
+    #[arg(long, default_value_t = 16)]
+    pub max_external_depth: usize,
 }
 
 /// Runs `validate`; returns the process exit code.
@@ -36,6 +43,8 @@ pub fn run(args: ValidateArgs) -> i32 {
         allow_remote: args.allow_remote,
         check_extent: args.check_extent,
         max_decompressed_bytes: args.max_decompressed_mib.saturating_mul(1 << 20),
+        root: args.root.clone(),
+        max_external_depth: args.max_external_depth,
         ..ValidateOptions::default()
     };
     let report = match validate_tileset(&args.input, &opts) {

@@ -70,7 +70,11 @@ fn glb_issue(name: &str, e: GlbError) -> Issue {
         | GlbError::BadChunkType { offset, .. } => {
             Issue::GLB_INVALID(format!("{name}@byte {offset}"), e.to_string())
         }
-        GlbError::BadMagic { .. } => Issue::GLB_INVALID(format!("{name}@byte 0"), e.to_string()),
+        // The bytes found are not echoed: the file may be anything (a secret behind a link).
+        GlbError::BadMagic { .. } => Issue::GLB_INVALID(
+            format!("{name}@byte 0"),
+            "not a glb: the first four bytes are not \"glTF\"",
+        ),
         GlbError::BadVersion { .. } => Issue::GLB_INVALID(format!("{name}@byte 4"), e.to_string()),
         GlbError::LengthMismatch { .. } => {
             Issue::GLB_INVALID(format!("{name}@byte 8"), e.to_string())
@@ -277,6 +281,18 @@ pub(crate) fn validate_glb(
                 splat_prims.push((m, p, prim, ext));
             }
         }
+    }
+    let declares_splats = doc
+        .extensions_used
+        .iter()
+        .any(|e| e == KHR_GAUSSIAN_SPLATTING);
+    if splat_prims.is_empty() && !declares_splats {
+        // A plain glTF (meshes, points): framing, buffers and bufferViews were checked above.
+        ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
+            name,
+            "a glb without KHR_gaussian_splatting: its framing, buffers and bufferViews were checked, not its meshes",
+        ));
+        return None;
     }
     if splat_prims.is_empty() {
         ctx.push(Issue::SPLAT_PRIMITIVE_MISSING(

@@ -2,7 +2,7 @@
 //! files named by URIs (inside the folder only; gzip/zstd decompressed under size limits).
 
 use super::issues::Issue;
-use crate::tiling::load::resolve_inside;
+use super::uri::{Resolved, resolve_uri};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -19,6 +19,11 @@ pub struct ValidateOptions {
     pub max_decompression_ratio: u64,
     /// Allowed `| |q| - 1 |` of float ROTATION quaternions.
     pub rotation_tolerance: f64,
+    /// Folder that URIs may resolve into (a served root); `None`: the tileset's own folder.
+    /// Relative `../` URIs are legal in 3D Tiles: widen the root to validate such tilesets.
+    pub root: Option<PathBuf>,
+    /// Deepest chain of external tilesets followed (tileset -> external -> external ...).
+    pub max_external_depth: usize,
 }
 
 impl Default for ValidateOptions {
@@ -29,14 +34,32 @@ impl Default for ValidateOptions {
             max_decompressed_bytes: 1 << 30,
             max_decompression_ratio: 2048,
             rotation_tolerance: 1e-3,
+            root: None,
+            max_external_depth: 16,
         }
     }
 }
 
 /// Shared state of one validation run.
 pub(crate) struct Ctx<'a> {
-    /// Folder of `tileset.json`: every URI must resolve inside it.
+    /// Folder that relative URIs of the tileset being checked resolve against.
     pub dir: PathBuf,
+    /// Folder every URI must resolve inside (`--root`, else the top tileset's folder), and its
+    /// canonical form (symbolic links resolved) when it exists.
+    pub root: PathBuf,
+    /// Canonical `root`, used to refuse symbolic links that lead outside it.
+    pub root_real: Option<PathBuf>,
+    /// Name of the tileset JSON being checked, relative to `root` (prefix of issue paths).
+    pub file: String,
+    /// Canonical paths of the tileset JSON files being checked, outermost first (cycles).
+    pub chain: Vec<PathBuf>,
+    /// External tilesets already checked (each is validated once per run).
+    pub visited: std::collections::HashSet<PathBuf>,
+    /// Issues pushed in the whole run, nested external tilesets included (bounded).
+    pub pushed: usize,
+    /// The tileset being checked is 3D Tiles 1.0 without `3DTILES_content_gltf` declared: a glTF
+    /// content is then reported (once).
+    pub gltf_undeclared: bool,
     /// Options.
     pub opts: &'a ValidateOptions,
     /// Issues found so far.
@@ -59,8 +82,21 @@ const ZSTD: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
 impl<'a> Ctx<'a> {
     /// A context for the tileset in `dir`.
     pub fn new(dir: PathBuf, opts: &'a ValidateOptions) -> Self {
+        let dir = super::uri::lexical(&dir);
+        let root = opts
+            .root
+            .as_deref()
+            .map_or_else(|| dir.clone(), super::uri::lexical);
+        let root_real = std::fs::canonicalize(&root).ok();
         Ctx {
             dir,
+            root,
+            root_real,
+            file: "tileset.json".to_string(),
+            chain: Vec::new(),
+            visited: std::collections::HashSet::new(),
+            pushed: 0,
+            gltf_undeclared: false,
             opts,
             issues: Vec::new(),
             memory: None,
@@ -70,14 +106,20 @@ impl<'a> Ctx<'a> {
 
     /// Records an issue; beyond [`MAX_ISSUES`] one ISSUES_TRUNCATED note replaces the rest.
     pub fn push(&mut self, issue: Issue) {
-        match self.issues.len() {
-            n if n < MAX_ISSUES => self.issues.push(issue),
-            n if n == MAX_ISSUES => self.issues.push(Issue::ISSUES_TRUNCATED(
+        self.pushed += 1;
+        match self.pushed {
+            n if n <= MAX_ISSUES => self.issues.push(issue),
+            n if n == MAX_ISSUES + 1 => self.issues.push(Issue::ISSUES_TRUNCATED(
                 "",
                 format!("more than {MAX_ISSUES} issues; the rest are not listed"),
             )),
             _ => {}
         }
+    }
+
+    /// Issue path of a JSON pointer inside the tileset being checked: `FILE#/pointer`.
+    pub fn at(&self, pointer: &str) -> String {
+        format!("{}#{pointer}", self.file)
     }
 
     /// Resolves `uri` (found at `path`) inside the tileset folder, reporting why not.
@@ -100,15 +142,30 @@ impl<'a> Ctx<'a> {
             }
             return None;
         }
-        match resolve_inside(&self.dir, uri) {
-            Some(p) => Some(p),
-            None => {
+        match resolve_uri(&self.root, &self.dir, uri) {
+            Resolved::Inside(p) => Some(p),
+            Resolved::Outside => {
                 self.push(Issue::URI_OUTSIDE_TILESET(
                     path,
-                    format!("'{uri}' is absolute or climbs out of the tileset folder"),
+                    format!(
+                        "'{uri}' is absolute or climbs out of the folder {} (pass --root to validate a wider served root)",
+                        self.root.display()
+                    ),
                 ));
                 None
             }
+            Resolved::Invalid(why) => {
+                self.push(Issue::URI_INVALID(path, format!("'{uri}': {why}")));
+                None
+            }
+        }
+    }
+
+    /// Where `uri` leads when it stays inside the root, reporting nothing.
+    pub fn lookup(&self, uri: &str) -> Option<PathBuf> {
+        match resolve_uri(&self.root, &self.dir, uri) {
+            Resolved::Inside(p) => Some(p),
+            _ => None,
         }
     }
 
@@ -120,7 +177,18 @@ impl<'a> Ctx<'a> {
             let bytes = bytes.clone();
             return self.decompress(bytes, name);
         }
-        match std::fs::read(file) {
+        let real = match self.checked(file) {
+            Ok(real) => real,
+            Err(Refused::Outside(why)) => {
+                self.push(Issue::URI_OUTSIDE_TILESET(name, why));
+                return None;
+            }
+            Err(Refused::Io(why)) => {
+                self.push(Issue::IO_ERROR(name, why));
+                return None;
+            }
+        };
+        match read_bounded(&real, self.opts.max_decompressed_bytes) {
             Ok(bytes) => self.decompress(bytes, name),
             Err(e) => {
                 self.push(Issue::IO_ERROR(name, format!("cannot read: {e}")));
@@ -129,7 +197,42 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    /// Whether `file` exists (in memory or on disk).
+    /// The real path of `file` when it may be read: a regular file of bounded size that stays
+    /// inside the root once symbolic links are resolved. Nothing of the file is read.
+    pub fn checked(&self, file: &Path) -> Result<PathBuf, Refused> {
+        let real =
+            std::fs::canonicalize(file).map_err(|e| Refused::Io(format!("cannot read: {e}")))?;
+        // Fail closed: without a resolvable root nothing is known to be inside it.
+        let Some(root) = &self.root_real else {
+            return Err(Refused::Io(format!(
+                "the folder {} cannot be resolved; not read",
+                self.root.display()
+            )));
+        };
+        if !real.starts_with(root) {
+            return Err(Refused::Outside(format!(
+                "a symbolic link leads out of the folder {}; not read",
+                self.root.display()
+            )));
+        }
+        let meta =
+            std::fs::metadata(&real).map_err(|e| Refused::Io(format!("cannot read: {e}")))?;
+        if !meta.is_file() {
+            return Err(Refused::Io(
+                "not a regular file (a folder, device or pipe); not read".into(),
+            ));
+        }
+        let limit = self.opts.max_decompressed_bytes;
+        if meta.len() > limit {
+            return Err(Refused::Io(format!(
+                "{} bytes is larger than the limit of {limit} bytes (--max-decompressed-mib); not read",
+                meta.len()
+            )));
+        }
+        Ok(real)
+    }
+
+    /// Whether `file` exists (in memory or on disk) as a regular file.
     pub fn exists(&self, file: &Path) -> bool {
         self.memory.as_ref().is_some_and(|(p, _)| p == file) || file.is_file()
     }
@@ -159,6 +262,29 @@ impl<'a> Ctx<'a> {
             }
         }
     }
+}
+
+/// Why a file named by a URI is not read.
+#[derive(Debug)]
+pub(crate) enum Refused {
+    /// It resolves (through a symbolic link) outside the root.
+    Outside(String),
+    /// It is missing, not a regular file, or too large.
+    Io(String),
+}
+
+/// Reads at most `limit` bytes of a regular file (a file that grew since its size was checked
+/// is refused rather than read without bound).
+fn read_bounded(file: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    let f = std::fs::File::open(file)?;
+    let mut out = Vec::new();
+    f.take(limit.saturating_add(1)).read_to_end(&mut out)?;
+    if out.len() as u64 > limit {
+        return Err(std::io::Error::other(format!(
+            "larger than the limit of {limit} bytes"
+        )));
+    }
+    Ok(out)
 }
 
 /// Why a compressed input was refused.

@@ -59,12 +59,40 @@ fn template(ctx: &mut Ctx<'_>, uri: &str, path: &str, octree: bool) {
     }
 }
 
+/// Reports the subtree JSON arrays that are present but empty (the schemas say minItems 1).
+fn empty_arrays(ctx: &mut Ctx<'_>, json: &[u8], name: &str) {
+    let Ok(serde_json::Value::Object(raw)) = serde_json::from_slice(json) else {
+        return;
+    };
+    for key in [
+        "buffers",
+        "bufferViews",
+        "propertyTables",
+        "contentAvailability",
+        "contentMetadata",
+    ] {
+        if raw
+            .get(key)
+            .and_then(serde_json::Value::as_array)
+            .is_some_and(Vec::is_empty)
+        {
+            ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
+                format!("{name}#/{key}"),
+                format!("{key}, when present, must not be empty"),
+            ));
+        }
+    }
+}
+
 /// Parses a `.subtree` file (binary, or JSON with external buffers); framing issues recorded.
 fn parse_subtree(ctx: &mut Ctx<'_>, bytes: &[u8], name: &str) -> Option<(SubtreeJson, Vec<u8>)> {
     let at = |o: u64| format!("{name}@byte {o}");
     let parse_json = |ctx: &mut Ctx<'_>, json: &[u8], offset: u64| -> Option<SubtreeJson> {
         match serde_json::from_slice::<SubtreeJson>(json) {
-            Ok(j) => Some(j),
+            Ok(j) => {
+                empty_arrays(ctx, json, name);
+                Some(j)
+            }
             Err(e) if e.to_string().starts_with("missing field") => {
                 ctx.push(Issue::PROPERTY_MISSING(format!("{name}#"), e.to_string()));
                 None
@@ -711,9 +739,7 @@ pub(crate) fn validate(
                     queue.push((key, false));
                 } else if parent_ok && key.level < al {
                     let child_uri = expand_template(&subtrees_uri, key);
-                    if crate::tiling::load::resolve_inside(&ctx.dir, &child_uri)
-                        .is_some_and(|f| f.is_file())
-                    {
+                    if ctx.lookup(&child_uri).is_some_and(|f| f.is_file()) {
                         ctx.push(Issue::SUBTREE_FILE_UNREFERENCED(
                             child_uri,
                             format!(

@@ -37,6 +37,17 @@ pub struct Issue {
     pub message: String,
     /// Fixed by the code.
     pub severity: Severity,
+    /// The issues of a nested document (an external tileset) that this one summarises.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub causes: Vec<Issue>,
+}
+
+impl Issue {
+    /// This issue with `causes` attached.
+    pub fn with_causes(mut self, causes: Vec<Issue>) -> Issue {
+        self.causes = causes;
+        self
+    }
 }
 
 macro_rules! catalogue {
@@ -56,6 +67,7 @@ macro_rules! catalogue {
                         path: path.into(),
                         message: message.into(),
                         severity: Severity::$sev,
+                        causes: Vec::new(),
                     }
                 }
             )*
@@ -68,6 +80,8 @@ catalogue! {
     IO_ERROR => Error,
     /// A relative URI climbs out of the tileset folder or is an absolute path.
     URI_OUTSIDE_TILESET => Error,
+    /// A URI is not a usable relative reference (bad percent-encoding, NUL byte, empty path).
+    URI_INVALID => Error,
     /// A URI names a remote resource (http, https, data...), not allowed without --allow-remote.
     URI_REMOTE => Error,
     /// A remote URI was allowed (--allow-remote) but was not fetched, so not validated.
@@ -76,6 +90,23 @@ catalogue! {
     DECOMPRESSION_LIMIT_EXCEEDED => Error,
     /// A JSON document (tileset, subtree or glTF chunk) does not parse.
     JSON_PARSE_ERROR => Error,
+    /// A tileset JSON nests arrays/objects deeper than the validator follows (1024 levels).
+    JSON_NESTING_TOO_DEEP => Error,
+    /// An external tileset has errors (listed as causes).
+    EXTERNAL_TILESET_VALIDATION_FAILED => Error,
+    /// An external tileset has warnings but no errors (listed as causes).
+    EXTERNAL_TILESET_VALIDATION_WARNING => Warning,
+    /// An external tileset has only notes (listed as causes).
+    EXTERNAL_TILESET_VALIDATION_INFO => Info,
+    /// An external tileset refers back to itself or to a tileset that refers to it (a cycle).
+    EXTERNAL_TILESET_CYCLE => Error,
+    /// External tilesets nest deeper than --max-external-depth; the deeper ones are not opened.
+    EXTERNAL_TILESET_TOO_DEEP => Error,
+    /// Two properties of which at most one may be present are both present (content and
+    /// contents, schema and schemaUri).
+    ONE_OF_ERROR => Error,
+    /// An array whose elements must be unique has a duplicate (extensionsUsed, extensionsRequired).
+    ARRAY_ELEMENT_NOT_UNIQUE => Error,
     /// A required property is missing.
     PROPERTY_MISSING => Error,
     /// A property has the wrong JSON type.
@@ -92,8 +123,14 @@ catalogue! {
     TILE_REFINE_MISSING_IN_ROOT => Error,
     /// A bounding volume is malformed or degenerate.
     BOUNDING_VOLUME_INVALID => Error,
-    /// A tile transform is not 16 finite numbers or is not invertible.
+    /// A tile transform is not 16 finite numbers.
     TRANSFORM_INVALID => Error,
+    /// A tile transform's last row is not (0, 0, 0, 1): not an affine transform.
+    TRANSFORM_NOT_AFFINE => Error,
+    /// A tile transform is affine but singular (its content collapses to a plane, line or point).
+    TRANSFORM_SINGULAR => Info,
+    /// A content bounding volume is not inside its tile's bounding volume.
+    CONTENT_BOUNDING_VOLUME_NOT_IN_TILE => Error,
     /// A tile's geometric error is larger than its parent's.
     TILE_GEOMETRIC_ERRORS_INCONSISTENT => Warning,
     /// An implicit root has children, metadata or a content bounding volume.
@@ -108,6 +145,12 @@ catalogue! {
     EXTENSION_REQUIRED_BUT_NOT_USED => Error,
     /// An extension object is present but its name is not in extensionsUsed.
     EXTENSION_FOUND_BUT_NOT_USED => Error,
+    /// An `extras` member is not a JSON object.
+    EXTRAS_UNEXPECTED_TYPE => Warning,
+    /// An extension is in extensionsUsed but no object of the tileset carries it.
+    EXTENSION_USED_BUT_NOT_FOUND => Warning,
+    /// A required extension is unknown to this validator: not checked, and clients may refuse it.
+    EXTENSION_REQUIRED_NOT_SUPPORTED => Warning,
     /// A binary file has a bad magic or version.
     BINARY_INVALID => Error,
     /// A binary header's lengths disagree with the file size.
@@ -140,6 +183,17 @@ catalogue! {
     PROPERTY_TABLE_VALUES_INVALID => Error,
     /// A metadata value is invalid for its semantic (negative geometric error, bad box...).
     METADATA_VALUE_INVALID => Error,
+    /// A metadata entity names a class the schema does not define (or there is no schema).
+    METADATA_CLASS_UNKNOWN => Error,
+    /// A metadata entity sets a property its class does not define.
+    METADATA_PROPERTY_UNKNOWN => Error,
+    /// A required class property has no value (and no default).
+    METADATA_VALUE_REQUIRED_BUT_MISSING => Error,
+    /// A metadata value does not have the JSON shape of its property (type, components, array
+    /// length, enum name, integer range of the component type).
+    METADATA_VALUE_TYPE_MISMATCH => Error,
+    /// A metadata value (after offset and scale) lies outside the property's min / max.
+    METADATA_VALUE_NOT_IN_RANGE => Error,
     /// A glb's header or chunks are malformed or truncated.
     GLB_INVALID => Error,
     /// A glTF index points to an object that does not exist.

@@ -19,6 +19,22 @@ pub(crate) struct Prop {
     pub count: Option<u64>,
     /// Built-in semantic, if any.
     pub semantic: Option<String>,
+    /// Every entity must give a value.
+    pub required: bool,
+    /// Integer components are normalized to [0, 1] / [-1, 1].
+    pub normalized: bool,
+    /// Enum of an ENUM property.
+    pub enum_type: Option<String>,
+    /// `offset`, `scale`, `min`, `max` and `noData` as declared.
+    pub offset: Option<Value>,
+    /// See `offset`.
+    pub scale: Option<Value>,
+    /// See `offset`.
+    pub min: Option<Value>,
+    /// See `offset`.
+    pub max: Option<Value>,
+    /// See `offset`.
+    pub no_data: Option<Value>,
 }
 
 impl Prop {
@@ -57,6 +73,12 @@ pub(crate) fn component_size(c: &str) -> Option<u64> {
 pub(crate) struct Schema {
     /// Class name -> property name -> property.
     pub classes: HashMap<String, BTreeMap<String, Prop>>,
+    /// Enum name -> its value names.
+    pub enums: HashMap<String, Vec<String>>,
+    /// Whether the tileset has a schema at all (inline or by URI).
+    pub present: bool,
+    /// Number of entries of the tileset's `groups` (targets of `content.group`).
+    pub groups: usize,
 }
 
 const TYPES: &[&str] = &[
@@ -89,11 +111,17 @@ fn semantic_shape(semantic: &str) -> Option<Option<u64>> {
 
 /// Validates a `schema` object; returns what later checks need.
 pub(crate) fn validate_schema(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Schema {
-    let mut schema = Schema::default();
+    let mut schema = Schema {
+        present: true,
+        ..Schema::default()
+    };
     let Some(obj) = v.as_object() else {
         ctx.push(Issue::TYPE_MISMATCH(path, "schema must be an object"));
         return schema;
     };
+    if let Some(enums) = obj.get("enums") {
+        schema.enums = super::entity::validate_enums(ctx, enums, &format!("{path}/enums"));
+    }
     // "id ... MUST match ^[a-zA-Z_][a-zA-Z0-9_]*$".
     match obj.get("id") {
         None => ctx.push(Issue::PROPERTY_MISSING(path, "schema 'id' is required")),
@@ -178,11 +206,43 @@ pub(crate) fn validate_schema(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Schem
                 )),
                 None => {}
             }
-            if prop.kind == "ENUM" && p.get("enumType").is_none() {
-                ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+            match p.get("enumType") {
+                None if prop.kind == "ENUM" => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
                     pp.clone(),
                     "type ENUM requires enumType",
-                ));
+                )),
+                Some(Value::String(e)) if prop.kind == "ENUM" => {
+                    if !schema.enums.contains_key(e) {
+                        ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+                            format!("{pp}/enumType"),
+                            format!("enum '{e}' is not defined in the schema's enums"),
+                        ));
+                    }
+                    prop.enum_type = Some(e.clone());
+                }
+                Some(_) if prop.kind == "ENUM" => ctx.push(Issue::TYPE_MISMATCH(
+                    format!("{pp}/enumType"),
+                    "enumType must be a string",
+                )),
+                Some(_) => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+                    format!("{pp}/enumType"),
+                    "enumType is only allowed on type ENUM",
+                )),
+                None => {}
+            }
+            prop.required = p.get("required").and_then(Value::as_bool).unwrap_or(false);
+            prop.normalized = p
+                .get("normalized")
+                .and_then(Value::as_bool)
+                .unwrap_or(false);
+            for (key, slot) in [
+                ("offset", &mut prop.offset),
+                ("scale", &mut prop.scale),
+                ("min", &mut prop.min),
+                ("max", &mut prop.max),
+                ("noData", &mut prop.no_data),
+            ] {
+                *slot = p.get(key).cloned();
             }
             prop.array = p.get("array").and_then(Value::as_bool).unwrap_or(false);
             if let Some(c) = p.get("count") {
@@ -220,6 +280,7 @@ pub(crate) fn validate_schema(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Schem
                     }
                 }
             }
+            super::entity::check_definition(ctx, &prop, &pp);
             props.insert(pname.clone(), prop);
         }
         schema.classes.insert(cname.clone(), props);

@@ -8,11 +8,17 @@
 
 mod content;
 mod context;
+mod declarations;
+mod entity;
+mod external;
 mod implicit;
 pub mod issues;
+mod json;
+mod legacy;
 mod metadata;
 pub mod report;
 mod tileset;
+mod uri;
 mod volume;
 
 pub use context::ValidateOptions;
@@ -48,21 +54,40 @@ pub fn validate_tileset(path: &Path, opts: &ValidateOptions) -> Result<Report, V
         path: file.clone(),
         source,
     })?;
-    let dir = file.parent().unwrap_or(Path::new(".")).to_path_buf();
-    Ok(validate_tileset_bytes(&bytes, &dir, opts))
+    let dir = match file.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = file.file_name().map_or_else(
+        || "tileset.json".into(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    Ok(run(&bytes, &dir, Some((&file, name)), opts))
 }
 
 /// Validates `tileset.json` bytes whose URIs resolve inside `dir`.
 pub fn validate_tileset_bytes(bytes: &[u8], dir: &Path, opts: &ValidateOptions) -> Report {
+    run(bytes, dir, None, opts)
+}
+
+/// Validates tileset JSON bytes; `file` is the file they came from (for cycles) and its name.
+fn run(bytes: &[u8], dir: &Path, file: Option<(&Path, String)>, opts: &ValidateOptions) -> Report {
     let mut ctx = Ctx::new(dir.to_path_buf(), opts);
-    if let Some(bytes) = ctx.decompress(bytes.to_vec(), "tileset.json") {
-        match serde_json::from_slice::<serde_json::Value>(&bytes) {
-            Ok(v) => tileset::tileset(&mut ctx, &v),
-            Err(e) => ctx.push(Issue::JSON_PARSE_ERROR(
-                format!("tileset.json@line {} column {}", e.line(), e.column()),
-                e.to_string(),
-            )),
+    if let Some((path, name)) = file {
+        // Issue paths name the file relative to the root (`--root` may be a parent folder).
+        ctx.file = uri::lexical(path)
+            .strip_prefix(&ctx.root)
+            .map_or(name, |p| p.display().to_string());
+        if let Ok(real) = std::fs::canonicalize(path) {
+            ctx.visited.insert(real.clone());
+            ctx.chain.push(real);
         }
+    }
+    let name = ctx.file.clone();
+    if let Some(bytes) = ctx.decompress(bytes.to_vec(), &name)
+        && let Some(v) = json::parse(&mut ctx, &bytes, &name)
+    {
+        tileset::tileset(&mut ctx, &v, glam::DMat4::IDENTITY);
     }
     Report::new(ctx.issues)
 }
@@ -100,7 +125,7 @@ pub fn validate_subtree_bytes(
     let mut ctx = Ctx::new(dir.clone(), opts);
     ctx.memory = Some((dir.join("0.subtree"), bytes.to_vec()));
     // Only the root subtree is read: children are not present, templates map to "0.subtree".
-    tileset::tileset(&mut ctx, &tileset);
+    tileset::tileset(&mut ctx, &tileset, glam::DMat4::IDENTITY);
     let issues = ctx
         .issues
         .into_iter()

@@ -45,14 +45,18 @@ impl Report {
         self.num_errors == 0
     }
 
-    /// Codes of the ERROR and WARNING issues, sorted (a multiset, for tests).
+    /// Codes of the ERROR and WARNING issues, sorted (a multiset, for tests); the ERROR and
+    /// WARNING causes of an issue follow as `CODE>CAUSE` (and `CODE>CAUSE>CAUSE` when nested).
     pub fn codes(&self) -> Vec<String> {
-        let mut v: Vec<String> = self
-            .issues
-            .iter()
-            .filter(|i| i.severity != Severity::Info)
-            .map(|i| i.code.clone())
-            .collect();
+        fn walk(prefix: &str, issues: &[Issue], out: &mut Vec<String>) {
+            for i in issues.iter().filter(|i| i.severity != Severity::Info) {
+                let code = format!("{prefix}{}", i.code);
+                walk(&format!("{code}>"), &i.causes, out);
+                out.push(code);
+            }
+        }
+        let mut v = Vec::new();
+        walk("", &self.issues, &mut v);
         v.sort();
         v
     }
@@ -64,16 +68,21 @@ impl Report {
 
     /// Human-readable text: one line per issue, then a summary line.
     pub fn to_text(&self, input: &str) -> String {
-        let mut out = String::new();
-        for i in &self.issues {
-            out.push_str(&format!(
-                "{:<7} {} {}: {}\n",
-                i.severity.to_string(),
-                i.code,
-                i.path,
-                i.message
-            ));
+        fn lines(issues: &[Issue], indent: usize, out: &mut String) {
+            for i in issues {
+                out.push_str(&format!(
+                    "{:indent$}{:<7} {} {}: {}\n",
+                    "",
+                    i.severity.to_string(),
+                    i.code,
+                    i.path,
+                    i.message
+                ));
+                lines(&i.causes, indent + 2, out);
+            }
         }
+        let mut out = String::new();
+        lines(&self.issues, 0, &mut out);
         out.push_str(&format!(
             "{input}: {} ({} errors, {} warnings, {} infos)\n",
             if self.is_valid() { "valid" } else { "INVALID" },

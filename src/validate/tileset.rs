@@ -3,6 +3,9 @@
 
 use super::content::validate_glb;
 use super::context::Ctx;
+use super::declarations::declarations;
+use super::entity::entity;
+use super::external::external;
 use super::implicit;
 use super::issues::Issue;
 use super::metadata::{Schema, validate_schema};
@@ -87,13 +90,52 @@ pub(crate) fn bounding_volume(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Optio
             Err(why) => ctx.push(Issue::BOUNDING_VOLUME_INVALID(p, why)),
         }
     }
+    if let Some(s2) = obj
+        .get("extensions")
+        .and_then(|e| e.get("3DTILES_bounding_volume_S2"))
+    {
+        kinds += 1;
+        s2_volume(
+            ctx,
+            s2,
+            &format!("{path}/extensions/3DTILES_bounding_volume_S2"),
+        );
+    }
     if kinds == 0 {
         ctx.push(Issue::BOUNDING_VOLUME_INVALID(
             path,
-            "a bounding volume needs a box, a region or a sphere",
+            "a bounding volume needs a box, a region, a sphere or an S2 cell",
         ));
     }
     found
+}
+
+/// Validates the `3DTILES_bounding_volume_S2` object: a hexadecimal cell token and heights
+/// (its geometry is not used for containment checks).
+fn s2_volume(ctx: &mut Ctx<'_>, v: &Value, path: &str) {
+    match v.get("token").and_then(Value::as_str) {
+        Some(t) if (1..=16).contains(&t.len()) && t.chars().all(|c| c.is_ascii_hexdigit()) => {}
+        Some(t) => ctx.push(Issue::BOUNDING_VOLUME_INVALID(
+            format!("{path}/token"),
+            format!("S2 token '{t}' is not 1 to 16 hexadecimal digits"),
+        )),
+        None => ctx.push(Issue::PROPERTY_MISSING(
+            path,
+            "an S2 volume needs a string 'token'",
+        )),
+    }
+    let h = |k: &str| v.get(k).and_then(Value::as_f64);
+    match (h("minimumHeight"), h("maximumHeight")) {
+        (Some(lo), Some(hi)) if lo > hi => ctx.push(Issue::BOUNDING_VOLUME_INVALID(
+            path,
+            format!("minimumHeight {lo} is greater than maximumHeight {hi}"),
+        )),
+        (Some(_), Some(_)) => {}
+        _ => ctx.push(Issue::PROPERTY_MISSING(
+            path,
+            "an S2 volume needs numbers minimumHeight and maximumHeight",
+        )),
+    }
 }
 
 /// Validates a tile `transform`; returns it when usable.
@@ -107,13 +149,29 @@ fn transform(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Option<DMat4> {
         return None;
     }
     let m = DMat4::from_cols_slice(&nums);
-    let det = DMat3::from_mat4(m).determinant();
-    if !m.is_finite() || det == 0.0 || !det.is_finite() {
+    if !m.is_finite() {
         ctx.push(Issue::TRANSFORM_INVALID(
             path,
-            "the transform is not invertible (its 3x3 part has determinant 0)",
+            "the transform holds a non-finite number",
         ));
         return None;
+    }
+    // Column-major: the last row is elements 3, 7, 11, 15.
+    if [nums[3], nums[7], nums[11], nums[15]] != [0.0, 0.0, 0.0, 1.0] {
+        ctx.push(Issue::TRANSFORM_NOT_AFFINE(
+            path,
+            format!(
+                "the last row is ({}, {}, {}, {}), not (0, 0, 0, 1): the transform must be affine",
+                nums[3], nums[7], nums[11], nums[15]
+            ),
+        ));
+        return None;
+    }
+    if DMat3::from_mat4(m).determinant() == 0.0 {
+        ctx.push(Issue::TRANSFORM_SINGULAR(
+            path,
+            "the transform's 3x3 part has determinant 0: content collapses (allowed, but invisible)",
+        ));
     }
     Some(m)
 }
@@ -183,6 +241,20 @@ pub(crate) fn tile(
         .unwrap_or(DMat4::IDENTITY);
     let world = parent.world * local;
 
+    if let Some(vrv) = obj.get("viewerRequestVolume") {
+        bounding_volume(ctx, vrv, &format!("{path}/viewerRequestVolume"));
+    }
+    if let Some(m) = obj.get("metadata")
+        && !obj.contains_key("implicitTiling")
+    {
+        entity(ctx, schema, m, &format!("{path}/metadata"));
+    }
+    if obj.contains_key("content") && obj.contains_key("contents") {
+        ctx.push(Issue::ONE_OF_ERROR(
+            path,
+            "a tile has either content or contents, not both",
+        ));
+    }
     if let Some(it) = obj.get("implicitTiling") {
         implicit::validate(ctx, v, it, path, volume, world, error, schema);
     } else {
@@ -193,24 +265,17 @@ pub(crate) fn tile(
                 .enumerate()
                 .map(|(i, c)| (format!("{path}/contents/{i}"), c))
                 .collect(),
+            (None, Some(_)) => {
+                ctx.push(Issue::TYPE_MISMATCH(
+                    format!("{path}/contents"),
+                    "contents must be an array of content objects",
+                ));
+                vec![]
+            }
             _ => vec![],
         };
         for (cp, c) in contents {
-            let cvol = c
-                .get("boundingVolume")
-                .and_then(|b| bounding_volume(ctx, b, &format!("{cp}/boundingVolume")));
-            let Some(uri) = c.get("uri") else {
-                ctx.push(Issue::PROPERTY_MISSING(cp, "content 'uri' is required"));
-                continue;
-            };
-            let Some(uri) = uri.as_str() else {
-                ctx.push(Issue::TYPE_MISMATCH(
-                    format!("{cp}/uri"),
-                    "uri must be a string",
-                ));
-                continue;
-            };
-            content_file(ctx, uri, &format!("{cp}/uri"), volume.or(cvol), world);
+            content(ctx, c, &cp, volume, world, schema);
         }
     }
     if let Some(children) = obj.get("children") {
@@ -221,6 +286,12 @@ pub(crate) fn tile(
             ));
             return;
         };
+        if children.is_empty() {
+            ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
+                format!("{path}/children"),
+                "children, when present, must not be empty",
+            ));
+        }
         if depth > 256 {
             ctx.push(Issue::VALUE_NOT_IN_RANGE(
                 path,
@@ -242,6 +313,68 @@ pub(crate) fn tile(
     }
 }
 
+/// Validates one content object of an explicit tile: its bounding volume (inside the tile's),
+/// metadata, group, and the file its URI names.
+fn content(
+    ctx: &mut Ctx<'_>,
+    c: &Value,
+    cp: &str,
+    volume: Option<Volume>,
+    world: DMat4,
+    schema: &Schema,
+) {
+    if !c.is_object() {
+        ctx.push(Issue::TYPE_MISMATCH(cp, "a content must be an object"));
+        return;
+    }
+    let cvol = c
+        .get("boundingVolume")
+        .and_then(|b| bounding_volume(ctx, b, &format!("{cp}/boundingVolume")));
+    if let (Some(outer), Some(inner)) = (volume, cvol)
+        && let Some(excess) = outer.contains(&inner)
+        && excess > 1e-6
+    {
+        ctx.push(Issue::CONTENT_BOUNDING_VOLUME_NOT_IN_TILE(
+            format!("{cp}/boundingVolume"),
+            format!(
+                "the content bounding volume reaches outside the tile's (by {excess:.3e} of its size)"
+            ),
+        ));
+    }
+    if let Some(m) = c.get("metadata") {
+        entity(ctx, schema, m, &format!("{cp}/metadata"));
+    }
+    match c.get("group") {
+        None => {}
+        Some(g) => match g.as_u64() {
+            Some(i) if (i as usize) < schema.groups => {}
+            Some(i) => ctx.push(Issue::VALUE_NOT_IN_RANGE(
+                format!("{cp}/group"),
+                format!(
+                    "group {i} does not exist (the tileset has {} groups)",
+                    schema.groups
+                ),
+            )),
+            None => ctx.push(Issue::TYPE_MISMATCH(
+                format!("{cp}/group"),
+                "group must be a non-negative integer index into the tileset's groups",
+            )),
+        },
+    }
+    let Some(uri) = c.get("uri") else {
+        ctx.push(Issue::PROPERTY_MISSING(cp, "content 'uri' is required"));
+        return;
+    };
+    let Some(uri) = uri.as_str() else {
+        ctx.push(Issue::TYPE_MISMATCH(
+            format!("{cp}/uri"),
+            "uri must be a string",
+        ));
+        return;
+    };
+    content_file(ctx, uri, &format!("{cp}/uri"), cvol.or(volume), world);
+}
+
 /// Validates one content file and that its splats lie inside `volume`.
 pub(crate) fn content_file(
     ctx: &mut Ctx<'_>,
@@ -250,20 +383,49 @@ pub(crate) fn content_file(
     volume: Option<Volume>,
     world: DMat4,
 ) {
+    let lower = uri
+        .split(['?', '#'])
+        .next()
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if ctx.gltf_undeclared && (lower.ends_with(".glb") || lower.ends_with(".gltf")) {
+        ctx.gltf_undeclared = false;
+        ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
+            path,
+            "a glTF content in a 3D Tiles 1.0 tileset needs 3DTILES_content_gltf in extensionsUsed",
+        ));
+    }
     let Some(file) = ctx.resolve(uri, path) else {
         return;
     };
     let Some(bytes) = ctx.read(&file, uri) else {
         return;
     };
-    let other_format = [&b"b3dm"[..], b"i3dm", b"pnts", b"cmpt", b"{"]
-        .iter()
-        .any(|m| bytes.starts_with(m));
-    if other_format && !uri.to_ascii_lowercase().ends_with(".glb") {
+    let first = bytes.iter().find(|b| !b.is_ascii_whitespace()).copied();
+    if first == Some(b'{') {
+        let gltf = uri.to_ascii_lowercase().ends_with(".gltf");
+        if gltf {
+            ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
+                uri,
+                "a glTF JSON content: only glb contents are validated",
+            ));
+        } else {
+            external(ctx, &file, &bytes, uri, path, world);
+        }
+        return;
+    }
+    if bytes.starts_with(b"PK\x03\x04") {
         ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
             uri,
-            "content is not a glb (b3dm, i3dm, pnts, cmpt or JSON); only glb contents are validated",
+            "a zip archive (3tz): its entries are not opened",
         ));
+        return;
+    }
+    if [&b"b3dm"[..], b"i3dm", b"pnts", b"cmpt"]
+        .iter()
+        .any(|m| bytes.starts_with(m))
+    {
+        super::legacy::legacy_content(ctx, &bytes, uri);
         return;
     }
     let extent = ctx.opts.check_extent;
@@ -325,93 +487,224 @@ pub(crate) fn containment(
     }
 }
 
-/// Validates the whole `tileset.json` document.
-pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value) {
-    let path = "tileset.json#";
+/// Validates a whole tileset JSON document; `world` places its root (identity for the top
+/// tileset, the referring tile's transform for an external one).
+pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value, world: DMat4) {
+    let path = ctx.at("");
+    let path = path.as_str();
     if !v.is_object() {
         ctx.push(Issue::TYPE_MISMATCH(
             path,
-            "tileset.json must hold an object",
+            "a tileset JSON must hold an object",
         ));
         return;
     }
     ctx.variant_templates = variant_templates(v);
-    match v.get("asset") {
-        None => ctx.push(Issue::PROPERTY_MISSING(path, "'asset' is required")),
-        Some(a) => match a.get("version") {
-            None => ctx.push(Issue::PROPERTY_MISSING(
-                format!("{path}/asset"),
-                "'version' is required",
-            )),
-            Some(Value::String(s)) if s == "1.0" || s == "1.1" => {}
-            Some(Value::String(s)) => ctx.push(Issue::ASSET_VERSION_UNKNOWN(
-                format!("{path}/asset/version"),
-                format!("version '{s}' is neither 1.0 nor 1.1"),
-            )),
-            Some(_) => ctx.push(Issue::TYPE_MISMATCH(
-                format!("{path}/asset/version"),
-                "version must be a string",
-            )),
-        },
+    asset(ctx, v, path);
+    if let Some(p) = v.get("properties") {
+        legacy_properties(ctx, p, &format!("{path}/properties"));
     }
     let error = non_negative(ctx, v, "geometricError", path);
-    let used: Vec<&str> = v
-        .get("extensionsUsed")
-        .and_then(Value::as_array)
-        .map(|a| a.iter().filter_map(Value::as_str).collect())
-        .unwrap_or_default();
-    if let Some(req) = v.get("extensionsRequired").and_then(Value::as_array) {
-        for (i, r) in req.iter().enumerate() {
-            if let Some(r) = r.as_str()
-                && !used.contains(&r)
-            {
-                ctx.push(Issue::EXTENSION_REQUIRED_BUT_NOT_USED(
-                    format!("{path}/extensionsRequired/{i}"),
-                    format!("'{r}' is required but not in extensionsUsed"),
-                ));
-            }
-        }
+    let used = declarations(ctx, v);
+    ctx.gltf_undeclared = v.pointer("/asset/version").and_then(Value::as_str) == Some("1.0")
+        && !used.iter().any(|u| u == "3DTILES_content_gltf");
+    if v.get("schema").is_some() && v.get("schemaUri").is_some() {
+        ctx.push(Issue::ONE_OF_ERROR(
+            path,
+            "a tileset has either schema or schemaUri, not both",
+        ));
     }
-    if let Some(exts) = v.get("extensions").and_then(Value::as_object) {
-        for name in exts.keys() {
-            if !used.contains(&name.as_str()) {
-                ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
-                    format!("{path}/extensions/{name}"),
-                    format!("extension '{name}' is not in extensionsUsed"),
-                ));
-            }
-        }
-    }
-    let schema = match (v.get("schema"), v.get("schemaUri")) {
+    let mut schema = match (v.get("schema"), v.get("schemaUri")) {
         (Some(s), _) => validate_schema(ctx, s, &format!("{path}/schema")),
         (None, Some(Value::String(uri))) => {
             let p = format!("{path}/schemaUri");
             let bytes = ctx.resolve(uri, &p).and_then(|f| ctx.read(&f, uri));
-            match bytes.map(|b| serde_json::from_slice::<Value>(&b)) {
-                Some(Ok(s)) => validate_schema(ctx, &s, &format!("{uri}#")),
-                Some(Err(e)) => {
-                    ctx.push(Issue::JSON_PARSE_ERROR(uri.as_str(), e.to_string()));
-                    Schema::default()
-                }
-                None => Schema::default(),
+            match bytes.and_then(|b| super::json::parse(ctx, &b, uri)) {
+                Some(s) => validate_schema(ctx, &s, &format!("{uri}#")),
+                None => Schema {
+                    present: true,
+                    ..Schema::default()
+                },
             }
+        }
+        (None, Some(_)) => {
+            ctx.push(Issue::TYPE_MISMATCH(
+                format!("{path}/schemaUri"),
+                "schemaUri must be a string",
+            ));
+            Schema::default()
         }
         _ => Schema::default(),
     };
+    match v.get("groups") {
+        None => {}
+        Some(Value::Array(groups)) => {
+            schema.groups = groups.len();
+            for (i, g) in groups.iter().enumerate() {
+                entity(ctx, &schema, g, &format!("{path}/groups/{i}"));
+            }
+        }
+        Some(_) => ctx.push(Issue::TYPE_MISMATCH(
+            format!("{path}/groups"),
+            "groups must be an array of metadata entities",
+        )),
+    }
+    if let Some(m) = v.get("metadata") {
+        entity(ctx, &schema, m, &format!("{path}/metadata"));
+    }
+    if let Some(st) = v.get("statistics") {
+        statistics(ctx, &schema, st, &format!("{path}/statistics"));
+    }
     match v.get("root") {
         None => ctx.push(Issue::PROPERTY_MISSING(path, "'root' is required")),
         Some(root) => tile(
             ctx,
             root,
             &format!("{path}/root"),
-            Parent {
-                error,
-                world: DMat4::IDENTITY,
-            },
+            Parent { error, world },
             true,
             &schema,
             0,
         ),
+    }
+}
+
+/// Validates `asset`: an object with a string `version` ("1.0" or "1.1") and an optional
+/// string `tilesetVersion`.
+fn asset(ctx: &mut Ctx<'_>, v: &Value, path: &str) {
+    let Some(a) = v.get("asset") else {
+        ctx.push(Issue::PROPERTY_MISSING(path, "'asset' is required"));
+        return;
+    };
+    if !a.is_object() {
+        ctx.push(Issue::TYPE_MISMATCH(
+            format!("{path}/asset"),
+            "asset must be an object",
+        ));
+        return;
+    }
+    match a.get("version") {
+        None => ctx.push(Issue::PROPERTY_MISSING(
+            format!("{path}/asset"),
+            "'version' is required",
+        )),
+        Some(Value::String(s)) if s == "1.0" || s == "1.1" => {}
+        Some(Value::String(s)) => ctx.push(Issue::ASSET_VERSION_UNKNOWN(
+            format!("{path}/asset/version"),
+            format!("version '{s}' is neither 1.0 nor 1.1"),
+        )),
+        Some(_) => ctx.push(Issue::TYPE_MISMATCH(
+            format!("{path}/asset/version"),
+            "version must be a string",
+        )),
+    }
+    if let Some(tv) = a.get("tilesetVersion")
+        && !tv.is_string()
+    {
+        ctx.push(Issue::TYPE_MISMATCH(
+            format!("{path}/asset/tilesetVersion"),
+            "tilesetVersion must be a string",
+        ));
+    }
+}
+
+/// Validates the legacy 3D Tiles 1.0 `properties`: each entry has numbers `minimum` <= `maximum`.
+fn legacy_properties(ctx: &mut Ctx<'_>, v: &Value, path: &str) {
+    let Some(props) = v.as_object() else {
+        ctx.push(Issue::TYPE_MISMATCH(path, "properties must be an object"));
+        return;
+    };
+    for (name, p) in props {
+        let pp = format!("{path}/{name}");
+        let mut bound = |key: &str| match p.get(key) {
+            None => {
+                ctx.push(Issue::PROPERTY_MISSING(
+                    pp.clone(),
+                    format!("'{key}' is required"),
+                ));
+                None
+            }
+            Some(x) => {
+                if x.as_f64().is_none() {
+                    ctx.push(Issue::TYPE_MISMATCH(
+                        format!("{pp}/{key}"),
+                        format!("{key} must be a number"),
+                    ));
+                }
+                x.as_f64()
+            }
+        };
+        if let (Some(lo), Some(hi)) = (bound("minimum"), bound("maximum"))
+            && lo > hi
+        {
+            ctx.push(Issue::VALUE_NOT_IN_RANGE(
+                format!("{pp}/minimum"),
+                format!("minimum {lo} is greater than maximum {hi}"),
+            ));
+        }
+    }
+}
+
+/// Validates `statistics`: its classes and their properties exist in the schema.
+fn statistics(ctx: &mut Ctx<'_>, schema: &Schema, v: &Value, path: &str) {
+    let Some(classes) = v.get("classes").and_then(Value::as_object) else {
+        ctx.push(Issue::TYPE_MISMATCH(
+            format!("{path}/classes"),
+            "statistics needs an object 'classes'",
+        ));
+        return;
+    };
+    if classes.is_empty() {
+        ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
+            format!("{path}/classes"),
+            "statistics classes, when present, must name at least one class",
+        ));
+    }
+    for (cname, c) in classes {
+        let cp = format!("{path}/classes/{cname}");
+        if !c.is_object() {
+            ctx.push(Issue::TYPE_MISMATCH(
+                cp,
+                "a class's statistics must be an object",
+            ));
+            continue;
+        }
+        if c.get("properties")
+            .and_then(Value::as_object)
+            .is_some_and(|p| p.is_empty())
+        {
+            ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
+                format!("{cp}/properties"),
+                "statistics properties, when present, must name at least one property",
+            ));
+        }
+        let Some(props) = schema.classes.get(cname) else {
+            ctx.push(Issue::METADATA_CLASS_UNKNOWN(
+                cp,
+                format!("statistics for class '{cname}', which the schema does not define"),
+            ));
+            continue;
+        };
+        if let Some(ps) = c.get("properties").and_then(Value::as_object) {
+            for (pname, st) in ps {
+                if !props.contains_key(pname) {
+                    ctx.push(Issue::METADATA_PROPERTY_UNKNOWN(
+                        format!("{cp}/properties/{pname}"),
+                        format!("class '{cname}' has no property '{pname}'"),
+                    ));
+                    continue;
+                }
+                let num = |k: &str| st.get(k).and_then(Value::as_f64);
+                if let (Some(lo), Some(hi)) = (num("min"), num("max"))
+                    && lo > hi
+                {
+                    ctx.push(Issue::VALUE_NOT_IN_RANGE(
+                        format!("{cp}/properties/{pname}/min"),
+                        format!("statistics min {lo} is greater than max {hi}"),
+                    ));
+                }
+            }
+        }
     }
 }
 

@@ -164,6 +164,46 @@ impl Volume {
     }
 }
 
+impl Volume {
+    /// How far `inner` reaches outside `self` (<= 0 when contained), in the units of
+    /// [`Volume::excess`]; `None` when the two kinds are not compared (a region with a box or
+    /// sphere, or a region crossing the antimeridian). Both volumes are in the same frame.
+    pub fn contains(&self, inner: &Volume) -> Option<f64> {
+        let id = DMat4::IDENTITY;
+        match (*self, *inner) {
+            (Volume::Region(o), Volume::Region(i)) => {
+                if o[0] > o[2] || i[0] > i[2] {
+                    return None;
+                }
+                let h = (o[5] - o[4]).abs().max(1.0);
+                Some(
+                    [
+                        o[0] - i[0],
+                        i[2] - o[2],
+                        o[1] - i[1],
+                        i[3] - o[3],
+                        (o[4] - i[4]) / h,
+                        (i[5] - o[5]) / h,
+                    ]
+                    .into_iter()
+                    .fold(f64::MIN, f64::max),
+                )
+            }
+            (Volume::Region(_), _) | (_, Volume::Region(_)) => None,
+            (outer, Volume::Sphere { c, r }) => Some(outer.excess(c, &id, |_| r)),
+            (outer, Volume::Box { c, axes }) => {
+                let mut worst = f64::MIN;
+                for k in 0..8 {
+                    let s = |b: usize| if k >> b & 1 == 1 { 1.0 } else { -1.0 };
+                    let p = c + axes[0] * s(0) + axes[1] * s(1) + axes[2] * s(2);
+                    worst = worst.max(outer.excess(p, &id, |_| 0.0));
+                }
+                Some(worst)
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -183,5 +223,24 @@ mod tests {
         assert!(parse_region(&[-1.0, 0.5, 1.0, -0.5, 0.0, 10.0]).is_err());
         assert!(parse_sphere(&[0.0, 0.0, 0.0, -1.0]).is_err());
         assert!(parse_sphere(&[0.0, 0.0, 0.0, 0.0]).is_ok());
+    }
+
+    #[test]
+    fn containment_of_volumes() {
+        let b = parse_box(&[0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 2.0]).unwrap();
+        let small =
+            parse_box(&[1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+        let shifted =
+            parse_box(&[1.5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+        assert!(b.contains(&small).unwrap() <= 1e-12);
+        assert!(b.contains(&shifted).unwrap() > 0.2);
+        let s = parse_sphere(&[0.0, 0.0, 0.0, 1.0]).unwrap();
+        assert!(b.contains(&s).unwrap() < 0.0);
+        assert!(s.contains(&b).unwrap() > 0.0);
+        let r = parse_region(&[-1.0, -0.5, 1.0, 0.5, 0.0, 10.0]).unwrap();
+        let ri = parse_region(&[-0.5, -0.5, 0.5, 0.6, 0.0, 10.0]).unwrap();
+        assert!(r.contains(&ri).unwrap() > 0.0);
+        assert!(r.contains(&r).unwrap() <= 0.0);
+        assert_eq!(r.contains(&b), None);
     }
 }

@@ -1,0 +1,155 @@
+//! Extension declarations of a tileset JSON (3D Tiles 1.1 "Extensions"): `extensionsUsed` and
+//! `extensionsRequired` are unique strings, every extension object anywhere is declared, every
+//! declared extension is found, and required extensions this validator cannot check are named.
+
+use super::context::Ctx;
+use super::issues::Issue;
+use serde_json::Value;
+use std::collections::BTreeMap;
+
+/// Extensions whose rules this validator applies (or that need no object in the tileset).
+const KNOWN: &[&str] = &[
+    "3DTILES_content_gltf",
+    "3DTILES_implicit_tiling",
+    "3DTILES_metadata",
+    "3DTILES_multiple_contents",
+];
+
+/// Extensions declared without any object in the tileset JSON (they act on the content).
+const WITHOUT_OBJECT: &[&str] = &["3DTILES_content_gltf"];
+
+/// Every extension name found as a key of an `extensions` object, with the first JSON pointer
+/// where it appears, and the pointers of `extensions` members that are not objects and of
+/// `extras` that are not objects (marked "extras") (iterative
+/// walk: the JSON is depth-bounded, but no recursion is needed).
+#[allow(clippy::type_complexity)]
+pub(crate) fn found_extensions(
+    root: &Value,
+) -> (BTreeMap<String, String>, Vec<(String, &'static str)>) {
+    let mut out = BTreeMap::new();
+    let mut bad = Vec::new();
+    let mut stack: Vec<(&Value, String)> = vec![(root, String::new())];
+    while let Some((v, ptr)) = stack.pop() {
+        match v {
+            Value::Object(m) => {
+                for (k, child) in m {
+                    let p = format!("{ptr}/{}", k.replace('~', "~0").replace('/', "~1"));
+                    if k == "extensions"
+                        && let Some(exts) = child.as_object()
+                    {
+                        for name in exts.keys() {
+                            out.entry(name.clone())
+                                .or_insert_with(|| format!("{p}/{name}"));
+                        }
+                    } else if k == "extensions" {
+                        bad.push((p.clone(), "extensions must be an object"));
+                    }
+                    if k == "extras" && !child.is_object() {
+                        bad.push((p.clone(), "extras"));
+                    }
+                    if k == "extensions"
+                        && let Some(exts) = child.as_object()
+                    {
+                        for (name, e) in exts {
+                            if !e.is_object() {
+                                bad.push((format!("{p}/{name}"), "an extension must be an object"));
+                            }
+                        }
+                    }
+                    stack.push((child, p));
+                }
+            }
+            Value::Array(a) => {
+                for (i, child) in a.iter().enumerate() {
+                    stack.push((child, format!("{ptr}/{i}")));
+                }
+            }
+            _ => {}
+        }
+    }
+    (out, bad)
+}
+
+/// Reads `key` as an array of unique strings; reports type errors and duplicates.
+fn names<'v>(ctx: &mut Ctx<'_>, v: &'v Value, key: &str) -> Vec<&'v str> {
+    let Some(a) = v.get(key) else {
+        return vec![];
+    };
+    let Some(a) = a.as_array() else {
+        ctx.push(Issue::TYPE_MISMATCH(
+            ctx.at(&format!("/{key}")),
+            format!("{key} must be an array of strings"),
+        ));
+        return vec![];
+    };
+    if a.is_empty() {
+        ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
+            ctx.at(&format!("/{key}")),
+            format!("{key}, when present, must not be empty"),
+        ));
+    }
+    let mut out: Vec<&str> = Vec::new();
+    for (i, e) in a.iter().enumerate() {
+        match e.as_str() {
+            None => ctx.push(Issue::TYPE_MISMATCH(
+                ctx.at(&format!("/{key}/{i}")),
+                format!("{key} must hold strings"),
+            )),
+            Some(s) if out.contains(&s) => ctx.push(Issue::ARRAY_ELEMENT_NOT_UNIQUE(
+                ctx.at(&format!("/{key}/{i}")),
+                format!("'{s}' is listed twice in {key}"),
+            )),
+            Some(s) => out.push(s),
+        }
+    }
+    out
+}
+
+/// Checks the declarations of the tileset JSON `v`; returns the names in `extensionsUsed`.
+pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> Vec<String> {
+    let used = names(ctx, v, "extensionsUsed");
+    let required = names(ctx, v, "extensionsRequired");
+    for (i, r) in required.iter().enumerate() {
+        if !used.contains(r) {
+            ctx.push(Issue::EXTENSION_REQUIRED_BUT_NOT_USED(
+                ctx.at(&format!("/extensionsRequired/{i}")),
+                format!("'{r}' is required but not in extensionsUsed"),
+            ));
+        } else if !KNOWN.contains(r) {
+            ctx.push(Issue::EXTENSION_REQUIRED_NOT_SUPPORTED(
+                ctx.at(&format!("/extensionsRequired/{i}")),
+                format!(
+                    "'{r}' is required but this validator does not know it: its rules are not checked, and clients without it must refuse the tileset"
+                ),
+            ));
+        }
+    }
+    let (found, bad) = found_extensions(v);
+    for (at, why) in bad {
+        if why == "extras" {
+            ctx.push(Issue::EXTRAS_UNEXPECTED_TYPE(
+                ctx.at(&at),
+                "extras SHOULD be an object (key/value pairs) for portability",
+            ));
+        } else {
+            ctx.push(Issue::TYPE_MISMATCH(ctx.at(&at), why));
+        }
+    }
+    for (name, at) in &found {
+        if !used.contains(&name.as_str()) {
+            ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
+                ctx.at(at),
+                format!("extension '{name}' is used here but not in extensionsUsed"),
+            ));
+        }
+    }
+    for (i, u) in used.iter().enumerate() {
+        if !found.contains_key(*u) && !WITHOUT_OBJECT.contains(u) {
+            ctx.push(Issue::EXTENSION_USED_BUT_NOT_FOUND(
+                ctx.at(&format!("/extensionsUsed/{i}")),
+                format!("'{u}' is in extensionsUsed but no object of the tileset uses it"),
+            ));
+        }
+    }
+    used.into_iter().map(str::to_string).collect()
+}

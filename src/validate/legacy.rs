@@ -1,0 +1,235 @@
+//! 3D Tiles 1.0 tile formats (b3dm, i3dm, pnts, cmpt): headers, byte lengths, 8-byte alignment,
+//! feature table JSON and its required globals, and the embedded glb checked as any glTF.
+
+use super::content::validate_glb;
+use super::context::Ctx;
+use super::issues::Issue;
+use serde_json::Value;
+
+/// Deepest nesting of composite (cmpt) tiles followed.
+const MAX_CMPT_DEPTH: usize = 8;
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+/// Validates one b3dm / i3dm / pnts / cmpt content named `name`.
+pub(crate) fn legacy_content(ctx: &mut Ctx<'_>, bytes: &[u8], name: &str) {
+    tile(ctx, bytes, name, 0);
+}
+
+fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
+    let magic = &b[..4.min(b.len())];
+    let header = match magic {
+        b"b3dm" | b"pnts" => 28,
+        b"i3dm" => 32,
+        b"cmpt" => 16,
+        _ => {
+            ctx.push(Issue::BINARY_INVALID(
+                format!("{name}@byte 0"),
+                "not a b3dm, i3dm, pnts or cmpt tile (bad magic)",
+            ));
+            return;
+        }
+    };
+    let kind = String::from_utf8_lossy(magic).into_owned();
+    if b.len() < header {
+        ctx.push(Issue::BINARY_INVALID_LENGTH(
+            format!("{name}@byte 0"),
+            format!(
+                "{} bytes is shorter than the {header}-byte {kind} header",
+                b.len()
+            ),
+        ));
+        return;
+    }
+    let version = u32_at(b, 4);
+    if version != 1 {
+        ctx.push(Issue::BINARY_INVALID(
+            format!("{name}@byte 4"),
+            format!("{kind} version {version} is not 1"),
+        ));
+        return;
+    }
+    let byte_length = u32_at(b, 8) as usize;
+    if byte_length != b.len() {
+        ctx.push(Issue::BINARY_INVALID_LENGTH(
+            format!("{name}@byte 8"),
+            format!(
+                "byteLength {byte_length} differs from the {} bytes of the tile",
+                b.len()
+            ),
+        ));
+        if byte_length > b.len() {
+            return;
+        }
+    }
+    if byte_length < header {
+        ctx.push(Issue::BINARY_INVALID_LENGTH(
+            format!("{name}@byte 8"),
+            format!("byteLength {byte_length} is shorter than the {header}-byte {kind} header"),
+        ));
+        return;
+    }
+    let b = &b[..byte_length];
+    if kind == "cmpt" {
+        composite(ctx, b, name, depth);
+        return;
+    }
+    let lens: Vec<usize> = (0..4).map(|i| u32_at(b, 12 + 4 * i) as usize).collect();
+    let body: usize = lens.iter().sum();
+    if header + body > byte_length {
+        ctx.push(Issue::BINARY_INVALID_LENGTH(
+            format!("{name}@byte 12"),
+            format!(
+                "the feature and batch tables ({body} bytes) run past byteLength {byte_length}"
+            ),
+        ));
+        return;
+    }
+    // Feature table JSON, feature table binary, batch table JSON, batch table binary: the JSON
+    // parts are padded so that each part after the first starts on an 8-byte boundary.
+    let mut at = header;
+    for (i, what) in [
+        "feature table JSON",
+        "feature table binary",
+        "batch table JSON",
+        "batch table binary",
+    ]
+    .iter()
+    .enumerate()
+    {
+        if i > 0 && lens[i] > 0 && !at.is_multiple_of(8) {
+            ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
+                format!("{name}@byte {at}"),
+                format!("the {what} starts at byte {at}, not on an 8-byte boundary"),
+            ));
+        }
+        at += lens[i];
+    }
+    let ft_json = &b[header..header + lens[0]];
+    let ft: Value = if ft_json.is_empty() {
+        Value::Object(Default::default())
+    } else {
+        match serde_json::from_slice(ft_json) {
+            Ok(v) => v,
+            Err(e) => {
+                ctx.push(Issue::JSON_PARSE_ERROR(
+                    format!("{name}@byte {header}"),
+                    format!("feature table JSON: {e}"),
+                ));
+                Value::Null
+            }
+        }
+    };
+    let bt_at = header + lens[0] + lens[1];
+    if lens[2] > 0
+        && let Err(e) = serde_json::from_slice::<Value>(&b[bt_at..bt_at + lens[2]])
+    {
+        ctx.push(Issue::JSON_PARSE_ERROR(
+            format!("{name}@byte {bt_at}"),
+            format!("batch table JSON: {e}"),
+        ));
+    }
+    let global = |ft: &Value, ctx: &mut Ctx<'_>, key: &str| {
+        if ft.is_object() && ft.get(key).and_then(Value::as_u64).is_none() {
+            ctx.push(Issue::PROPERTY_MISSING(
+                format!("{name}@byte {header}"),
+                format!("the {kind} feature table needs an integer {key}"),
+            ));
+        }
+    };
+    let position = |ft: &Value, ctx: &mut Ctx<'_>| {
+        if ft.is_object() && ft.get("POSITION").is_none() && ft.get("POSITION_QUANTIZED").is_none()
+        {
+            ctx.push(Issue::PROPERTY_MISSING(
+                format!("{name}@byte {header}"),
+                format!("the {kind} feature table needs POSITION or POSITION_QUANTIZED"),
+            ));
+        }
+    };
+    let payload = &b[header + body..];
+    match kind.as_str() {
+        "b3dm" => {
+            global(&ft, ctx, "BATCH_LENGTH");
+            glb_payload(ctx, payload, name, header + body);
+        }
+        "i3dm" => {
+            global(&ft, ctx, "INSTANCES_LENGTH");
+            position(&ft, ctx);
+            match u32_at(b, 28) {
+                1 => glb_payload(ctx, payload, name, header + body),
+                0 => {}
+                f => ctx.push(Issue::BINARY_INVALID(
+                    format!("{name}@byte 28"),
+                    format!("gltfFormat {f} is neither 0 (uri) nor 1 (embedded glb)"),
+                )),
+            }
+        }
+        _ => {
+            global(&ft, ctx, "POINTS_LENGTH");
+            position(&ft, ctx);
+        }
+    }
+}
+
+/// Checks the glb embedded at byte `offset` of a b3dm / i3dm as any glTF.
+fn glb_payload(ctx: &mut Ctx<'_>, payload: &[u8], name: &str, offset: usize) {
+    if payload.is_empty() {
+        ctx.push(Issue::BINARY_INVALID_LENGTH(
+            format!("{name}@byte {offset}"),
+            "no embedded glb after the tables",
+        ));
+        return;
+    }
+    if !offset.is_multiple_of(8) {
+        ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
+            format!("{name}@byte {offset}"),
+            format!("the embedded glb starts at byte {offset}, not on an 8-byte boundary"),
+        ));
+    }
+    validate_glb(ctx, payload, &format!("{name}@glb"), false);
+}
+
+/// The inner tiles of a composite tile.
+fn composite(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
+    if depth >= MAX_CMPT_DEPTH {
+        ctx.push(Issue::BINARY_INVALID(
+            format!("{name}@byte 0"),
+            format!("composite tiles nest deeper than {MAX_CMPT_DEPTH}; not followed"),
+        ));
+        return;
+    }
+    let count = u32_at(b, 12) as usize;
+    let mut at = 16;
+    for i in 0..count {
+        if at + 12 > b.len() {
+            ctx.push(Issue::BINARY_INVALID_LENGTH(
+                format!("{name}@byte {at}"),
+                format!("inner tile {i} of {count} starts past the end"),
+            ));
+            return;
+        }
+        let len = u32_at(b, at + 8) as usize;
+        if len < 12 || at + len > b.len() {
+            ctx.push(Issue::BINARY_INVALID_LENGTH(
+                format!("{name}@byte {}", at + 8),
+                format!("inner tile {i} byteLength {len} runs past the composite tile"),
+            ));
+            return;
+        }
+        if !at.is_multiple_of(8) {
+            ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
+                format!("{name}@byte {at}"),
+                format!("inner tile {i} starts at byte {at}, not on an 8-byte boundary"),
+            ));
+        }
+        tile(
+            ctx,
+            &b[at..at + len],
+            &format!("{name}@tile {i}"),
+            depth + 1,
+        );
+        at += len;
+    }
+}
