@@ -4,9 +4,10 @@
 use super::TileKey;
 use std::collections::BTreeMap;
 
-/// Fewest splats a parent (LOD) content holds: 1/64 of the leaf budget, at least 1.
+/// Fewest splats a parent (LOD) content holds: 32 (a few kB, less than a request's overhead
+/// buys), or the leaf budget when that is smaller.
 pub fn content_floor(max_splats_per_tile: usize) -> usize {
-    (max_splats_per_tile / 64).max(1)
+    32.min(max_splats_per_tile.max(1))
 }
 
 /// Whether a parent whose clustering kept `splats` splats within `radius` is a real level of
@@ -51,8 +52,9 @@ mod tests {
 
     #[test]
     fn floor_and_radius_rule() {
-        assert_eq!(content_floor(32_768), 512);
-        assert_eq!(content_floor(10), 1);
+        assert_eq!(content_floor(32_768), 32);
+        assert_eq!(content_floor(500), 32);
+        assert_eq!(content_floor(10), 10);
         assert!(keeps_content(600, 0.1, 2.0, 32_768));
         // A chain tile: a handful of splats merged over a radius larger than the tile.
         assert!(!keeps_content(7, 0.1, 2.0, 32_768));
