@@ -367,7 +367,7 @@ struct Layout {
     a: DMat3,
     /// Splat centres in the tileset frame.
     pos_t: Vec<DVec3>,
-    /// 3-sigma reach of every splat along the tileset frame's axes.
+    /// visible reach of every splat along the tileset frame's axes.
     reach: Vec<DVec3>,
     /// Centres in unit coordinates of the root volume.
     unit: Vec<[f64; 3]>,
@@ -416,7 +416,7 @@ impl Layout {
             Some(origin) => {
                 // Georeferenced: ENU at the origin; the implicit root is the smallest
                 // Web-Mercator tile holding the scene (spec/georeferencing.md), its volume the
-                // tight region of the splats' 3-sigma reach.
+                // tight region of the splats' visible reach.
                 let enu = origin.enu_to_ecef();
                 let geo: Vec<Geodetic> = pos_t
                     .par_iter()
@@ -469,7 +469,7 @@ impl Layout {
                     SchemeChoice::Auto if ext.z < 0.25 * horizontal => Scheme::Quadtree,
                     SchemeChoice::Auto => Scheme::Octree,
                 };
-                // The root box holds every splat's 3-sigma reach, not just the centres.
+                // The root box holds every splat's visible reach, not just the centres.
                 let (rlo, rhi) = reach_bounds(&pos_t, &reach);
                 let (centre, half) = padded_box(rlo, rhi);
                 let min = centre - half;
@@ -537,7 +537,7 @@ struct TreeTile {
 }
 
 /// Writes one tile's contents centred on its splats: `pts` are their centres in the tileset
-/// frame, `ext` their 3-sigma reaches; returns the tight box of the reaches and what was written.
+/// frame, `ext` their visible reaches; returns the tight box of the reaches and what was written.
 #[allow(clippy::too_many_arguments)]
 fn write_centred(
     layout: &Layout,

@@ -33,7 +33,7 @@ fn georef(origin: &str, max_splats: usize, up: &str) -> ConvertOptions {
 }
 
 /// Splat centres of the input in the tileset frame (ENU at the origin for georeferenced ones)
-/// and their 3-sigma reaches there.
+/// and their visible reaches there.
 fn centres_t(input: &Path, up: &str) -> (Vec<DVec3>, Vec<DVec3>) {
     let a = source_to_tileset(up.parse().unwrap(), 0.0);
     let s = read_path(input).unwrap().splats;
@@ -79,7 +79,7 @@ fn assert_no_near_empty_levels(ts: &LoadedTileset, max_splats: usize) {
     }
 }
 
-/// Extent (east, north, up) of the scene as drawn: centres widened by their 3-sigma reach.
+/// Extent (east, north, up) of the scene as drawn: centres widened by their visible reach.
 fn extent(p: &[DVec3], reach: &[DVec3]) -> DVec3 {
     let (lo, hi) = reach_bounds(p, reach);
     hi - lo
@@ -250,7 +250,7 @@ fn a_local_scene_with_an_outlier_has_no_chain_either() {
     convert(&ply, &out, &opts).unwrap();
     let ts = load_tileset(&out.join("tileset.json")).unwrap();
     assert_no_near_empty_levels(&ts, 800);
-    // The root box encloses every splat's 3-sigma reach.
+    // The root box encloses every splat's visible reach.
     let b = ts.tileset.root.bounding_volume.box_.clone().unwrap();
     let a = source_to_tileset(UpAxis::NegY, 0.0);
     let s = read_path(&ply).unwrap().splats;

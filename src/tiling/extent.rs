@@ -1,14 +1,26 @@
-//! The 3-sigma reach of splats: half extents, along the tileset frame's axes, of the box around
-//! each splat's 3-sigma ellipsoid, so tile boxes and regions enclose what renderers draw.
+//! The visible reach of splats: half extents, along the tileset frame's axes, of the box around
+//! the part of each splat's ellipsoid a renderer draws, so tile boxes and regions enclose it.
 
 use crate::splat::Splats;
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 
-/// Half extents along the axes of the frame `a` maps into of the box around the 3-sigma ellipsoid
-/// of a splat with linear `scale` and unit `rotation` (x, y, z, w) given in the source frame.
-/// Zero for non-finite input.
-pub fn reach(a: DMat3, scale: [f32; 3], rotation: [f32; 4]) -> DVec3 {
+/// Sigmas out to which a splat of `opacity` is drawn: the 3-sigma footprint of the 3DGS
+/// rasterizers, cut where opacity * exp(-k^2 / 2) falls under 1/255 (fragments below that are
+/// skipped), so k = min(3, sqrt(2 ln(255 opacity))), and 0 for splats never visible.
+pub fn visible_sigmas(opacity: f32) -> f64 {
+    let a = 255.0 * opacity as f64;
+    if a.is_finite() && a > 1.0 {
+        (2.0 * a.ln()).sqrt().min(3.0)
+    } else {
+        0.0
+    }
+}
+
+/// Half extents along the axes of the frame `a` maps into of the box around the visible part
+/// (see [`visible_sigmas`]) of the ellipsoid of a splat with linear `scale`, unit `rotation`
+/// (x, y, z, w) given in the source frame, and `opacity`. Zero for non-finite input.
+pub fn reach(a: DMat3, scale: [f32; 3], rotation: [f32; 4], opacity: f32) -> DVec3 {
     let q = DQuat::from_xyzw(
         rotation[0] as f64,
         rotation[1] as f64,
@@ -26,7 +38,8 @@ pub fn reach(a: DMat3, scale: [f32; 3], rotation: [f32; 4]) -> DVec3 {
     let s = DVec3::new(scale[0] as f64, scale[1] as f64, scale[2] as f64).abs();
     let m = a * DMat3::from_quat(q) * DMat3::from_diagonal(s);
     let r = m.transpose();
-    let e = 3.0 * DVec3::new(r.x_axis.length(), r.y_axis.length(), r.z_axis.length());
+    let e = visible_sigmas(opacity)
+        * DVec3::new(r.x_axis.length(), r.y_axis.length(), r.z_axis.length());
     if e.is_finite() { e } else { DVec3::ZERO }
 }
 
@@ -36,7 +49,8 @@ pub fn reaches(splats: &Splats, a: DMat3) -> Vec<DVec3> {
         .scales
         .par_iter()
         .zip(splats.rotations.par_iter())
-        .map(|(s, r)| reach(a, *s, *r))
+        .zip(splats.opacities.par_iter())
+        .map(|((s, r), o)| reach(a, *s, *r, *o))
         .collect()
 }
 
@@ -54,24 +68,40 @@ mod tests {
 
     #[test]
     fn axis_aligned_and_rotated_reach() {
-        let e = reach(DMat3::IDENTITY, [1.0, 2.0, 0.5], [0.0, 0.0, 0.0, 1.0]);
+        let e = reach(DMat3::IDENTITY, [1.0, 2.0, 0.5], [0.0, 0.0, 0.0, 1.0], 1.0);
         assert!((e - DVec3::new(3.0, 6.0, 1.5)).length() < 1e-12, "{e}");
         // A quarter turn about z swaps the x and y extents.
         let h = std::f64::consts::FRAC_1_SQRT_2 as f32;
-        let e = reach(DMat3::IDENTITY, [1.0, 2.0, 0.5], [0.0, 0.0, h, h]);
+        let e = reach(DMat3::IDENTITY, [1.0, 2.0, 0.5], [0.0, 0.0, h, h], 1.0);
         assert!((e - DVec3::new(6.0, 3.0, 1.5)).length() < 1e-5, "{e}");
         // The frame rotation applies too (y-down source, z-up target: y extent goes to z).
         let a = DMat3::from_rotation_x(-std::f64::consts::FRAC_PI_2);
-        let e = reach(a, [1.0, 2.0, 0.5], [0.0, 0.0, 0.0, 1.0]);
+        let e = reach(a, [1.0, 2.0, 0.5], [0.0, 0.0, 0.0, 1.0], 1.0);
         assert!((e - DVec3::new(3.0, 1.5, 6.0)).length() < 1e-12, "{e}");
         // 45 deg about z: a sphere's box stays the same, an ellipse's grows on both axes.
         let q = glam::Quat::from_rotation_z(std::f32::consts::FRAC_PI_4);
-        let e = reach(DMat3::IDENTITY, [1.0, 0.0, 0.0], q.to_array());
+        let e = reach(DMat3::IDENTITY, [1.0, 0.0, 0.0], q.to_array(), 1.0);
         let want = 3.0 * std::f64::consts::FRAC_1_SQRT_2;
         assert!((e.x - want).abs() < 1e-6 && (e.y - want).abs() < 1e-6 && e.z.abs() < 1e-9);
         // Garbage in: no reach, never NaN.
-        let e = reach(DMat3::IDENTITY, [f32::NAN, 1.0, 1.0], [0.0, 0.0, 0.0, 0.0]);
+        let e = reach(
+            DMat3::IDENTITY,
+            [f32::NAN, 1.0, 1.0],
+            [0.0, 0.0, 0.0, 0.0],
+            1.0,
+        );
         assert_eq!(e, DVec3::ZERO);
+        // Faint splats are drawn less far; invisible ones not at all.
+        assert_eq!(visible_sigmas(1.0), 3.0);
+        let k = visible_sigmas(0.05);
+        assert!(
+            (k - (2.0 * (255.0f64 * 0.05).ln()).sqrt()).abs() < 1e-6 && k < 2.3,
+            "{k}"
+        );
+        assert!((0.05 * (-k * k / 2.0).exp() - 1.0 / 255.0).abs() < 1e-6);
+        assert_eq!(visible_sigmas(0.003), 0.0);
+        let e = reach(DMat3::IDENTITY, [1.0, 1.0, 1.0], [0.0, 0.0, 0.0, 1.0], 0.05);
+        assert!((e.x - k).abs() < 1e-6);
     }
 
     #[test]
