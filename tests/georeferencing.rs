@@ -79,6 +79,21 @@ fn assert_no_near_empty_levels(ts: &LoadedTileset, max_splats: usize) {
     }
 }
 
+/// `splat2tiles validate` finds no error (exit 0) in a tileset.
+fn assert_valid(dir: &Path) {
+    let o = std::process::Command::new(bin())
+        .arg("validate")
+        .arg(dir.join("tileset.json"))
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 /// Extent (east, north, up) of the scene as drawn: centres widened by their visible reach.
 fn extent(p: &[DVec3], reach: &[DVec3]) -> DVec3 {
     let (lo, hi) = reach_bounds(p, reach);
@@ -228,6 +243,7 @@ fn a_scene_straddling_coarse_tile_edges_has_no_chain_of_near_empty_levels() {
         .unwrap();
     assert!(shallowest > 10, "content at level {shallowest}");
     assert_eq!(report.splats_out, 20_000);
+    assert_valid(&out);
 }
 
 #[test]
@@ -250,6 +266,7 @@ fn a_local_scene_with_an_outlier_has_no_chain_either() {
     convert(&ply, &out, &opts).unwrap();
     let ts = load_tileset(&out.join("tileset.json")).unwrap();
     assert_no_near_empty_levels(&ts, 800);
+    assert_valid(&out);
     // The root box encloses every splat's visible reach.
     let b = ts.tileset.root.bounding_volume.box_.clone().unwrap();
     let a = source_to_tileset(UpAxis::NegY, 0.0);
