@@ -229,8 +229,8 @@ fn assert_all_selected_drawn(v: &Value, splats: u64) {
 /// Converts `input` twice with the cesium profile (georeferenced at `place` and local), then
 /// renders both in CesiumJS: the georeferenced one framed by `zoomTo` (it must frame the scene,
 /// not the globe: bounding sphere at the place, radius under `max_radius` metres), then both
-/// from the same camera at full detail (maximumScreenSpaceError 1, so both trees select their
-/// leaves: every splat), the local one placed with
+/// from the same camera in fine detail (maximumScreenSpaceError 1: the two trees differ, and
+/// at 1 px their selections look alike), the local one placed with
 /// `tileset.modelMatrix = eastNorthUpToFixedFrame(place)`; the screenshots must agree at
 /// SSIM >= 0.95. Returns the SSIM.
 fn georeferenced_matches_placed(
@@ -290,7 +290,6 @@ fn georeferenced_matches_placed(
         ],
     );
     assert_all_selected_drawn(&a, splats);
-    assert_eq!(u(&a["result"]["pointsSelected"]), splats, "{a:#}");
     let b = run_client(
         "interop_cesium.mjs",
         &local,
@@ -308,7 +307,6 @@ fn georeferenced_matches_placed(
         ],
     );
     assert_all_selected_drawn(&b, splats);
-    assert_eq!(u(&b["result"]["pointsSelected"]), splats, "{b:#}");
     let o = Command::new(bin())
         .args(["compare", "--json"])
         .arg(&shot_geo)
