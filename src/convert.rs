@@ -9,7 +9,7 @@ use crate::io::{self, ReadError, Scene};
 use crate::lod::{LodOptions, ParentTile, build_parents, default_leaf_radius};
 use crate::splat::Splats;
 use crate::splat::importance::sort_indices_by_importance;
-use crate::tiling::extent::{reach_bounds, reaches};
+use crate::tiling::extent::reaches;
 use crate::tiling::levels::{keeps_content, monotone_errors};
 use crate::tiling::subtree::{self, Column, SubtreeData, Table};
 use crate::tiling::tileset::{self, Asset, BoundingVolume, Content, ImplicitTiling, Tile, Tileset};
@@ -367,8 +367,6 @@ struct Layout {
     a: DMat3,
     /// Splat centres in the tileset frame.
     pos_t: Vec<DVec3>,
-    /// visible reach of every splat along the tileset frame's axes.
-    reach: Vec<DVec3>,
     /// Centres in unit coordinates of the root volume.
     unit: Vec<[f64; 3]>,
     scheme: Scheme,
@@ -411,7 +409,6 @@ impl Layout {
             .map(|p| a * DVec3::from_array(*p))
             .collect();
         let (lo, hi) = bounds(&pos_t);
-        let reach = reaches(splats, a);
         match opts.origin {
             Some(origin) => {
                 // Georeferenced: ENU at the origin; the implicit root is the smallest
@@ -435,6 +432,7 @@ impl Layout {
                         [u, v, 0.5]
                     })
                     .collect();
+                let reach = reaches(splats, a);
                 let region = geo
                     .par_iter()
                     .zip(reach.par_iter())
@@ -448,7 +446,6 @@ impl Layout {
                 Layout {
                     a,
                     pos_t,
-                    reach,
                     unit,
                     scheme: Scheme::Quadtree,
                     max_depth: max_zoom - root.zoom,
@@ -469,9 +466,7 @@ impl Layout {
                     SchemeChoice::Auto if ext.z < 0.25 * horizontal => Scheme::Quadtree,
                     SchemeChoice::Auto => Scheme::Octree,
                 };
-                // The root box holds every splat's visible reach, not just the centres.
-                let (rlo, rhi) = reach_bounds(&pos_t, &reach);
-                let (centre, half) = padded_box(rlo, rhi);
+                let (centre, half) = padded_box(lo, hi);
                 let min = centre - half;
                 let size = half * 2.0;
                 let unit = pos_t
@@ -484,7 +479,6 @@ impl Layout {
                 Layout {
                     a,
                     pos_t,
-                    reach,
                     unit,
                     scheme,
                     max_depth: opts.max_depth.unwrap_or(16).min(scheme.max_depth()),
@@ -537,21 +531,18 @@ struct TreeTile {
 }
 
 /// Writes one tile's contents centred on its splats: `pts` are their centres in the tileset
-/// frame, `ext` their visible reaches; returns the tight box of the reaches and what was written.
-#[allow(clippy::too_many_arguments)]
+/// frame; returns the tight box there and what was written.
 fn write_centred(
     layout: &Layout,
     scheme: Scheme,
     key: TileKey,
     tile: &Splats,
     pts: &[DVec3],
-    ext: &[DVec3],
     dir: &Path,
     opts: &ConvertOptions,
 ) -> Result<(DVec3, DVec3, ContentFacts), ConvertError> {
-    let (clo, chi) = bounds(pts);
-    let (lo, hi) = reach_bounds(pts, ext);
-    let centre_s = layout.a.transpose() * ((clo + chi) * 0.5);
+    let (lo, hi) = bounds(pts);
+    let centre_s = layout.a.transpose() * ((lo + hi) * 0.5);
     let facts = write_tile_contents(
         dir,
         scheme,
@@ -578,9 +569,8 @@ fn write_leaves(
         .map(|leaf| {
             let tile = splats.select(&leaf.indices);
             let pts: Vec<DVec3> = leaf.indices.iter().map(|&i| layout.pos_t[i]).collect();
-            let ext: Vec<DVec3> = leaf.indices.iter().map(|&i| layout.reach[i]).collect();
             let (lo, hi, facts) =
-                write_centred(layout, part.scheme, leaf.key, &tile, &pts, &ext, dir, opts)?;
+                write_centred(layout, part.scheme, leaf.key, &tile, &pts, dir, opts)?;
             bar.inc(1);
             Ok((
                 leaf.key,
@@ -647,8 +637,8 @@ fn geometric_error(t: &TreeTile) -> f64 {
     t.error
 }
 
-/// Last pass over the tree: every box encloses its descendants' (LOD contents can reach past
-/// their children), and errors are the tiles' own raised so they never grow downwards.
+/// Last pass over the tree: every box encloses its descendants' and its own content's centres,
+/// and errors are the tiles' own raised so they never grow downwards.
 fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
     let keys: Vec<TileKey> = tree.keys().rev().copied().collect();
     for k in &keys {
@@ -667,7 +657,7 @@ fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
     }
 }
 
-/// What the tree keeps of a parent tile: its content (facts and the box of its splats' reach)
+/// What the tree keeps of a parent tile: its content (facts and the box of its merged centres)
 /// when it is a real level of detail, and its clustering radius.
 struct WrittenParent {
     content: Option<(ContentFacts, DVec3, DVec3)>,
@@ -714,9 +704,8 @@ fn write_parents(
                 .iter()
                 .map(|q| layout.a * DVec3::from_array(*q))
                 .collect();
-            let ext = reaches(&p.splats, layout.a);
             let (lo, hi, facts) =
-                write_centred(layout, part.scheme, p.key, &p.splats, &pts, &ext, dir, opts)?;
+                write_centred(layout, part.scheme, p.key, &p.splats, &pts, dir, opts)?;
             Ok(WrittenParent {
                 content: Some((facts, lo, hi)),
                 error: p.radius,
