@@ -378,9 +378,9 @@ fn write_city(path: &Path, cols: usize, rows: usize, spacing: f32) -> u64 {
 
 #[test]
 fn cesiumjs_renders_a_georeferenced_city_like_a_placed_local_one() {
-    // CI size: 4 x 2 plants (909,184 splats). SPLAT2TILES_CITY=6x3 (2,045,664 splats) was tried
-    // by hand and did not finish within 25 min in SwiftShader on a shared 2-core machine
-    // (BENCHMARKS.md "Georeferenced tilesets in CesiumJS").
+    // CI size: 4 x 2 plants (909,184 splats). SPLAT2TILES_CITY=6x3 (2,045,664 splats) did not
+    // finish within 25 min in SwiftShader on a shared 2-core machine; its steps were run by hand
+    // (SSIM 0.993; BENCHMARKS.md "Georeferenced tilesets in CesiumJS").
     require_browser_harness();
     let (cols, rows): (usize, usize) = match std::env::var("SPLAT2TILES_CITY") {
         Ok(v) => {
