@@ -2,12 +2,16 @@
 //! glb per leaf, the subtrees and `tileset.json` into a temporary folder, then rename it into place.
 
 use crate::frame::geo::{Geodetic, mercator_unit};
+use crate::frame::mercator::{MAX_ZOOM, MercatorKey};
+use crate::frame::region::RegionBuilder;
 use crate::frame::{UpAxis, node_matrix, source_to_tileset};
 use crate::io::{self, ReadError, Scene};
 use crate::lod::{LodOptions, ParentTile, build_parents, default_leaf_radius};
 use crate::output::{OutputError, Staging};
 use crate::splat::Splats;
 use crate::splat::importance::sort_indices_by_importance;
+use crate::tiling::extent::reaches;
+use crate::tiling::levels::{keeps_content, monotone_errors};
 use crate::tiling::subtree::{self, Column, SubtreeData, Table};
 use crate::tiling::tileset::{self, Asset, BoundingVolume, Content, ImplicitTiling, Tile, Tileset};
 use crate::tiling::{Partition, Scheme, TileKey, partition};
@@ -357,27 +361,38 @@ pub fn convert_scene(
         let r = opts.lod.radius.unwrap_or_else(|| {
             default_leaf_radius(
                 &splats.positions,
-                layout.tile_edge(0, opts.origin),
+                layout.tile_edge(0),
                 part.levels.saturating_sub(1),
             )
         });
-        let parents = write_parents(&splats, &layout, &part, r, opts, &dir).map_err(relocate)?;
+        let diagonals: HashMap<TileKey, f64> = tree
+            .iter()
+            .map(|(k, t)| (*k, (t.hi - t.lo).length()))
+            .collect();
+        let parents = write_parents(&splats, &layout, &part, r, &diagonals, opts, &dir).map_err(relocate)?;
         for (key, p) in parents {
+            // Parents that are no real level of detail keep no content (tiling::levels).
+            let Some((facts, lo, hi)) = p.content else {
+                continue;
+            };
             let t = tree.get_mut(&key).expect("parents are tree tiles");
-            t.splat_count = p.facts.splat_count;
-            t.bytes = p.facts.bytes;
+            t.splat_count = facts.splat_count;
+            t.bytes = facts.bytes;
             t.has_content = true;
             t.error = p.error;
+            t.lo = t.lo.min(lo);
+            t.hi = t.hi.max(hi);
             report.content_tiles += 1;
-            report.parent_splats += p.facts.splat_count as usize;
-            report.bytes += p.facts.bytes;
-            report.contents.push((key, p.facts.clone()));
-            t.facts = Some(p.facts);
+            report.parent_splats += facts.splat_count as usize;
+            report.bytes += facts.bytes;
+            report.contents.push((key, facts.clone()));
+            t.facts = Some(facts);
         }
         report.contents.sort_by_key(|(k, _)| *k);
         report.lod_radius = r;
         report.lod_seconds = t0.elapsed().as_secs_f64();
     }
+    finish_tree(&mut tree);
     report.tiles = tree.len();
 
     let subtree_levels = opts
@@ -434,14 +449,20 @@ struct Layout {
     root_volume: BoundingVolume,
     /// Root transform (georeferenced only).
     transform: Option<[f64; 16]>,
+    /// Web-Mercator tile of the implicit root (georeferenced only).
+    mercator_root: Option<MercatorKey>,
 }
 
 impl Layout {
     /// Edge length of a tile at `level`: the root box's largest (horizontal for quadtrees) edge
     /// halved per level; for georeferenced scenes the Web-Mercator tile width at the origin.
-    fn tile_edge(&self, level: u32, origin: Option<Geodetic>) -> f64 {
-        let root = match (origin, &self.root_volume.box_) {
-            (Some(o), _) => 2.0 * std::f64::consts::PI * 6_378_137.0 * o.lat.to_radians().cos(),
+    fn tile_edge(&self, level: u32) -> f64 {
+        let root = match (self.mercator_root, &self.root_volume.box_) {
+            (Some(m), _) => {
+                let [_, south, _, north] = m.bounds_deg();
+                let lat = (0.5 * (south + north)).to_radians();
+                2.0 * std::f64::consts::PI * 6_378_137.0 * lat.cos() / 2f64.powi(m.zoom as i32)
+            }
             (None, Some(b)) => {
                 let z = if self.scheme == Scheme::Octree {
                     b[11]
@@ -464,35 +485,50 @@ impl Layout {
         let (lo, hi) = bounds(&pos_t);
         match opts.origin {
             Some(origin) => {
-                // Georeferenced: ENU at the origin; Web-Mercator keys from zoom 0 name the tiles.
+                // Georeferenced: ENU at the origin; the implicit root is the smallest
+                // Web-Mercator tile holding the scene (spec/georeferencing.md), its volume the
+                // tight region of the splats' visible reach.
                 let enu = origin.enu_to_ecef();
                 let geo: Vec<Geodetic> = pos_t
                     .par_iter()
                     .map(|p| Geodetic::from_ecef(enu.transform_point3(*p)))
                     .collect();
-                let unit = geo
+                let merc: Vec<(f64, f64)> = geo
                     .par_iter()
-                    .map(|g| {
-                        let (x, y) = mercator_unit(g.lon, g.lat);
-                        [x, 1.0 - y, 0.5]
+                    .map(|g| mercator_unit(g.lon, g.lat))
+                    .collect();
+                let max_zoom = opts.max_depth.unwrap_or(MAX_ZOOM).min(MAX_ZOOM);
+                let root = MercatorKey::containing(&merc, max_zoom);
+                let unit = merc
+                    .par_iter()
+                    .map(|&(x, y)| {
+                        let [u, v] = root.local_unit(x, y);
+                        [u, v, 0.5]
                     })
                     .collect();
-                let (hmin, hmax) = geo.iter().fold((f64::MAX, f64::MIN), |(a, b), g| {
-                    (a.min(g.height), b.max(g.height))
-                });
-                let lat = crate::frame::geo::MERCATOR_MAX_LAT.to_radians();
-                let pi = std::f64::consts::PI;
+                let reach = reaches(splats, a);
+                let region = geo
+                    .par_iter()
+                    .zip(reach.par_iter())
+                    .fold(RegionBuilder::default, |mut b, (g, e)| {
+                        b.add(*g, e.length());
+                        b
+                    })
+                    .reduce(RegionBuilder::default, RegionBuilder::merge)
+                    .finish()
+                    .expect("a scene has splats");
                 Layout {
                     a,
                     pos_t,
                     unit,
                     scheme: Scheme::Quadtree,
-                    max_depth: opts.max_depth.unwrap_or(30).min(30),
+                    max_depth: max_zoom - root.zoom,
                     root_volume: BoundingVolume {
-                        region: Some(vec![-pi, -lat, pi, lat, hmin - 1.0, hmax + 1.0]),
+                        region: Some(region.to_vec()),
                         ..Default::default()
                     },
                     transform: Some(enu.to_cols_array()),
+                    mercator_root: Some(root),
                 }
             }
             None => {
@@ -525,6 +561,7 @@ impl Layout {
                         ..Default::default()
                     },
                     transform: None,
+                    mercator_root: None,
                 }
             }
         }
@@ -655,10 +692,11 @@ fn build_tree(leaves: HashMap<TileKey, TreeTile>) -> BTreeMap<TileKey, TreeTile>
     tree
 }
 
-/// Geometric error of a tile: 0 for leaves (full detail); for LOD parents, the clustering radius
-/// they were built with (no merged splat moved further than that from its members' reach); for
-/// tiles without content, the diagonal of their box (rendering nothing misses everything below).
-fn geometric_error(t: &TreeTile) -> f64 {
+/// A tile's own geometric error: 0 for leaves (full detail); for LOD parents, the clustering
+/// radius they were built with (no merged splat moved further than that from its members'
+/// reach); for tiles without content, the diagonal of their box (rendering nothing misses
+/// everything below).
+fn own_error(t: &TreeTile) -> f64 {
     if t.is_leaf {
         0.0
     } else if t.has_content {
@@ -668,20 +706,49 @@ fn geometric_error(t: &TreeTile) -> f64 {
     }
 }
 
-/// What the tree keeps of a written parent tile.
+/// The geometric error written for a tile (its own, raised to its descendants' by
+/// [`finish_tree`]).
+fn geometric_error(t: &TreeTile) -> f64 {
+    t.error
+}
+
+/// Last pass over the tree: every box encloses its descendants' and its own content's centres,
+/// and errors are the tiles' own raised so they never grow downwards.
+fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
+    let keys: Vec<TileKey> = tree.keys().rev().copied().collect();
+    for k in &keys {
+        if let Some(p) = k.parent() {
+            let (lo, hi) = (tree[k].lo, tree[k].hi);
+            if let Some(t) = tree.get_mut(&p) {
+                t.lo = t.lo.min(lo);
+                t.hi = t.hi.max(hi);
+            }
+        }
+    }
+    let mut errors: BTreeMap<TileKey, f64> = tree.iter().map(|(k, t)| (*k, own_error(t))).collect();
+    monotone_errors(&mut errors);
+    for (k, t) in tree.iter_mut() {
+        t.error = errors[k];
+    }
+}
+
+/// What the tree keeps of a parent tile: its content (facts and the box of its merged centres)
+/// when it is a real level of detail, and its clustering radius.
 struct WrittenParent {
-    facts: ContentFacts,
+    content: Option<(ContentFacts, DVec3, DVec3)>,
     error: f64,
 }
 
 /// Builds every parent tile by clustering its children's splats (see [`crate::lod`]) and writes
-/// each through the same per-tile writer as the leaves (every requested quality variant),
-/// centred on its merged splats.
+/// each that is a real level of detail ([`keeps_content`] against its box diagonal in
+/// `diagonals`) through the same per-tile writer as the leaves (every requested quality
+/// variant), centred on its merged splats.
 fn write_parents(
     splats: &Splats,
     layout: &Layout,
     part: &Partition,
     r: f64,
+    diagonals: &HashMap<TileKey, f64>,
     opts: &ConvertOptions,
     dir: &Path,
 ) -> Result<BTreeMap<TileKey, WrittenParent>, ConvertError> {
@@ -699,16 +766,23 @@ fn write_parents(
         opts.lod.merge,
         |k| splats.select(index[&k]),
         |p: &ParentTile| {
+            let diagonal = diagonals.get(&p.key).copied().unwrap_or(f64::INFINITY);
+            if !keeps_content(p.splats.len(), p.radius, diagonal, opts.max_splats_per_tile) {
+                return Ok(WrittenParent {
+                    content: None,
+                    error: p.radius,
+                });
+            }
             let pts: Vec<DVec3> = p
                 .splats
                 .positions
                 .iter()
                 .map(|q| layout.a * DVec3::from_array(*q))
                 .collect();
-            let (_, _, facts) =
+            let (lo, hi, facts) =
                 write_centred(layout, part.scheme, p.key, &p.splats, &pts, dir, opts)?;
             Ok(WrittenParent {
-                facts,
+                content: Some((facts, lo, hi)),
                 error: p.radius,
             })
         },
@@ -880,7 +954,10 @@ fn tileset_json(
             children: vec![],
         },
         schema: Some(tileset::schema()),
-        metadata: Some(variants::tileset_metadata(scheme, variant_opts)),
+        metadata: Some(tileset::with_mercator_root(
+            variants::tileset_metadata(scheme, variant_opts),
+            layout.mercator_root,
+        )),
         extensions_used: match variant_opts.profile {
             variants::Profile::Cesium => vec!["3DTILES_content_gltf".into()],
             variants::Profile::Default => vec![],

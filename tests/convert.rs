@@ -179,21 +179,27 @@ fn georeferenced_scene_is_a_mercator_quadtree_with_ecef_root() {
     let root = &ts.tileset.root;
     assert!(root.transform.is_some(), "root carries ENU->ECEF");
     assert!(root.bounding_volume.region.is_some());
-    // Leaves sit at Web-Mercator zooms that match a 2 km district (zoom 13-20).
-    let leaf_levels: Vec<u32> = report.leaves.iter().map(|(k, _)| k.level).collect();
+    // Leaves sit at Web-Mercator zooms that match a 2 km district (zoom 13-20); the implicit
+    // root is the Mercator tile the tileset metadata names (spec/georeferencing.md).
+    let root_key = splat2tiles::tiling::tileset::mercator_root(&ts.tileset).unwrap();
+    let leaf_zooms: Vec<u32> = report
+        .leaves
+        .iter()
+        .map(|(k, _)| root_key.zoom + k.level)
+        .collect();
     assert!(
-        leaf_levels.iter().all(|&l| (12..=22).contains(&l)),
-        "{leaf_levels:?}"
+        leaf_zooms.iter().all(|&z| (12..=22).contains(&z)),
+        "{leaf_zooms:?}"
     );
-    // A leaf's implicit key is the Web-Mercator key (y flipped to grow northwards).
+    // A leaf's implicit key maps to the Web-Mercator key (y flipped to grow northwards).
     let src = read_path(&ply).unwrap().splats;
     let enu = origin.enu_to_ecef();
     for (key, idx) in report.leaves.iter().take(5) {
         let p = src.positions[idx[0]];
         let g = Geodetic::from_ecef(enu.transform_point3(glam::DVec3::from_array(p)));
-        let (z, x, y) = splat2tiles::frame::geo::mercator_key(g.lon, g.lat, key.level);
-        assert_eq!((z, x), (key.level, key.x));
-        assert_eq!(y, (1u32 << key.level) - 1 - key.y);
+        let m = root_key.key_of(key.level, key.x, key.y).unwrap();
+        let (z, x, y) = splat2tiles::frame::geo::mercator_key(g.lon, g.lat, m.zoom);
+        assert_eq!((z, x, y), (m.zoom, m.x, m.y));
     }
     let total: usize = decode_leaves(&out.join("tileset.json"))
         .values()

@@ -2,6 +2,8 @@
 //! only for georeferenced scenes, WGS84 ENU/ECEF maths and Web-Mercator tile keys.
 
 pub mod geo;
+pub mod mercator;
+pub mod region;
 
 use glam::{DMat3, DMat4, DVec3};
 use std::fmt;

@@ -1,6 +1,8 @@
 //! The tile hierarchy: adaptive partition into implicit-tiling leaves, Morton indexing, binary
 //! subtree files and `tileset.json`.
 
+pub mod extent;
+pub mod levels;
 pub mod load;
 pub mod morton;
 pub mod partition;

@@ -1,6 +1,7 @@
 //! `tileset.json` of 3D Tiles 1.1 as serde structs (the subset we write, tolerant of the rest
 //! when reading), plus the metadata schema our implicit tilesets declare.
 
+use crate::frame::mercator::MercatorKey;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
@@ -121,6 +122,14 @@ pub fn schema() -> Value {
     let mut s = base_schema();
     let (variants_class, content_props) = crate::variants::schema_properties();
     s["classes"][crate::variants::VARIANTS_CLASS] = variants_class;
+    // The tileset entity's one class also carries the Web-Mercator root of georeferenced
+    // tilesets (optional properties; spec/georeferencing.md).
+    if let (Some(props), Some(extra)) = (
+        s["classes"][crate::variants::VARIANTS_CLASS]["properties"].as_object_mut(),
+        mercator_root_properties().as_object(),
+    ) {
+        props.extend(extra.clone());
+    }
     if let (Some(props), Some(extra)) = (
         s["classes"][CONTENT_CLASS]["properties"].as_object_mut(),
         content_props.as_object(),
@@ -128,6 +137,59 @@ pub fn schema() -> Value {
         props.extend(extra.clone());
     }
     s
+}
+
+/// Tileset metadata properties naming the Web-Mercator tile of a georeferenced implicit root:
+/// implicit tile (level, x, y) is Mercator tile (zoom + level, x0 * 2^level + x,
+/// y0 * 2^level + 2^level - 1 - y).
+fn mercator_root_properties() -> Value {
+    let prop = |what: &str| {
+        json!({
+            "description": what,
+            "type": "SCALAR", "componentType": "UINT32"
+        })
+    };
+    json!({
+        MERCATOR_ZOOM: prop("Georeferenced tilesets: Web-Mercator zoom of the implicit root tile (implicit level L is zoom + L)."),
+        MERCATOR_X: prop("Georeferenced tilesets: Web-Mercator column of the implicit root (x grows east; implicit x at level L is column - x0 * 2^L)."),
+        MERCATOR_Y: prop("Georeferenced tilesets: Web-Mercator row of the implicit root (slippy-map y grows south; implicit y grows north: row = y0 * 2^L + 2^L - 1 - y)."),
+    })
+}
+
+/// Tileset metadata property: Web-Mercator zoom of the implicit root (georeferenced only).
+pub const MERCATOR_ZOOM: &str = "mercatorRootZoom";
+/// Tileset metadata property: Web-Mercator column of the implicit root.
+pub const MERCATOR_X: &str = "mercatorRootX";
+/// Tileset metadata property: Web-Mercator row (slippy-map, y south) of the implicit root.
+pub const MERCATOR_Y: &str = "mercatorRootY";
+
+/// Adds the Web-Mercator root key (when there is one) to a tileset metadata entity.
+pub fn with_mercator_root(mut entity: Value, root: Option<MercatorKey>) -> Value {
+    if let (Some(k), Some(props)) = (
+        root,
+        entity.get_mut("properties").and_then(Value::as_object_mut),
+    ) {
+        props.insert(MERCATOR_ZOOM.into(), k.zoom.into());
+        props.insert(MERCATOR_X.into(), k.x.into());
+        props.insert(MERCATOR_Y.into(), k.y.into());
+    }
+    entity
+}
+
+/// The Web-Mercator root key a tileset's metadata declares, if all three properties are there.
+pub fn mercator_root(tileset: &Tileset) -> Option<MercatorKey> {
+    let props = tileset.metadata.as_ref()?.get("properties")?;
+    let get = |name: &str| {
+        props
+            .get(name)?
+            .as_u64()
+            .and_then(|v| u32::try_from(v).ok())
+    };
+    Some(MercatorKey {
+        zoom: get(MERCATOR_ZOOM)?,
+        x: get(MERCATOR_X)?,
+        y: get(MERCATOR_Y)?,
+    })
 }
 
 fn base_schema() -> Value {
