@@ -369,7 +369,8 @@ pub fn convert_scene(
             .iter()
             .map(|(k, t)| (*k, (t.hi - t.lo).length()))
             .collect();
-        let parents = write_parents(&splats, &layout, &part, r, &diagonals, opts, &dir).map_err(relocate)?;
+        let parents =
+            write_parents(&splats, &layout, &part, r, &diagonals, opts, &dir).map_err(relocate)?;
         for (key, p) in parents {
             // Parents that are no real level of detail keep no content (tiling::levels).
             let Some((facts, lo, hi)) = p.content else {
