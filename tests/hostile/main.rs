@@ -29,6 +29,21 @@ pub fn convert(args: &[&str]) -> Output {
         .expect("run splat2tiles convert")
 }
 
+/// Asserts that `splat2tiles validate TILESET` exits 0 (its report is the failure message).
+pub fn assert_valid(tileset: &Path) {
+    let v = Command::new(common::bin())
+        .arg("validate")
+        .arg(tileset)
+        .output()
+        .expect("run splat2tiles validate");
+    assert_eq!(
+        v.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&v.stdout)
+    );
+}
+
 /// Stderr of a finished command as text.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

@@ -3,7 +3,7 @@
 
 use super::common::bin;
 use super::inputs::{ply, record, write_splat};
-use super::{convert, hidden, set_immutable, stderr};
+use super::{assert_valid, convert, hidden, set_immutable, stderr};
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -271,16 +271,7 @@ fn two_real_runs_into_one_folder_the_second_refuses_the_first_completes() {
     assert!(err.contains("another splat2tiles run"), "{err}");
     let first = first.wait_with_output().unwrap();
     assert!(first.status.success(), "first run: {}", stderr(&first));
-    let v = Command::new(bin())
-        .args(["validate", s(&out.join("tileset.json"))])
-        .output()
-        .unwrap();
-    assert_eq!(
-        v.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&v.stdout)
-    );
+    assert_valid(&out.join("tileset.json"));
     let ts = std::fs::read_to_string(out.join("tileset.json")).unwrap();
     assert!(ts.contains("\"splats\": 1500000"), "the first run's output");
     assert!(hidden(tmp.path()).is_empty(), "{:?}", hidden(tmp.path()));

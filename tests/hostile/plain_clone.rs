@@ -2,6 +2,7 @@
 //! repository, with no `../shared` beside the clone (the already-built binary stands in for
 //! `cargo run --release`, whose build would be too slow here).
 
+use super::assert_valid;
 use super::common::bin;
 use std::path::Path;
 use std::process::Command;
@@ -67,16 +68,7 @@ fn readme_first_command_converts_in_a_plain_clone() {
         .position(|a| *a == "-o")
         .expect("-o in the command");
     let tileset = clone.join(args[out_flag + 1]).join("tileset.json");
-    let v = Command::new(bin())
-        .args(["validate", tileset.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert_eq!(
-        v.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&v.stdout)
-    );
+    assert_valid(&tileset);
     // The sample ships with its licence.
     let lic = std::fs::read_to_string(clone.join("samples/README.md")).unwrap();
     assert!(lic.contains("CC-BY-4.0") && lic.contains("Marcel Padilla"));
