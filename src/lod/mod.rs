@@ -119,6 +119,54 @@ pub fn append(a: &mut Splats, b: &Splats) {
     a.sh_rest.extend_from_slice(&b.sh_rest);
 }
 
+/// One child's content as input to its parent's clustering.
+#[derive(Debug, Clone, Copy)]
+pub struct ChildContent<'a> {
+    /// The child's splats (a leaf's, or a built parent's merged splats).
+    pub splats: &'a Splats,
+    /// The clustering radius the child used (0 for a leaf).
+    pub radius: f64,
+}
+
+/// What one parent's clustering depends on besides its children's content.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParentParams {
+    /// Leaf clustering radius `r` (scene units).
+    pub leaf_radius: f64,
+    /// Levels between this parent and the deepest leaf below it (>= 1).
+    pub levels_above_deepest: u32,
+    /// Tile budget (most splats a parent may hold).
+    pub budget: usize,
+    /// Shape rule for merged splats.
+    pub rule: MergeRule,
+}
+
+/// Builds one parent from its children's content: a pure, deterministic function of the inputs
+/// (children in the order given), so in-memory and region-by-region builds agree byte for byte.
+pub fn build_parent(
+    key: TileKey,
+    sh_degree: u8,
+    children: &[ChildContent<'_>],
+    params: &ParentParams,
+) -> ParentTile {
+    let mut input = Splats::new(sh_degree);
+    let mut child_radius = 0.0f64;
+    for c in children {
+        append(&mut input, c.splats);
+        child_radius = child_radius.max(c.radius);
+    }
+    let d = (params.leaf_radius * 2f64.powi(params.levels_above_deepest as i32)).max(child_radius);
+    let c = cluster_to_budget(&input, d, params.budget, params.rule);
+    let order = importance_order(&c.splats);
+    ParentTile {
+        key,
+        splats: c.splats.select(&order),
+        radius: c.radius,
+        mean_displacement: c.mean_displacement,
+        input: input.len(),
+    }
+}
+
 /// Builds every ancestor of `leaves` bottom-up. `leaf_splats(key)` gives a leaf's splats;
 /// `sink` receives each parent as soon as it is built (in parallel within a level) and returns
 /// what the caller wants to keep per tile. Returns those values keyed by tile.
@@ -169,29 +217,32 @@ where
         let made: Vec<Result<(ParentTile, T), E>> = keys
             .par_iter()
             .map(|&key| {
-                let kids = &children[&key];
-                let mut input = Splats::new(sh_degree);
-                let mut child_radius = 0.0f64;
-                for &c in kids {
-                    match built.get(&c) {
-                        Some(p) => {
-                            append(&mut input, &p.splats);
-                            child_radius = child_radius.max(p.radius);
-                        }
-                        None => append(&mut input, &leaf_splats(c)),
-                    }
-                }
-                let above = deepest[&key] - key.level;
-                let d = (r * 2f64.powi(above as i32)).max(child_radius);
-                let c = cluster_to_budget(&input, d, budget, rule);
-                let order = importance_order(&c.splats);
-                let tile = ParentTile {
-                    key,
-                    splats: c.splats.select(&order),
-                    radius: c.radius,
-                    mean_displacement: c.mean_displacement,
-                    input: input.len(),
+                let leaves_here: Vec<Option<Splats>> = children[&key]
+                    .iter()
+                    .map(|c| (!built.contains_key(c)).then(|| leaf_splats(*c)))
+                    .collect();
+                let kids: Vec<ChildContent<'_>> = children[&key]
+                    .iter()
+                    .zip(&leaves_here)
+                    .map(|(c, leaf)| match (built.get(c), leaf) {
+                        (Some(p), _) => ChildContent {
+                            splats: &p.splats,
+                            radius: p.radius,
+                        },
+                        (None, Some(s)) => ChildContent {
+                            splats: s,
+                            radius: 0.0,
+                        },
+                        (None, None) => unreachable!("a child is a leaf or a built parent"),
+                    })
+                    .collect();
+                let params = ParentParams {
+                    leaf_radius: r,
+                    levels_above_deepest: deepest[&key] - key.level,
+                    budget,
+                    rule,
                 };
+                let tile = build_parent(key, sh_degree, &kids, &params);
                 let v = sink(&tile)?;
                 Ok((tile, v))
             })
