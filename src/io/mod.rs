@@ -12,6 +12,7 @@ mod ply;
 mod ply_header;
 mod ply_write;
 mod splat_file;
+mod splat_write;
 mod spz;
 
 pub use spz::MAX_SPZ_POINTS;
@@ -23,7 +24,8 @@ use crate::limits::MemoryLimit;
 use crate::splat::Splats;
 
 pub use error::{Location, ReadError, ReadErrorKind};
-pub use ply_write::write_ply;
+pub use ply_write::{PlyWriter, write_ply};
+pub use splat_write::write_splat_records;
 
 /// The text encoding of a PLY body.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
