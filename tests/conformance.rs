@@ -823,16 +823,61 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
     m.insert("deep_explicit_tree", |t| deep_tree(t, 200));
     m.insert("deep_json_nesting", |t| deep_tree(t, 2000));
     // other content
-    m.insert("plain_glb_content", |t| {
-        t.edit_glb(|v| {
-            v["meshes"][0]["primitives"][0]
-                .as_object_mut()
-                .unwrap()
-                .remove("extensions");
-            v["meshes"][0]["primitives"][0]["mode"] = json!(0);
-            v.as_object_mut().unwrap().remove("extensionsUsed");
-            v.as_object_mut().unwrap().remove("extensionsRequired");
+    m.insert("plain_glb_content", |t| plain_glb(t, |_| {}));
+    m.insert("plain_glb_accessor_view_missing", |t| {
+        plain_glb(t, |v| v["accessors"][0]["bufferView"] = json!(99))
+    });
+    m.insert("plain_glb_accessor_out_of_bounds", |t| {
+        plain_glb(t, |v| v["accessors"][0]["byteOffset"] = json!(1 << 20))
+    });
+    m.insert("plain_glb_component_type_invalid", |t| {
+        plain_glb(t, |v| v["accessors"][0]["componentType"] = json!(5127))
+    });
+    m.insert("plain_glb_attribute_counts_differ", |t| {
+        plain_glb(t, |v| {
+            let last = v["accessors"].as_array().unwrap().len() - 1;
+            let n = v["accessors"][last]["count"].as_u64().unwrap();
+            v["accessors"][last]["count"] = json!(n - 1);
         })
+    });
+    m.insert("plain_glb_position_min_max_missing", |t| {
+        plain_glb(t, |v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap() as usize;
+            let acc = v["accessors"][a].as_object_mut().unwrap();
+            acc.remove("min");
+            acc.remove("max");
+        })
+    });
+    m.insert("plain_glb_normalized_float", |t| {
+        plain_glb(t, |v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap() as usize;
+            v["accessors"][a]["normalized"] = json!(true);
+        })
+    });
+    m.insert("plain_glb_indices_float", |t| {
+        plain_glb(t, |v| {
+            let a = v["meshes"][0]["primitives"][0]["attributes"]["POSITION"].clone();
+            v["meshes"][0]["primitives"][0]["indices"] = a;
+        })
+    });
+    m.insert("plain_glb_mode_invalid", |t| {
+        plain_glb(t, |v| v["meshes"][0]["primitives"][0]["mode"] = json!(9))
+    });
+    m.insert("plain_glb_node_cycle", |t| {
+        plain_glb(t, |v| {
+            v["nodes"][0]["children"] = json!([1]);
+            v["nodes"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!({"children": [0]}));
+        })
+    });
+    m.insert("plain_glb_scene_node_missing", |t| {
+        plain_glb(t, |v| v["scenes"][0]["nodes"] = json!([7]))
     });
     m.insert("version_1_0", |t| {
         t.edit_tileset(|v| v["asset"]["version"] = json!("1.0"))
@@ -856,6 +901,18 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
         write_legacy(t, b"pnts", 1, r#"{"POINTS_LENGTH":0}"#, false, 0)
     });
     m
+}
+
+/// Turns the first glb into a plain glTF (no splat extension) and applies `f` to its JSON.
+fn plain_glb(t: &Ts, f: impl FnOnce(&mut Value)) {
+    t.edit_glb(|v| {
+        let prim = v["meshes"][0]["primitives"][0].as_object_mut().unwrap();
+        prim.remove("extensions");
+        prim.insert("mode".into(), json!(0));
+        v.as_object_mut().unwrap().remove("extensionsUsed");
+        v.as_object_mut().unwrap().remove("extensionsRequired");
+        f(v);
+    })
 }
 
 /// Points the implicit content template (and the Best variant's) at `uri`.

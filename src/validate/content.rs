@@ -288,9 +288,10 @@ pub(crate) fn validate_glb(
         .any(|e| e == KHR_GAUSSIAN_SPLATTING);
     if splat_prims.is_empty() && !declares_splats {
         // A plain glTF (meshes, points): framing, buffers and bufferViews were checked above.
+        super::gltf_core::check_structure(ctx, &raw, name);
         ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
             name,
-            "a glb without KHR_gaussian_splatting: its framing, buffers and bufferViews were checked, not its meshes",
+            "a glb without KHR_gaussian_splatting: its framing, buffers, bufferViews, accessors, meshes, nodes and scenes were checked, not its materials, textures, animations or data values",
         ));
         return None;
     }

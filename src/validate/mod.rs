@@ -11,6 +11,7 @@ mod context;
 mod declarations;
 mod entity;
 mod external;
+mod gltf_core;
 mod implicit;
 pub mod issues;
 mod json;
