@@ -147,3 +147,65 @@ fn explicit_trees_deeper_than_serde_default_parse() {
         }
     }
 }
+
+/// A plain glTF (no splat extension) whose numbers are absurd in every way the structure checks
+/// read (well-typed JSON, so the typed parse accepts it): each is reported, nothing panics or
+/// overflows. Wrongly typed members are a JSON_PARSE_ERROR, also without a panic.
+#[test]
+fn plain_gltf_with_absurd_numbers_is_reported_not_fatal() {
+    use splat2tiles::encode::glb::write_glb;
+    use splat2tiles::validate::validate_glb_bytes;
+    let json = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": 16}],
+        "bufferViews": [
+            {"buffer": 0, "byteLength": 16, "byteStride": 4},
+            {"buffer": 0, "byteOffset": 4, "byteLength": 12}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": u64::MAX, "type": "VEC3",
+             "byteOffset": u64::MAX - 1, "min": [0.0], "max": [1.0, 2.0, 3.0]},
+            {"bufferView": 1, "componentType": 5123, "count": 0, "type": "SCALAR"},
+            {"bufferView": 4_000_000_000u32, "componentType": 1, "count": 1, "type": "VEC2",
+             "normalized": true},
+            {"bufferView": 1, "componentType": 5121, "count": 3, "type": "MAT3", "byteOffset": 1}
+        ],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 3, "X": 99},
+                             "indices": 3, "mode": 4_000_000_000u32}]},
+            {"primitives": []}
+        ],
+        "nodes": [
+            {"mesh": 3, "children": [0, 1, 1, 99]},
+            {"children": [2]},
+            {"children": [1]}
+        ],
+        "scenes": [{"nodes": [0, 50]}],
+        "scene": 9
+    });
+    let glb = write_glb(&serde_json::to_vec(&json).unwrap(), Some(&[0u8; 16])).unwrap();
+    let report = validate_glb_bytes(&glb, &ValidateOptions::default());
+    let codes = report.codes();
+    for want in [
+        "ACCESSOR_OUT_OF_BOUNDS",
+        "ARRAY_LENGTH_MISMATCH",
+        "VALUE_NOT_IN_LIST",
+        "VALUE_NOT_IN_RANGE",
+        "GLTF_REFERENCE_INVALID",
+        "ACCESSOR_TYPE_INVALID",
+        "ACCESSOR_COUNT_MISMATCH",
+        "PROPERTY_MISSING",
+    ] {
+        assert!(
+            codes.iter().any(|c| c == want),
+            "{want} missing from {codes:?}"
+        );
+    }
+    assert!(report.issues.iter().all(|i| !i.message.is_empty()));
+
+    let mut typed = json.clone();
+    typed["nodes"][0]["matrix"] = json!([1, 2]);
+    let glb = write_glb(&serde_json::to_vec(&typed).unwrap(), Some(&[0u8; 16])).unwrap();
+    let codes = validate_glb_bytes(&glb, &ValidateOptions::default()).codes();
+    assert_eq!(codes, ["JSON_PARSE_ERROR"]);
+}
