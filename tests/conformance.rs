@@ -879,6 +879,15 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
     m.insert("plain_glb_scene_node_missing", |t| {
         plain_glb(t, |v| v["scenes"][0]["nodes"] = json!([7]))
     });
+    m.insert("table_value_above_max", |t| {
+        t.edit_tileset(|v| {
+            for class in v["schema"]["classes"].as_object_mut().unwrap().values_mut() {
+                if let Some(p) = class["properties"].get_mut("splatCount") {
+                    p["max"] = json!(1);
+                }
+            }
+        })
+    });
     m.insert("version_1_0", |t| {
         t.edit_tileset(|v| v["asset"]["version"] = json!("1.0"))
     });

@@ -405,3 +405,48 @@ fn range(ctx: &mut Ctx<'_>, p: &Prop, v: &Value, path: &str) {
         }
     }
 }
+
+/// Checks the rows of a binary property-table column (`rows` values of `p`, little-endian in
+/// `bytes`) against the class's `min` / `max` with the same rule as JSON entities ([`range`]);
+/// reports the first row out of range (one issue per column, so a broken table stays readable).
+pub(crate) fn table_range(ctx: &mut Ctx<'_>, p: &Prop, bytes: &[u8], rows: u64, path: &str) {
+    if (p.min.is_none() && p.max.is_none()) || p.row_bytes().is_none() {
+        return;
+    }
+    let comp = p.component.as_deref().unwrap_or("FLOAT64");
+    let per = components(&p.kind).unwrap_or(1)
+        * if p.array {
+            p.count.unwrap_or(1) as usize
+        } else {
+            1
+        };
+    let Some(rows) = usize::try_from(rows).ok() else {
+        return;
+    };
+    let Some(nums) = rows
+        .checked_mul(per)
+        .and_then(|n| super::metadata::numbers(bytes, comp, n))
+    else {
+        return;
+    };
+    let integer = int_range(comp).is_some();
+    let json = |x: f64| -> Value {
+        if integer && x.fract() == 0.0 && x.abs() < 9.0e15 {
+            Value::from(x as i64)
+        } else {
+            Value::from(x)
+        }
+    };
+    let before = ctx.issues.len();
+    for (r, row) in nums.chunks_exact(per.max(1)).enumerate() {
+        let v = if per == 1 && !p.array {
+            json(row[0])
+        } else {
+            Value::Array(row.iter().map(|x| json(*x)).collect())
+        };
+        range(ctx, p, &v, &format!("{path}/{r}"));
+        if ctx.issues.len() > before {
+            return;
+        }
+    }
+}

@@ -417,6 +417,7 @@ fn table_column(
             ));
             continue;
         }
+        super::entity::table_range(ctx, prop, bytes, t.count, &format!("{pp}/values"));
         if let Some(k) = semantics
             .iter()
             .position(|s| prop.semantic.as_deref() == Some(*s))
