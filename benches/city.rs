@@ -104,6 +104,12 @@ fn load_blocks(scenes: &Path) -> Vec<Block> {
     out
 }
 
+/// Where generated splats go: a trainer PLY (SH > 0) or `.splat` records.
+enum Sink {
+    Ply(PlyWriter<BufWriter<std::fs::File>>),
+    Splat(BufWriter<std::fs::File>),
+}
+
 /// Streams a city of `n` splats of SH degree `degree` to `path`; returns its side length.
 fn generate(path: &Path, n: u64, degree: u8, blocks: &[Block]) -> f64 {
     // Blocks are scaled so each covers about a 20 m lot; copies sit on a square grid of lots.
@@ -112,8 +118,12 @@ fn generate(path: &Path, n: u64, degree: u8, blocks: &[Block]) -> f64 {
     let copies = n.div_ceil(per_copy);
     let cols = (copies as f64).sqrt().ceil() as u64;
     let file = std::fs::File::create(path).unwrap();
-    let mut w = BufWriter::with_capacity(1 << 22, file);
-    let mut ply = (degree > 0).then(|| PlyWriter::new(&mut w, n, degree).unwrap());
+    let w = BufWriter::with_capacity(1 << 22, file);
+    let mut sink = if degree > 0 {
+        Sink::Ply(PlyWriter::new(w, n, degree).unwrap())
+    } else {
+        Sink::Splat(w)
+    };
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     let rest_n = sh_rest_count(degree);
     let mut left = n;
@@ -159,9 +169,9 @@ fn generate(path: &Path, n: u64, degree: u8, blocks: &[Block]) -> f64 {
                 chunk.sh_rest.push([v, -v * 0.5, v * 0.25]);
             }
             if chunk.len() == 1 << 16 || i + 1 == take {
-                match ply.as_mut() {
-                    Some(p) => p.write(&chunk).unwrap(),
-                    None => write_splat_records(&chunk, &mut w).unwrap(),
+                match &mut sink {
+                    Sink::Ply(p) => p.write(&chunk).unwrap(),
+                    Sink::Splat(w) => write_splat_records(&chunk, w).unwrap(),
                 }
                 chunk = Splats::with_capacity(degree, 1 << 16);
             }
@@ -169,10 +179,10 @@ fn generate(path: &Path, n: u64, degree: u8, blocks: &[Block]) -> f64 {
         left -= take as u64;
         c += 1;
     }
-    if let Some(p) = ply {
-        p.finish().unwrap();
+    match sink {
+        Sink::Ply(p) => p.finish().unwrap(),
+        Sink::Splat(mut w) => w.flush().unwrap(),
     }
-    w.flush().unwrap();
     cols as f64 * lot
 }
 
@@ -433,8 +443,8 @@ fn main() {
             let s = &r.summary;
             let _ = writeln!(
                 md,
-                "| {:.0}M, {} input | {degree} | {path} (limit {lim}) | {:.1} | {:.2}M | {} | {:.2} | {} | {}{extent} | {} | {} | {} | {:.1} |",
-                n as f64 / 1e6,
+                "| {}M, {} input | {degree} | {path} (limit {lim}) | {:.1} | {:.2}M | {} | {:.2} | {} | {}{extent} | {} | {} | {} | {:.1} |",
+                format!("{}", n as f64 / 1e6),
                 human(in_bytes),
                 r.seconds,
                 n as f64 / r.seconds / 1e6,

@@ -18,6 +18,7 @@ mod json;
 mod legacy;
 mod metadata;
 pub mod report;
+mod subtree_file;
 mod tileset;
 mod uri;
 mod volume;
