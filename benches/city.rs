@@ -250,7 +250,7 @@ fn convert(bin: &Path, input: &Path, out: &Path, limit: &str) -> Run {
         if let Some(kib) = status_kib(pid, "VmRSS:") {
             rss.push((t0.elapsed().as_secs_f64(), kib * 1024));
         }
-        if k % 10 == 0 {
+        if k.is_multiple_of(10) {
             spill_peak = spill_peak.max(spill_bytes(&parent));
         }
         k += 1;
@@ -444,7 +444,7 @@ fn main() {
             let _ = writeln!(
                 md,
                 "| {}M, {} input | {degree} | {path} (limit {lim}) | {:.1} | {:.2}M | {} | {:.2} | {} | {}{extent} | {} | {} | {} | {:.1} |",
-                format!("{}", n as f64 / 1e6),
+                n as f64 / 1e6,
                 human(in_bytes),
                 r.seconds,
                 n as f64 / r.seconds / 1e6,

@@ -191,10 +191,10 @@ fn check_accessor<'a>(
     let size = COMPONENTS.iter().find(|c| c.0 == comp).map_or(1, |c| c.1);
     let offset = a.get("byteOffset").and_then(Value::as_u64).unwrap_or(0);
     let view_offset = v.get("byteOffset").and_then(Value::as_u64).unwrap_or(0);
-    if offset % size != 0
+    if !offset.is_multiple_of(size)
         || view_offset
             .checked_add(offset)
-            .is_none_or(|o| o % size != 0)
+            .is_none_or(|o| !o.is_multiple_of(size))
     {
         ctx.push(Issue::ACCESSOR_ALIGNMENT_INVALID(
             at(format!("{path}/byteOffset")),

@@ -9,7 +9,7 @@ use super::subtree_file::{availability, check_views, parse_subtree, table_column
 use super::tileset::content_file;
 use super::volume::{Volume, parse_box};
 use crate::tiling::load::expand_template;
-use crate::tiling::subtree::{Availability, SUBTREE_MAGIC, SubtreeJson, bit, tile_count};
+use crate::tiling::subtree::tile_count;
 use crate::tiling::{Scheme, TileKey};
 use glam::DMat4;
 use serde_json::Value;

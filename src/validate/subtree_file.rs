@@ -5,8 +5,6 @@ use super::context::Ctx;
 use super::issues::Issue;
 use super::metadata::{Schema, numbers};
 use crate::tiling::subtree::{Availability, SUBTREE_MAGIC, SubtreeJson, bit};
-use serde_json::Value;
-use std::collections::HashMap;
 
 /// Reports the subtree JSON arrays that are present but empty (the schemas say minItems 1).
 fn empty_arrays(ctx: &mut Ctx<'_>, json: &[u8], name: &str) {
