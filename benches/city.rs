@@ -10,6 +10,8 @@
 //! SH0 cities are written as antimatter15 `.splat` (32 B/splat), SH3 cities as trainer PLY
 //! (248 B/splat) with generated non-zero higher SH (the shared scenes carry none).
 
+mod common;
+use common::release_binary;
 use splat2tiles::io::{PlyWriter, read_path, write_splat_records};
 use splat2tiles::limits::{MemoryLimit, human, in_memory_estimate, physical_memory};
 use splat2tiles::splat::{Splats, sh_rest_count};
@@ -18,20 +20,6 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-fn release_binary() -> PathBuf {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let st = Command::new("cargo")
-        .args(["build", "--release", "--bin", "splat2tiles"])
-        .current_dir(root)
-        .status()
-        .expect("cargo build");
-    assert!(st.success());
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("target"));
-    target.join("release/splat2tiles")
-}
 
 /// A small deterministic generator (xorshift64*), so every run builds the same city.
 struct Rng(u64);

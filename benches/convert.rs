@@ -4,20 +4,11 @@
 //!
 //! Run: `cargo bench --bench convert` (builds the release binary first).
 
+mod common;
+use common::release_binary;
 use splat2tiles::splat::{Splat, Splats, sh_rest_count};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
-
-fn release_binary() -> PathBuf {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let st = Command::new("cargo")
-        .args(["build", "--release", "--bin", "splat2tiles"])
-        .current_dir(root)
-        .status()
-        .expect("cargo build");
-    assert!(st.success());
-    root.join("target/release/splat2tiles")
-}
 
 /// Writes `n` random SH3 splats as a trainer PLY, in chunks so memory stays small.
 fn generate_ply(path: &Path, n: usize) {
