@@ -83,6 +83,24 @@ pub fn in_memory_estimate(count: u64, degree: u8, held: u64) -> u64 {
     count.saturating_mul(per).saturating_add(held)
 }
 
+/// Bytes the converter's working set takes per splat of a region in memory: the splats, their
+/// copy in leaf order, input indices, unit coordinates, Morton codes and sort orders.
+pub fn region_bytes_per_splat(degree: u8) -> u64 {
+    2 * splat_bytes(degree) + 112
+}
+
+/// Bytes of `limit` kept aside from the regions: the program and its threads, input chunks,
+/// spill write buffers, the tile facts and the region roots' contents (see ARCHITECTURE.md).
+pub fn reserved_bytes(limit: u64) -> u64 {
+    (40 << 20) + limit / 4
+}
+
+/// Most splats of SH degree `degree` one region (group of regions) may hold under `limit`
+/// (at least 1; the converter raises it to the leaf budget).
+pub fn region_splats(limit: u64, degree: u8) -> u64 {
+    (limit.saturating_sub(reserved_bytes(limit)) / region_bytes_per_splat(degree)).max(1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

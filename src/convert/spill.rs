@@ -1,0 +1,385 @@
+//! Spill stage: splats routed into files in the staging folder by the subtree (region) holding
+//! them, chosen from a histogram of Morton cells (a counting sort, like PotreeConverter 2's
+//! chunker), so that every region fits the working-set budget.
+//!
+//! A region is a subtree whose splat count fits the cap while its parent's does not (so the
+//! whole-scene partition splits the parent, and the region's leaves are the same either way).
+//! Consecutive small regions share one file; a cell still too big at the histogram's depth is
+//! routed again from its own file, one histogram deeper. Files keep input order.
+
+use super::ConvertError;
+use super::frame::Layout;
+use super::source::Input;
+use crate::splat::Splats;
+use crate::tiling::TileKey;
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Byte layout of one spilled splat: u64 index among the finite input, f64 centre, f32 scale,
+/// rotation, opacity, DC colour and the higher SH, little-endian.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Codec {
+    degree: u8,
+    rest: usize,
+}
+
+impl Codec {
+    /// The codec for splats of SH degree `degree`.
+    pub(super) fn new(degree: u8) -> Codec {
+        Codec {
+            degree,
+            rest: crate::splat::sh_rest_count(degree),
+        }
+    }
+
+    /// Bytes of one record.
+    pub(super) fn record_bytes(&self) -> usize {
+        8 + 24 + 12 + 16 + 4 + 12 + 12 * self.rest
+    }
+
+    /// Appends splat `i` of `s` with input index `idx` to `out`.
+    pub(super) fn encode(&self, s: &Splats, i: usize, idx: u64, out: &mut Vec<u8>) {
+        out.extend_from_slice(&idx.to_le_bytes());
+        for v in s.positions[i] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        let f32s = s.scales[i]
+            .iter()
+            .chain(&s.rotations[i])
+            .chain(std::iter::once(&s.opacities[i]))
+            .chain(&s.sh0[i])
+            .chain(s.rest_of(i).iter().flatten());
+        for v in f32s {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    /// Decodes whole records of `bytes`, appending to `s` and `idx`.
+    pub(super) fn decode(&self, bytes: &[u8], s: &mut Splats, idx: &mut Vec<u64>) {
+        let rb = self.record_bytes();
+        let f = |r: &[u8], k: usize| f32::from_le_bytes(r[k..k + 4].try_into().expect("4 bytes"));
+        let d = |r: &[u8], k: usize| f64::from_le_bytes(r[k..k + 8].try_into().expect("8 bytes"));
+        for r in bytes.chunks_exact(rb) {
+            idx.push(u64::from_le_bytes(r[..8].try_into().expect("8 bytes")));
+            s.positions.push([d(r, 8), d(r, 16), d(r, 24)]);
+            s.scales.push([f(r, 32), f(r, 36), f(r, 40)]);
+            s.rotations.push([f(r, 44), f(r, 48), f(r, 52), f(r, 56)]);
+            s.opacities.push(f(r, 60));
+            s.sh0.push([f(r, 64), f(r, 68), f(r, 72)]);
+            for j in 0..self.rest {
+                let k = 76 + 12 * j;
+                s.sh_rest.push([f(r, k), f(r, k + 4), f(r, k + 8)]);
+            }
+        }
+    }
+
+    /// Writes every splat of `s` (indices `idx`) to `w`.
+    pub(super) fn write_all(
+        &self,
+        s: &Splats,
+        idx: &[u64],
+        w: &mut impl Write,
+    ) -> std::io::Result<()> {
+        let mut buf = Vec::with_capacity(self.record_bytes() * 4096);
+        for (i, &x) in idx.iter().enumerate() {
+            self.encode(s, i, x, &mut buf);
+            if buf.len() >= self.record_bytes() * 4096 {
+                w.write_all(&buf)?;
+                buf.clear();
+            }
+        }
+        w.write_all(&buf)
+    }
+
+    /// One pass over a spill file in chunks of at most `records` splats.
+    pub(super) fn for_each_chunk(
+        &self,
+        path: &Path,
+        records: usize,
+        mut f: impl FnMut(&Splats, &[u64]) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        let file = std::fs::File::open(path).map_err(super::io_err(path, "reading spill file"))?;
+        let mut r = BufReader::with_capacity(1 << 20, file);
+        let rb = self.record_bytes();
+        let mut buf = vec![0u8; rb * records.max(1)];
+        loop {
+            let n =
+                read_full(&mut r, &mut buf).map_err(super::io_err(path, "reading spill file"))?;
+            if n == 0 {
+                return Ok(());
+            }
+            let mut s = Splats::with_capacity(self.degree, n / rb);
+            let mut idx = Vec::with_capacity(n / rb);
+            self.decode(&buf[..n - n % rb], &mut s, &mut idx);
+            f(&s, &idx)?;
+            if n < buf.len() {
+                return Ok(());
+            }
+        }
+    }
+
+    /// Reads a whole spill file of `count` splats.
+    pub(super) fn load(&self, path: &Path, count: u64) -> Result<(Splats, Vec<u64>), ConvertError> {
+        let mut s = Splats::with_capacity(self.degree, count as usize);
+        let mut idx = Vec::with_capacity(count as usize);
+        self.for_each_chunk(path, 65_536, |c, i| {
+            super::region::append(&mut s, c);
+            idx.extend_from_slice(i);
+            Ok(())
+        })?;
+        Ok((s, idx))
+    }
+}
+
+/// Reads until `buf` is full or the input ends; returns the bytes read.
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+/// A region: one subtree, built as a unit by the region stage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct RegionSpec {
+    /// Its root tile.
+    pub(super) key: TileKey,
+    /// Splats in it.
+    pub(super) count: u64,
+}
+
+/// Where a group's splats are.
+#[derive(Debug)]
+pub(super) enum GroupData {
+    /// A spill file in the staging folder.
+    File(PathBuf),
+    /// In memory (the whole scene fits the budget).
+    Memory(Splats, Vec<u64>),
+}
+
+/// Consecutive regions (Morton order) stored together; their total fits the cap unless one
+/// region alone exceeds it (a cell at the deepest level).
+#[derive(Debug)]
+pub(super) struct Group {
+    /// The regions, in Morton order.
+    pub(super) regions: Vec<RegionSpec>,
+    /// Their splats, in input order.
+    pub(super) data: GroupData,
+}
+
+impl Group {
+    /// Splats in the group.
+    pub(super) fn count(&self) -> u64 {
+        self.regions.iter().map(|r| r.count).sum()
+    }
+}
+
+/// What routing needs besides the splats.
+pub(super) struct Spiller<'a> {
+    pub(super) layout: &'a Layout,
+    pub(super) codec: Codec,
+    /// Folder of the spill files (inside the staging folder).
+    pub(super) dir: PathBuf,
+    /// Most splats a group may hold.
+    pub(super) cap: u64,
+    /// Records per chunk when reading.
+    pub(super) chunk: usize,
+    /// Bytes of write buffers shared by the files of one routing pass.
+    pub(super) write_budget: usize,
+    /// Bytes written to spill files so far.
+    pub(super) bytes: u64,
+    next_file: u64,
+}
+
+/// Where the splats of one routing pass come from.
+enum Feed<'a> {
+    Input(&'a Input),
+    File(&'a Path),
+}
+
+impl<'a> Spiller<'a> {
+    /// A spiller writing under `dir`.
+    pub(super) fn new(
+        layout: &'a Layout,
+        codec: Codec,
+        dir: PathBuf,
+        cap: u64,
+        chunk: usize,
+        write_budget: usize,
+    ) -> Spiller<'a> {
+        Spiller {
+            layout,
+            codec,
+            dir,
+            cap,
+            chunk,
+            write_budget,
+            bytes: 0,
+            next_file: 0,
+        }
+    }
+
+    fn feed(
+        &self,
+        feed: &Feed<'_>,
+        f: impl FnMut(&Splats, &[u64]) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        match feed {
+            Feed::Input(i) => i.for_each_finite(self.chunk, f),
+            Feed::File(p) => self.codec.for_each_chunk(p, self.chunk, f),
+        }
+    }
+
+    /// Splits the `count` finite splats of `input` into groups of regions: one group in memory
+    /// when they fit the cap, else spill files.
+    pub(super) fn split(&mut self, input: &Input, count: u64) -> Result<Vec<Group>, ConvertError> {
+        if count <= self.cap || self.layout.depth() == 0 {
+            let mut s = Splats::new(input.sh_degree());
+            let mut idx = Vec::new();
+            input.for_each_finite(self.chunk, |c, i| {
+                super::region::append(&mut s, c);
+                idx.extend_from_slice(i);
+                Ok(())
+            })?;
+            return Ok(vec![Group {
+                regions: vec![RegionSpec {
+                    key: TileKey::ROOT,
+                    count,
+                }],
+                data: GroupData::Memory(s, idx),
+            }]);
+        }
+        std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
+        self.route(Feed::Input(input), TileKey::ROOT)
+    }
+
+    /// Routes the splats of `feed`, all inside `key`'s cell, into groups of regions below it.
+    fn route(&mut self, feed: Feed<'_>, key: TileKey) -> Result<Vec<Group>, ConvertError> {
+        let layout = self.layout;
+        let scheme = layout.scheme;
+        let dims = scheme.dims();
+        let depth = layout.depth();
+        // Histogram of the cells `g` levels below `key` (at most 2^15 cells).
+        let g = (15 / dims).min(depth - key.level);
+        let level = key.level + g;
+        let cells = 1usize << (dims * g);
+        let cell_of = |p: [f64; 3]| -> usize {
+            let code = layout.code(p);
+            ((code >> (dims * (depth - level))) as usize) & (cells - 1)
+        };
+        let mut hist = vec![0u64; cells];
+        self.feed(&feed, |s, _| {
+            super::check_interrupt()?;
+            for p in &s.positions {
+                hist[cell_of(*p)] += 1;
+            }
+            Ok(())
+        })?;
+        let mut prefix = vec![0u64; cells + 1];
+        for i in 0..cells {
+            prefix[i + 1] = prefix[i] + hist[i];
+        }
+        drop(hist);
+        // Regions top-down: a subtree that fits (or a cell at the histogram's depth).
+        let base = scheme.encode(key.x, key.y, key.z);
+        let mut regions: Vec<(RegionSpec, usize, usize)> = Vec::new();
+        let mut stack = vec![(key.level, 0usize, cells)];
+        while let Some((l, a, n)) = stack.pop() {
+            let count = prefix[a + n] - prefix[a];
+            if count == 0 {
+                continue;
+            }
+            if count <= self.cap || l == level {
+                let rel = (a >> (dims * (level - l))) as u64;
+                let (x, y, z) = scheme.decode((base << (dims * (l - key.level))) | rel);
+                regions.push((
+                    RegionSpec {
+                        key: TileKey { level: l, x, y, z },
+                        count,
+                    },
+                    a,
+                    n,
+                ));
+                continue;
+            }
+            let step = n >> dims;
+            for c in (0..scheme.arity() as usize).rev() {
+                stack.push((l + 1, a + c * step, step));
+            }
+        }
+        // Groups of consecutive regions up to the cap; an oversize region is a group alone.
+        let mut groups: Vec<Vec<(RegionSpec, usize, usize)>> = Vec::new();
+        let mut total = 0u64;
+        for r in regions {
+            let fits = groups.last().is_some() && total + r.0.count <= self.cap;
+            if fits {
+                total += r.0.count;
+                groups.last_mut().expect("a group").push(r);
+            } else {
+                total = r.0.count;
+                groups.push(vec![r]);
+            }
+        }
+        let mut table = vec![u32::MAX; cells];
+        for (gi, grp) in groups.iter().enumerate() {
+            for &(_, a, n) in grp {
+                table[a..a + n].fill(gi as u32);
+            }
+        }
+        let per_file = (self.write_budget / groups.len().max(1)).clamp(8 << 10, 4 << 20);
+        let mut paths = Vec::with_capacity(groups.len());
+        let mut writers = Vec::with_capacity(groups.len());
+        for _ in &groups {
+            let path = self.dir.join(format!("{}.spill", self.next_file));
+            self.next_file += 1;
+            let file = std::fs::File::create(&path)
+                .map_err(super::io_err(&path, "creating spill file"))?;
+            writers.push(BufWriter::with_capacity(per_file, file));
+            paths.push(path);
+        }
+        let codec = self.codec;
+        let mut rec = Vec::with_capacity(codec.record_bytes());
+        let mut written = 0u64;
+        self.feed(&feed, |s, idx| {
+            super::check_interrupt()?;
+            for (i, &x) in idx.iter().enumerate() {
+                let gi = table[cell_of(s.positions[i])] as usize;
+                rec.clear();
+                codec.encode(s, i, x, &mut rec);
+                writers[gi]
+                    .write_all(&rec)
+                    .map_err(super::io_err(&paths[gi], "writing spill file"))?;
+                written += rec.len() as u64;
+            }
+            Ok(())
+        })?;
+        for (w, p) in writers.into_iter().zip(&paths) {
+            w.into_inner()
+                .map_err(|e| e.into_error())
+                .map_err(super::io_err(p, "writing spill file"))?;
+        }
+        self.bytes += written;
+        let mut out = Vec::new();
+        for (grp, path) in groups.into_iter().zip(paths) {
+            let only = grp[0].0;
+            if grp.len() == 1 && only.count > self.cap && only.key.level < depth {
+                // Too big at the histogram's depth: route it again, one histogram deeper.
+                let sub = self.route(Feed::File(&path), only.key)?;
+                std::fs::remove_file(&path).map_err(super::io_err(&path, "removing spill file"))?;
+                out.extend(sub);
+            } else {
+                out.push(Group {
+                    regions: grp.into_iter().map(|(r, _, _)| r).collect(),
+                    data: GroupData::File(path),
+                });
+            }
+        }
+        Ok(out)
+    }
+}
