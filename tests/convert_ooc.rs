@@ -120,7 +120,7 @@ fn two_million_splats_under_64_mib_match_the_in_memory_output() {
     );
     assert_eq!(a["spillBytes"], 0);
     assert!(b["regions"].as_u64().unwrap() > 8, "{b}");
-    assert!(b["spillBytes"].as_u64().unwrap() > 2_000_000 * 76, "{b}");
+    assert!(b["spillBytes"].as_u64().unwrap() >= 2_000_000 * 76, "{b}");
     assert_eq!(a["splatsOut"], 2_000_000);
     assert_same_files(&mem, &ooc);
     validate(&ooc);

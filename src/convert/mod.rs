@@ -5,6 +5,7 @@ mod frame;
 mod region;
 mod source;
 mod spill;
+mod store;
 mod tileset;
 mod top;
 
@@ -488,14 +489,23 @@ fn run(
         let lod_bar = bar(opts.progress, built.len() as u64, "building LOD");
         let mut parents = std::collections::BTreeMap::new();
         let mut roots = Vec::new();
+        let spill = dir.join(SPILL_DIR);
+        std::fs::create_dir_all(&spill)
+            .map_err(io_err(&spill, "creating folder"))
+            .map_err(relocate)?;
+        let store =
+            store::ContentStore::create(spill.join("contents.bin"), codec).map_err(relocate)?;
         for gl in built {
-            let (p, rc) = region::build_parents(gl, r, &diagonals, &cx).map_err(relocate)?;
+            let (p, rc) =
+                region::build_parents(gl, r, &diagonals, &store, &cx).map_err(relocate)?;
             parents.extend(p);
             roots.extend(rc);
             lod_bar.inc(1);
         }
         lod_bar.finish_and_clear();
-        parents.extend(top::build_top(roots, degree, r, &diagonals, &cx).map_err(relocate)?);
+        parents
+            .extend(top::build_top(&roots, &store, degree, r, &diagonals, &cx).map_err(relocate)?);
+        drop(store);
         for (key, p) in parents {
             // Parents that are no real level of detail keep no content (tiling::levels).
             let Some((facts, lo, hi)) = p.content else {

@@ -8,6 +8,7 @@
 
 use super::frame::Layout;
 use super::spill::{Codec, Group, GroupData, RegionSpec};
+use super::store::ContentStore;
 use super::tileset::TreeTile;
 use super::{ConvertError, ConvertOptions, check_interrupt};
 use crate::frame::node_matrix;
@@ -15,7 +16,7 @@ use crate::lod::ParentTile;
 use crate::splat::Splats;
 use crate::splat::importance::sort_indices_by_importance;
 use crate::tiling::TileKey;
-use crate::tiling::extent::{reach_bounds, reaches};
+use crate::tiling::extent::{reach, reach_bounds};
 use crate::tiling::levels::keeps_content;
 use crate::tiling::partition::partition_subtree;
 use crate::variants::{ContentFacts, write_tile_contents};
@@ -66,7 +67,7 @@ pub(super) struct GroupLeaves {
 }
 
 /// Writes one tile's contents centred on its splats; returns the box around their visible
-/// reach (3 sigma, cut by opacity) in the tileset frame and what was written.
+/// 3-sigma ellipsoids in the tileset frame and what was written.
 pub(super) fn write_centred(
     layout: &Layout,
     key: TileKey,
@@ -84,7 +85,7 @@ pub(super) fn write_centred(
         (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
         |(lo, hi), q| (lo.min(*q), hi.max(*q)),
     );
-    let (lo, hi) = reach_bounds(&pts, &reaches(tile, layout.a));
+    let (lo, hi) = reach_bounds(&pts, &three_sigma(tile, layout));
     let centre_s = layout.a.transpose() * ((clo + chi) * 0.5);
     let facts = write_tile_contents(
         dir,
@@ -96,6 +97,16 @@ pub(super) fn write_centred(
         &opts.variants,
     )?;
     Ok((lo, hi, facts))
+}
+
+/// Half extents in the tileset frame of every splat's full 3-sigma ellipsoid (what
+/// `validate --check-extent` and the 3DGS rasterizers' footprints assume, whatever the opacity).
+fn three_sigma(tile: &Splats, layout: &Layout) -> Vec<DVec3> {
+    tile.scales
+        .iter()
+        .zip(&tile.rotations)
+        .map(|(s, r)| reach(layout.a, *s, *r, 1.0))
+        .collect()
 }
 
 /// The group's splats and input indices, loaded (or taken from memory).
@@ -243,13 +254,11 @@ fn leaf_spacing(s: &Splats, ind: &[usize], step: usize) -> Vec<f64> {
         .collect()
 }
 
-/// The content a region hands to the levels above it: its root's splats and radius, and the
-/// deepest leaf level below it.
-#[derive(Debug)]
+/// A region root as the levels above see it: its key and the deepest leaf level below it (its
+/// content, splats and radius, is in the [`ContentStore`]).
+#[derive(Debug, Clone, Copy)]
 pub(super) struct RootContent {
     pub(super) key: TileKey,
-    pub(super) splats: Splats,
-    pub(super) radius: f64,
     pub(super) deepest: u32,
 }
 
@@ -289,11 +298,12 @@ pub(super) fn write_parent(
 
 /// Pass 2 of a group: the LOD parents of every region up to its root (through
 /// [`crate::lod::build_parents`], children in Morton order), written as they are built.
-/// Returns them and each region's root content.
+/// Returns them and each region's root (its content put into `store`).
 pub(super) fn build_parents(
     group: GroupLeaves,
     r: f64,
     diagonals: &HashMap<TileKey, f64>,
+    store: &ContentStore,
     cx: &RegionCtx<'_>,
 ) -> Result<(BTreeMap<TileKey, WrittenParent>, Vec<RootContent>), ConvertError> {
     let count: u64 = group.regions.iter().map(|g| g.spec.count).sum();
@@ -327,15 +337,14 @@ pub(super) fn build_parents(
         };
         let root_key = region.spec.key;
         if keys.len() == 1 && keys[0] == root_key {
+            store.put(root_key, &splats.select(&range_of(root_key)), 0.0)?;
             roots.push(RootContent {
                 key: root_key,
-                splats: splats.select(&range_of(root_key)),
-                radius: 0.0,
                 deepest,
             });
             continue;
         }
-        let root: Mutex<Option<(Splats, f64)>> = Mutex::new(None);
+        let root: Mutex<Option<Result<(), ConvertError>>> = Mutex::new(None);
         let built = if cx.opts.lod.enabled {
             crate::lod::build_parents(
                 &keys,
@@ -347,7 +356,7 @@ pub(super) fn build_parents(
                 |p: &ParentTile| {
                     if p.key == root_key {
                         *root.lock().unwrap_or_else(|e| e.into_inner()) =
-                            Some((p.splats.clone(), p.radius));
+                            Some(store.put(root_key, &p.splats, p.radius));
                     }
                     write_parent(p, diagonals, cx)
                 },
@@ -356,14 +365,12 @@ pub(super) fn build_parents(
             BTreeMap::new()
         };
         parents.extend(built);
-        let (rs, rr) = root
-            .into_inner()
-            .unwrap_or_else(|e| e.into_inner())
-            .unwrap_or_else(|| (Splats::new(splats.sh_degree), 0.0));
+        match root.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            Some(stored) => stored?,
+            None => store.put(root_key, &Splats::new(splats.sh_degree), 0.0)?,
+        }
         roots.push(RootContent {
             key: root_key,
-            splats: rs,
-            radius: rr,
             deepest,
         });
     }

@@ -32,6 +32,11 @@ impl Codec {
         }
     }
 
+    /// SH degree of the records.
+    pub(super) fn degree(&self) -> u8 {
+        self.degree
+    }
+
     /// Bytes of one record.
     pub(super) fn record_bytes(&self) -> usize {
         8 + 24 + 12 + 16 + 4 + 12 + 12 * self.rest

@@ -4,6 +4,7 @@
 
 use super::ConvertError;
 use super::region::{RegionCtx, RootContent, WrittenParent, write_parent};
+use super::store::ContentStore;
 use crate::lod::{ChildContent, ParentParams, ParentTile, build_parent};
 use crate::tiling::TileKey;
 use rayon::prelude::*;
@@ -12,7 +13,8 @@ use std::collections::{BTreeMap, HashMap};
 /// Builds and writes every tile above the region roots `roots` (in Morton order, disjoint
 /// subtrees); nothing when one region covers the whole tree.
 pub(super) fn build_top(
-    roots: Vec<RootContent>,
+    roots: &[RootContent],
+    store: &ContentStore,
     sh_degree: u8,
     r: f64,
     diagonals: &HashMap<TileKey, f64>,
@@ -20,7 +22,7 @@ pub(super) fn build_top(
 ) -> Result<BTreeMap<TileKey, WrittenParent>, ConvertError> {
     let mut deepest: HashMap<TileKey, u32> = HashMap::new();
     let mut children: BTreeMap<TileKey, Vec<TileKey>> = BTreeMap::new();
-    for root in &roots {
+    for root in roots {
         let mut k = root.key;
         while let Some(p) = k.parent() {
             let e = deepest.entry(p).or_insert(root.deepest);
@@ -32,11 +34,6 @@ pub(super) fn build_top(
             k = p;
         }
     }
-    // Contents of the tiles whose parent is not built yet: region roots, then top parents.
-    let mut content: HashMap<TileKey, (crate::splat::Splats, f64)> = roots
-        .into_iter()
-        .map(|r| (r.key, (r.splats, r.radius)))
-        .collect();
     let mut out = BTreeMap::new();
     let Some(max_level) = children.keys().map(|k| k.level).max() else {
         return Ok(out);
@@ -47,17 +44,23 @@ pub(super) fn build_top(
             .filter(|k| k.level == level)
             .copied()
             .collect();
-        let made: Vec<Result<(ParentTile, WrittenParent), ConvertError>> = keys
+        let made: Vec<Result<(TileKey, WrittenParent), ConvertError>> = keys
             .par_iter()
             .map(|&key| {
-                let kids: Vec<ChildContent<'_>> = children[&key]
+                let mut loaded = Vec::with_capacity(children[&key].len());
+                for c in &children[&key] {
+                    let content = store.get(*c)?.ok_or_else(|| ConvertError::Io {
+                        path: "content store".into(),
+                        what: "finding a region root's content",
+                        source: std::io::Error::other(format!("tile {c:?} was never stored")),
+                    })?;
+                    loaded.push(content);
+                }
+                let kids: Vec<ChildContent<'_>> = loaded
                     .iter()
-                    .map(|c| {
-                        let (s, radius) = &content[c];
-                        ChildContent {
-                            splats: s,
-                            radius: *radius,
-                        }
+                    .map(|(s, radius)| ChildContent {
+                        splats: s,
+                        radius: *radius,
                     })
                     .collect();
                 let params = ParentParams {
@@ -66,20 +69,16 @@ pub(super) fn build_top(
                     budget: cx.opts.max_splats_per_tile,
                     rule: cx.opts.lod.merge,
                 };
-                let tile = build_parent(key, sh_degree, &kids, &params);
+                let tile: ParentTile = build_parent(key, sh_degree, &kids, &params);
+                drop(loaded);
                 let w = write_parent(&tile, diagonals, cx)?;
-                Ok((tile, w))
+                store.put(key, &tile.splats, tile.radius)?;
+                Ok((key, w))
             })
             .collect();
-        for k in &keys {
-            for c in &children[k] {
-                content.remove(c);
-            }
-        }
         for m in made {
-            let (tile, w) = m?;
-            out.insert(tile.key, w);
-            content.insert(tile.key, (tile.splats, tile.radius));
+            let (key, w) = m?;
+            out.insert(key, w);
         }
     }
     Ok(out)
