@@ -135,6 +135,9 @@ pub fn run(args: ConvertArgs) -> i32 {
                     "parentSplats": r.parent_splats, "lodRadius": r.lod_radius,
                     "lodSeconds": r.lod_seconds,
                     "regions": r.regions, "spillBytes": r.spill_bytes,
+                    "stageSeconds": r.stage_seconds.iter()
+                        .map(|(k, v)| (k.to_string(), serde_json::json!(v)))
+                        .collect::<serde_json::Map<_, _>>(),
                     "variants": variant_summary(&r),
                     "peakRssMiB": peak_rss_mib(),
                 });

@@ -151,6 +151,9 @@ pub struct ConvertReport {
     pub regions: usize,
     /// Bytes written to spill files in the staging folder (0: in memory).
     pub spill_bytes: u64,
+    /// Wall-clock seconds at the end of each stage since the conversion started (frame, spill,
+    /// leaves, parents, top, tileset).
+    pub stage_seconds: Vec<(&'static str, f64)>,
     /// Notes about the output folder (leftovers of interrupted runs cleaned, an earlier result
     /// that could not be deleted); the command line prints them on stderr.
     pub notes: Vec<String>,
@@ -415,6 +418,9 @@ fn run(
             why,
         });
     }
+    report
+        .stage_seconds
+        .push(("frame", start.elapsed().as_secs_f64()));
     let layout = Layout::new(&acc, a, opts);
     report.scheme = layout.scheme.as_str().to_string();
 
@@ -437,6 +443,9 @@ fn run(
     drop(input);
     spinner.finish_and_clear();
     report.spill_bytes = spiller.bytes;
+    report
+        .stage_seconds
+        .push(("spill", start.elapsed().as_secs_f64()));
     report.regions = groups.iter().map(|g| g.regions.len()).sum();
 
     // Region stage, pass 1: leaves.
@@ -461,6 +470,9 @@ fn run(
         leaf_bar.inc(1);
     }
     leaf_bar.finish_and_clear();
+    report
+        .stage_seconds
+        .push(("leaves", start.elapsed().as_secs_f64()));
     report.levels = leaves.keys().map(|k| k.level + 1).max().unwrap_or(1);
     report.content_tiles = leaves.len();
     report.contents = leaves
@@ -503,9 +515,15 @@ fn run(
             lod_bar.inc(1);
         }
         lod_bar.finish_and_clear();
+        report
+            .stage_seconds
+            .push(("parents", start.elapsed().as_secs_f64()));
         parents
             .extend(top::build_top(&roots, &store, degree, r, &diagonals, &cx).map_err(relocate)?);
         drop(store);
+        report
+            .stage_seconds
+            .push(("top", start.elapsed().as_secs_f64()));
         for (key, p) in parents {
             // Parents that are no real level of detail keep no content (tiling::levels).
             let Some((facts, lo, hi)) = p.content else {
@@ -568,6 +586,9 @@ fn run(
     report.bytes += json.len() as u64;
 
     report.notes = staging.commit()?;
+    report
+        .stage_seconds
+        .push(("tileset", start.elapsed().as_secs_f64()));
     if opts.keep_index_map {
         report.leaves = index_map;
     }
