@@ -180,6 +180,21 @@ pub enum ConvertError {
         /// Extra explanation (finite log-scales that overflow).
         note: String,
     },
+    /// More splats share one cell at the deepest level than the memory limit lets one tile hold.
+    #[error(
+        "{file}: {count} splats share one cell at the deepest tree level ({level}); a tile holding \
+         them all needs more than the memory limit ({limit}); raise --memory-limit or --max-depth"
+    )]
+    TooDense {
+        /// Input file.
+        file: String,
+        /// Splats in the cell.
+        count: u64,
+        /// The deepest level.
+        level: u32,
+        /// The memory limit, human-readable.
+        limit: String,
+    },
     /// No splat is left to tile.
     #[error("{file}: no splats to convert{why}")]
     Empty {
@@ -432,6 +447,8 @@ fn run(
     // Spill stage: regions that fit the budget (one in memory when the whole scene does).
     let spinner = spinner(opts.progress, "partitioning".to_string());
     let mut spiller = Spiller::new(
+        name,
+        opts.memory_limit,
         &layout,
         codec,
         dir.join(SPILL_DIR),

@@ -187,6 +187,10 @@ impl Group {
 
 /// What routing needs besides the splats.
 pub(super) struct Spiller<'a> {
+    /// The input's name (for errors).
+    name: &'a str,
+    /// The memory limit (for errors).
+    limit: u64,
     pub(super) layout: &'a Layout,
     pub(super) codec: Codec,
     /// Folder of the spill files (inside the staging folder).
@@ -210,7 +214,10 @@ enum Feed<'a> {
 
 impl<'a> Spiller<'a> {
     /// A spiller writing under `dir`.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
+        name: &'a str,
+        limit: u64,
         layout: &'a Layout,
         codec: Codec,
         dir: PathBuf,
@@ -219,6 +226,8 @@ impl<'a> Spiller<'a> {
         write_budget: usize,
     ) -> Spiller<'a> {
         Spiller {
+            name,
+            limit,
             layout,
             codec,
             dir,
@@ -244,7 +253,10 @@ impl<'a> Spiller<'a> {
     /// Splits the `count` finite splats of `input` into groups of regions: one group in memory
     /// when they fit the cap, else spill files.
     pub(super) fn split(&mut self, input: &Input, count: u64) -> Result<Vec<Group>, ConvertError> {
-        if count <= self.cap || self.layout.depth() == 0 {
+        if count > self.cap && self.layout.depth() == 0 {
+            return Err(self.too_dense(count, 0));
+        }
+        if count <= self.cap {
             let mut s = Splats::new(input.sh_degree());
             let mut idx = Vec::new();
             input.for_each_finite(self.chunk, |c, i| {
@@ -262,6 +274,15 @@ impl<'a> Spiller<'a> {
         }
         std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
         self.route(Feed::Input(input), TileKey::ROOT)
+    }
+
+    fn too_dense(&self, count: u64, level: u32) -> ConvertError {
+        ConvertError::TooDense {
+            file: self.name.to_string(),
+            count,
+            level,
+            limit: crate::limits::human(self.limit),
+        }
     }
 
     /// Routes the splats of `feed`, all inside `key`'s cell, into groups of regions below it.
@@ -373,7 +394,11 @@ impl<'a> Spiller<'a> {
         let mut out = Vec::new();
         for (grp, path) in groups.into_iter().zip(paths) {
             let only = grp[0].0;
-            if grp.len() == 1 && only.count > self.cap && only.key.level < depth {
+            if grp.len() == 1 && only.count > self.cap && only.key.level == depth {
+                // Coincident splats a leaf must hold together: more than the budget allows.
+                return Err(self.too_dense(only.count, depth));
+            }
+            if grp.len() == 1 && only.count > self.cap {
                 // Too big at the histogram's depth: route it again, one histogram deeper.
                 let sub = self.route(Feed::File(&path), only.key)?;
                 std::fs::remove_file(&path).map_err(super::io_err(&path, "removing spill file"))?;
