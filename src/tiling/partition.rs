@@ -298,6 +298,49 @@ mod tests {
     }
 
     #[test]
+    fn a_subtree_partition_gives_the_whole_scenes_leaves_inside_it() {
+        let mut seed = 5;
+        let unit: Vec<[f64; 3]> = (0..6000)
+            .map(|_| {
+                let s = if lcg(&mut seed) < 0.6 { 0.2 } else { 1.0 };
+                [lcg(&mut seed) * s, lcg(&mut seed) * s, lcg(&mut seed) * s]
+            })
+            .collect();
+        let whole = partition(&unit, Scheme::Octree, 50, 10);
+        // Every level-2 tile whose parent was split: its splats alone give the same leaves.
+        let mut checked = 0;
+        for root in whole
+            .leaves
+            .iter()
+            .filter(|l| l.key.level >= 2)
+            .map(|l| l.key.ancestor(2))
+        {
+            let inside: Vec<usize> = (0..unit.len())
+                .filter(|&i| {
+                    let c = |v: f64| ((v * 4.0).floor() as i64).clamp(0, 3) as u32;
+                    (c(unit[i][0]), c(unit[i][1]), c(unit[i][2])) == (root.x, root.y, root.z)
+                })
+                .collect();
+            let sub_unit: Vec<[f64; 3]> = inside.iter().map(|&i| unit[i]).collect();
+            let sub = partition_subtree(&sub_unit, Scheme::Octree, 50, 10, root);
+            let expect: Vec<(TileKey, Vec<usize>)> = whole
+                .leaves
+                .iter()
+                .filter(|l| l.key.level >= 2 && l.key.ancestor(2) == root)
+                .map(|l| (l.key, l.indices.clone()))
+                .collect();
+            let got: Vec<(TileKey, Vec<usize>)> = sub
+                .leaves
+                .iter()
+                .map(|l| (l.key, l.indices.iter().map(|&k| inside[k]).collect()))
+                .collect();
+            assert_eq!(got, expect, "{root:?}");
+            checked += 1;
+        }
+        assert!(checked > 8);
+    }
+
+    #[test]
     fn deterministic() {
         let mut seed = 1;
         let unit: Vec<[f64; 3]> = (0..3000)
