@@ -22,7 +22,11 @@ fn write_city_splat(path: &Path, n: usize, seed: u64) {
         // 16 x 16 blocks of 50 m; block density grows with its index, a tower every 7th block.
         let block = ((i as u64).wrapping_mul(2654435761) % 256) as f64;
         let (bx, by) = ((block % 16.0) * 50.0, (block / 16.0).floor() * 50.0);
-        let tall = if (block as u64) % 7 == 0 { 60.0 } else { 8.0 };
+        let tall = if (block as u64).is_multiple_of(7) {
+            60.0
+        } else {
+            8.0
+        };
         let p = [
             (bx + r.range(0.0, 40.0)) as f32,
             (by + r.range(0.0, 40.0)) as f32,

@@ -11,7 +11,7 @@ use crate::splat::Splats;
 /// How the records of a chunked input are decoded.
 #[derive(Debug)]
 enum Decoder {
-    Ply(ply::BinaryPlan),
+    Ply(Box<ply::BinaryPlan>),
     Splat,
 }
 
@@ -71,7 +71,14 @@ impl ChunkedInput {
                     };
                     let (count, start, stride, degree) =
                         (p.count, p.start, p.stride as u64, p.degree());
-                    (Decoder::Ply(p), format, count, start, stride, degree)
+                    (
+                        Decoder::Ply(Box::new(p)),
+                        format,
+                        count,
+                        start,
+                        stride,
+                        degree,
+                    )
                 }
                 None => return Ok(None),
             },
