@@ -199,3 +199,38 @@ fn threads_and_limits_give_identical_bytes() {
     }
     validate(&base);
 }
+
+/// `--non-finite fail` names the first bad splat's byte offset when it lies in a later chunk of
+/// a chunked read; `drop` drops it and converts the rest.
+#[test]
+fn a_non_finite_splat_deep_in_a_chunked_file_is_named_by_its_offset() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("nan.splat");
+    write_city_splat(&input, 100_000, 4);
+    let mut bytes = std::fs::read(&input).unwrap();
+    bytes[32 * 99_000 + 4..32 * 99_000 + 8].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(&input, &bytes).unwrap();
+    let out = tmp.path().join("out");
+    let o = Command::new(bin())
+        .arg("convert")
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .args(["--non-finite", "fail", "--memory-limit", "1MiB"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!("byte {}: splat 99000", 32 * 99_000)),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let r = convert_cli(
+        &input,
+        &out,
+        &["--memory-limit", "1MiB", "--max-splats", "4096"],
+    );
+    assert_eq!(r["droppedNonFinite"], 1);
+    assert_eq!(r["splatsOut"], 99_999);
+}
