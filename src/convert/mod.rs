@@ -1,5 +1,8 @@
-//! The conversion pipeline: read a scene, move it into the tileset frame, partition it, write one
-//! glb per leaf, the subtrees and `tileset.json` into a temporary folder, then rename it into place.
+//! The conversion pipeline, one module per stage, data flowing one way: chunked read (`source`)
+//! -> `frame` -> `spill` -> `region` (leaves, then LOD parents) -> `top` -> `tileset`.
+//!
+//! Everything is written into a staging folder renamed into place at the end; the working set
+//! stays within `--memory-limit` (ARCHITECTURE.md "Out-of-core conversion").
 
 mod frame;
 mod region;

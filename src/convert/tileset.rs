@@ -73,7 +73,7 @@ fn geometric_error(t: &TreeTile) -> f64 {
     t.error
 }
 
-/// Last pass over the tree: every box encloses its descendants' and its own content's centres,
+/// Last pass over the tree: every box encloses its descendants' and its own content's splats,
 /// and errors are the tiles' own raised so they never grow downwards.
 pub(super) fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
     let keys: Vec<TileKey> = tree.keys().rev().copied().collect();
@@ -93,6 +93,7 @@ pub(super) fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
     }
 }
 
+/// Path of the subtree file rooted at `k`, relative to the output folder.
 fn subtree_path(scheme: Scheme, k: TileKey) -> String {
     match scheme {
         Scheme::Octree => format!("subtrees/{}/{}/{}/{}.subtree", k.level, k.x, k.y, k.z),
@@ -100,6 +101,7 @@ fn subtree_path(scheme: Scheme, k: TileKey) -> String {
     }
 }
 
+/// Writes one subtree file per subtree root of the tree; returns the files and bytes written.
 pub(super) fn write_subtrees(
     tree: &BTreeMap<TileKey, TreeTile>,
     scheme: Scheme,
@@ -210,6 +212,7 @@ pub(super) fn write_subtrees(
     Ok((files, bytes))
 }
 
+/// The `tileset.json` document of the tree: implicit root, schema, variant metadata, extras.
 pub(super) fn tileset_json(
     tree: &BTreeMap<TileKey, TreeTile>,
     layout: &Layout,
