@@ -451,3 +451,125 @@ mod tests {
         assert_eq!(Codec::new(3).record_bytes(), 256);
     }
 }
+
+#[cfg(test)]
+mod split_tests {
+    use super::super::frame::{FrameAccum, Layout};
+    use super::super::source::Input;
+    use super::super::{ConvertOptions, SchemeChoice};
+    use super::*;
+    use crate::io::{InputFormat, Locator, Scene};
+    use crate::splat::Splat;
+    use glam::DMat3;
+
+    /// A clumpy scene: a third of the splats in a corner 1/20 of the size.
+    fn scene(n: usize) -> Scene {
+        let mut s = Splats::new(0);
+        let mut x = 0x9e3779b97f4a7c15u64;
+        let mut r = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for i in 0..n {
+            let k = if i % 3 == 0 { 0.05 } else { 1.0 };
+            s.push(
+                Splat {
+                    position: [r() * k * 100.0, r() * k * 100.0, r() * k * 100.0],
+                    scale: [0.1; 3],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                    opacity: 0.5,
+                    sh0: [0.0; 3],
+                },
+                &[],
+            );
+        }
+        Scene {
+            splats: s,
+            format: InputFormat::Splat,
+            locator: Locator::Index,
+            repaired_rotations: 0,
+            overflowed_scales: 0,
+        }
+    }
+
+    /// Regions are disjoint subtrees in Morton order covering every splat, each group fits the
+    /// cap, and every region's parent holds more than the cap (so the whole-scene partition
+    /// splits it and the region's leaves are the same either way).
+    #[test]
+    fn regions_are_disjoint_subtrees_whose_parents_overflow_the_cap() {
+        let n = 20_000;
+        let input = Input::Memory(scene(n));
+        let opts = ConvertOptions {
+            scheme: SchemeChoice::Octree,
+            ..Default::default()
+        };
+        let mut acc = FrameAccum::new(false);
+        let Input::Memory(sc) = &input else {
+            unreachable!()
+        };
+        acc.add(&sc.splats, &vec![true; n], DMat3::IDENTITY, None);
+        let layout = Layout::new(&acc, DMat3::IDENTITY, &opts);
+        let tmp = tempfile::tempdir().unwrap();
+        let cap = 700u64;
+        let mut sp = Spiller::new(
+            "test",
+            1 << 20,
+            &layout,
+            Codec::new(0),
+            tmp.path().join("spill"),
+            cap,
+            1000,
+            1 << 20,
+        );
+        let groups = sp.split(&input, n as u64).unwrap();
+        // Dense cells of the clump are routed a second time, one histogram deeper.
+        assert!(sp.bytes > n as u64 * 76, "{}", sp.bytes);
+        let regions: Vec<RegionSpec> = groups.iter().flat_map(|g| g.regions.clone()).collect();
+        assert!(regions.len() > 20, "{}", regions.len());
+        assert_eq!(regions.iter().map(|r| r.count).sum::<u64>(), n as u64);
+        for g in &groups {
+            assert!(g.count() <= cap);
+            let GroupData::File(p) = &g.data else {
+                panic!("spilled")
+            };
+            let (s, idx) = Codec::new(0).load(p, g.count()).unwrap();
+            assert!(idx.windows(2).all(|w| w[0] < w[1]), "input order kept");
+            // Each splat lies in one of the group's regions.
+            for q in &s.positions {
+                let code = layout.code(*q);
+                assert!(g.regions.iter().any(|r| {
+                    let shift = layout.scheme.dims() * (layout.depth() - r.key.level);
+                    code >> shift == layout.scheme.encode(r.key.x, r.key.y, r.key.z)
+                }));
+            }
+        }
+        // Parents overflow: count the splats under each region's parent.
+        let all: Vec<u64> = sc
+            .splats
+            .positions
+            .iter()
+            .map(|p| layout.code(*p))
+            .collect();
+        let dims = layout.scheme.dims();
+        let mut last = None;
+        for r in &regions {
+            let p = r.key.parent().expect("below the root");
+            let pm = layout.scheme.encode(p.x, p.y, p.z);
+            let shift = dims * (layout.depth() - p.level);
+            let under = all.iter().filter(|c| *c >> shift == pm).count() as u64;
+            assert!(under > cap, "{r:?}: parent holds {under}");
+            // Morton order, disjoint.
+            let first = layout.scheme.encode(r.key.x, r.key.y, r.key.z)
+                << (dims * (layout.depth() - r.key.level));
+            if let Some(l) = last {
+                assert!(first >= l);
+            }
+            last = Some(
+                (layout.scheme.encode(r.key.x, r.key.y, r.key.z) + 1)
+                    << (dims * (layout.depth() - r.key.level)),
+            );
+        }
+    }
+}
