@@ -150,6 +150,9 @@ fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
     Ok(n)
 }
 
+/// Most spill files one routing pass writes at once (more groups take two passes).
+const MAX_OPEN_FILES: usize = 256;
+
 /// A region: one subtree, built as a unit by the region stage.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct RegionSpec {
@@ -203,6 +206,8 @@ pub(super) struct Spiller<'a> {
     pub(super) write_budget: usize,
     /// Bytes written to spill files so far.
     pub(super) bytes: u64,
+    /// Most spill files one pass writes at once.
+    pub(super) max_open: usize,
     next_file: u64,
 }
 
@@ -235,6 +240,7 @@ impl<'a> Spiller<'a> {
             chunk,
             write_budget,
             bytes: 0,
+            max_open: MAX_OPEN_FILES,
             next_file: 0,
         }
     }
@@ -283,6 +289,49 @@ impl<'a> Spiller<'a> {
             level,
             limit: crate::limits::human(self.limit),
         }
+    }
+
+    /// One pass over `feed` writing each splat to file `which(centre)` of `n` new spill files.
+    fn write_pass(
+        &mut self,
+        feed: &Feed<'_>,
+        n: usize,
+        which: impl Fn([f64; 3]) -> usize,
+    ) -> Result<Vec<PathBuf>, ConvertError> {
+        let per_file = (self.write_budget / n.max(1)).clamp(8 << 10, 4 << 20);
+        let mut paths = Vec::with_capacity(n);
+        let mut writers = Vec::with_capacity(n);
+        for _ in 0..n {
+            let path = self.dir.join(format!("{}.spill", self.next_file));
+            self.next_file += 1;
+            let file = std::fs::File::create(&path)
+                .map_err(super::io_err(&path, "creating spill file"))?;
+            writers.push(BufWriter::with_capacity(per_file, file));
+            paths.push(path);
+        }
+        let codec = self.codec;
+        let mut rec = Vec::with_capacity(codec.record_bytes());
+        let mut written = 0u64;
+        self.feed(feed, |s, idx| {
+            super::check_interrupt()?;
+            for (i, &x) in idx.iter().enumerate() {
+                let gi = which(s.positions[i]);
+                rec.clear();
+                codec.encode(s, i, x, &mut rec);
+                writers[gi]
+                    .write_all(&rec)
+                    .map_err(super::io_err(&paths[gi], "writing spill file"))?;
+                written += rec.len() as u64;
+            }
+            Ok(())
+        })?;
+        for (w, p) in writers.into_iter().zip(&paths) {
+            w.into_inner()
+                .map_err(|e| e.into_error())
+                .map_err(super::io_err(p, "writing spill file"))?;
+        }
+        self.bytes += written;
+        Ok(paths)
     }
 
     /// Routes the splats of `feed`, all inside `key`'s cell, into groups of regions below it.
@@ -358,39 +407,25 @@ impl<'a> Spiller<'a> {
                 table[a..a + n].fill(gi as u32);
             }
         }
-        let per_file = (self.write_budget / groups.len().max(1)).clamp(8 << 10, 4 << 20);
-        let mut paths = Vec::with_capacity(groups.len());
-        let mut writers = Vec::with_capacity(groups.len());
-        for _ in &groups {
-            let path = self.dir.join(format!("{}.spill", self.next_file));
-            self.next_file += 1;
-            let file = std::fs::File::create(&path)
-                .map_err(super::io_err(&path, "creating spill file"))?;
-            writers.push(BufWriter::with_capacity(per_file, file));
-            paths.push(path);
-        }
-        let codec = self.codec;
-        let mut rec = Vec::with_capacity(codec.record_bytes());
-        let mut written = 0u64;
-        self.feed(&feed, |s, idx| {
-            super::check_interrupt()?;
-            for (i, &x) in idx.iter().enumerate() {
-                let gi = table[cell_of(s.positions[i])] as usize;
-                rec.clear();
-                codec.encode(s, i, x, &mut rec);
-                writers[gi]
-                    .write_all(&rec)
-                    .map_err(super::io_err(&paths[gi], "writing spill file"))?;
-                written += rec.len() as u64;
+        // One file per group; past `max_open` groups, a first pass writes batches of
+        // consecutive groups and a second pass splits each batch (bounded open files).
+        let per = groups.len().div_ceil(self.max_open).max(1);
+        let paths = if per == 1 {
+            self.write_pass(&feed, groups.len(), |p| table[cell_of(p)] as usize)?
+        } else {
+            let batches = self.write_pass(&feed, groups.len().div_ceil(per), |p| {
+                table[cell_of(p)] as usize / per
+            })?;
+            let mut paths = Vec::with_capacity(groups.len());
+            for (b, batch) in batches.iter().enumerate() {
+                let n = per.min(groups.len() - b * per);
+                paths.extend(self.write_pass(&Feed::File(batch), n, |p| {
+                    table[cell_of(p)] as usize - b * per
+                })?);
+                std::fs::remove_file(batch).map_err(super::io_err(batch, "removing spill file"))?;
             }
-            Ok(())
-        })?;
-        for (w, p) in writers.into_iter().zip(&paths) {
-            w.into_inner()
-                .map_err(|e| e.into_error())
-                .map_err(super::io_err(p, "writing spill file"))?;
-        }
-        self.bytes += written;
+            paths
+        };
         let mut out = Vec::new();
         for (grp, path) in groups.into_iter().zip(paths) {
             let only = grp[0].0;
@@ -524,6 +559,28 @@ mod split_tests {
             1 << 20,
         );
         let groups = sp.split(&input, n as u64).unwrap();
+        // With at most 3 files open per pass (batches, then groups) the groups are the same.
+        let mut narrow = Spiller::new(
+            "test",
+            1 << 20,
+            &layout,
+            Codec::new(0),
+            tmp.path().join("narrow"),
+            cap,
+            1000,
+            1 << 20,
+        );
+        narrow.max_open = 3;
+        let again = narrow.split(&input, n as u64).unwrap();
+        assert_eq!(again.len(), groups.len());
+        for (a, b) in groups.iter().zip(&again) {
+            assert_eq!(a.regions, b.regions);
+            let (GroupData::File(pa), GroupData::File(pb)) = (&a.data, &b.data) else {
+                panic!("spilled")
+            };
+            assert_eq!(std::fs::read(pa).unwrap(), std::fs::read(pb).unwrap());
+        }
+        assert!(narrow.bytes > sp.bytes, "two passes write more");
         // Dense cells of the clump are routed a second time, one histogram deeper.
         assert!(sp.bytes > n as u64 * 76, "{}", sp.bytes);
         let regions: Vec<RegionSpec> = groups.iter().flat_map(|g| g.regions.clone()).collect();
