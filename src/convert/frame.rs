@@ -20,6 +20,9 @@ use rayon::prelude::*;
 pub(super) struct FrameAccum {
     lo: DVec3,
     hi: DVec3,
+    /// Box of the splats' 3-sigma ellipsoids (local scenes' root volume).
+    reach_lo: DVec3,
+    reach_hi: DVec3,
     merc_lo: (f64, f64),
     merc_hi: (f64, f64),
     region: RegionBuilder,
@@ -32,6 +35,8 @@ impl FrameAccum {
         FrameAccum {
             lo: DVec3::splat(f64::MAX),
             hi: DVec3::splat(f64::MIN),
+            reach_lo: DVec3::splat(f64::MAX),
+            reach_hi: DVec3::splat(f64::MIN),
             merc_lo: (f64::MAX, f64::MAX),
             merc_hi: (f64::MIN, f64::MIN),
             region: RegionBuilder::default(),
@@ -42,6 +47,8 @@ impl FrameAccum {
     fn merge(mut self, o: FrameAccum) -> FrameAccum {
         self.lo = self.lo.min(o.lo);
         self.hi = self.hi.max(o.hi);
+        self.reach_lo = self.reach_lo.min(o.reach_lo);
+        self.reach_hi = self.reach_hi.max(o.reach_hi);
         self.merc_lo = (
             self.merc_lo.0.min(o.merc_lo.0),
             self.merc_lo.1.min(o.merc_lo.1),
@@ -67,6 +74,9 @@ impl FrameAccum {
                     let p = a * DVec3::from_array(s.positions[i]);
                     f.lo = f.lo.min(p);
                     f.hi = f.hi.max(p);
+                    let three = reach(a, s.scales[i], s.rotations[i], 1.0);
+                    f.reach_lo = f.reach_lo.min(p - three);
+                    f.reach_hi = f.reach_hi.max(p + three);
                     if let Some(enu) = enu {
                         let g = Geodetic::from_ecef(enu.transform_point3(p));
                         let (x, y) = mercator_unit(g.lon, g.lat);
@@ -139,7 +149,9 @@ impl Layout {
                     SchemeChoice::Auto if ext.z < 0.25 * horizontal => Scheme::Quadtree,
                     SchemeChoice::Auto => Scheme::Octree,
                 };
-                let (centre, half) = padded_box(acc.lo, acc.hi);
+                // The root box (and grid) holds every splat's 3-sigma ellipsoid, so even a
+                // client that ignores the tiles' own boxes culls nothing visible.
+                let (centre, half) = padded_box(acc.reach_lo, acc.reach_hi);
                 Layout {
                     a,
                     scheme,
