@@ -1,8 +1,9 @@
 //! The memory limit of `convert` (`--memory-limit SIZE`): size parsing, the default derived from
-//! physical RAM, and the estimate of what holding a declared input in memory costs.
+//! physical RAM, the estimate of what holding a declared input in memory costs, and the budget
+//! of the out-of-core converter's regions.
 //!
-//! Defined once here: the in-memory converter refuses inputs whose estimate exceeds the limit
-//! (before allocating); an out-of-core pipeline can later take the same limit as its budget.
+//! Defined once here: the whole-file readers (ascii PLY, SPZ) refuse inputs whose estimate
+//! exceeds the limit (before allocating); the chunked pipeline sizes its regions to it.
 
 /// Largest default limit, whatever the machine.
 pub const DEFAULT_CAP: u64 = 4 << 30;
@@ -83,6 +84,24 @@ pub fn in_memory_estimate(count: u64, degree: u8, held: u64) -> u64 {
     count.saturating_mul(per).saturating_add(held)
 }
 
+/// Bytes the converter's working set takes per splat of a region in memory: the splats, their
+/// copy in leaf order, input indices, unit coordinates, Morton codes and sort orders.
+pub fn region_bytes_per_splat(degree: u8) -> u64 {
+    2 * splat_bytes(degree) + 112
+}
+
+/// Bytes of `limit` kept aside from the regions: the program and its threads, input chunks,
+/// spill write buffers, the tile facts and the region roots' contents (see ARCHITECTURE.md).
+pub fn reserved_bytes(limit: u64) -> u64 {
+    (40 << 20) + limit / 4
+}
+
+/// Most splats of SH degree `degree` one region (group of regions) may hold under `limit`
+/// (at least 1; the converter raises it to the leaf budget).
+pub fn region_splats(limit: u64, degree: u8) -> u64 {
+    (limit.saturating_sub(reserved_bytes(limit)) / region_bytes_per_splat(degree)).max(1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -110,5 +129,17 @@ mod tests {
         assert!(in_memory_estimate(10, 3, 0) > in_memory_estimate(10, 0, 0));
         assert_eq!(in_memory_estimate(u64::MAX, 3, 5), u64::MAX);
         assert_eq!(human(64 << 20), "64.0 MiB");
+    }
+
+    #[test]
+    fn region_budget_leaves_the_reserve_and_shrinks_with_the_sh_degree() {
+        let l = 2u64 << 30;
+        let n0 = region_splats(l, 0);
+        assert!(n0 * region_bytes_per_splat(0) + reserved_bytes(l) <= l);
+        assert!(n0 > 5_000_000, "{n0}");
+        assert!(region_splats(l, 3) < n0 / 2);
+        // Below the reserve there is still room for one splat (the converter raises it to the
+        // leaf budget).
+        assert_eq!(region_splats(1 << 20, 0), 1);
     }
 }

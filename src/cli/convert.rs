@@ -70,8 +70,9 @@ pub struct ConvertArgs {
     /// Do not render tiles to measure variant utilities (stored as -1).
     #[arg(long)]
     pub no_utility: bool,
-    /// Memory budget, e.g. 512MiB or 2GiB: inputs whose in-memory conversion is estimated above
-    /// it are refused before anything is allocated [default: half the RAM, at most 4GiB].
+    /// Memory budget, e.g. 512MiB or 2GiB: scenes that do not fit are split into regions spilled
+    /// to the staging folder (binary PLY, .splat); ascii PLY and SPZ inputs estimated above it are
+    /// refused before anything is allocated [default: half the RAM, at most 4GiB].
     #[arg(long, value_parser = MemoryLimit::parse)]
     pub memory_limit: Option<MemoryLimit>,
     /// Print the summary as JSON on stdout.
@@ -133,6 +134,10 @@ pub fn run(args: ConvertArgs) -> i32 {
                     "subtrees": r.subtrees, "bytes": r.bytes, "seconds": r.seconds,
                     "parentSplats": r.parent_splats, "lodRadius": r.lod_radius,
                     "lodSeconds": r.lod_seconds,
+                    "regions": r.regions, "spillBytes": r.spill_bytes,
+                    "stageSeconds": r.stage_seconds.iter()
+                        .map(|(k, v)| (k.to_string(), serde_json::json!(v)))
+                        .collect::<serde_json::Map<_, _>>(),
                     "variants": variant_summary(&r),
                     "peakRssMiB": peak_rss_mib(),
                 });

@@ -7,6 +7,7 @@
 //! allocate beyond what the input size justifies. Errors print `FILE: byte N: what is wrong`.
 //! Trailing bytes after the declared data are an error, not a warning.
 
+mod chunked;
 mod error;
 mod ply;
 mod ply_header;
@@ -23,6 +24,7 @@ use std::path::Path;
 use crate::limits::MemoryLimit;
 use crate::splat::Splats;
 
+pub use chunked::{Chunk, ChunkedInput};
 pub use error::{Location, ReadError, ReadErrorKind};
 pub use ply_write::{PlyWriter, write_ply};
 pub use splat_write::write_splat_records;

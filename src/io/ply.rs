@@ -442,6 +442,81 @@ fn decode_binary(body: &[u8], n: usize, lay: &Layout, be: bool) -> (Splats, Note
     (s, repaired)
 }
 
+/// A binary PLY whose vertex records can be decoded in chunks straight from the file (the
+/// out-of-core converter's reader): every element is fixed-size and the sizes add up exactly.
+#[derive(Debug)]
+pub(crate) struct BinaryPlan {
+    lay: Layout,
+    be: bool,
+    /// Body encoding.
+    pub(crate) encoding: PlyEncoding,
+    /// Byte offset of the first vertex record.
+    pub(crate) start: u64,
+    /// Vertex records.
+    pub(crate) count: u64,
+    /// Record size in bytes.
+    pub(crate) stride: usize,
+}
+
+/// The chunked-read plan of a binary PLY of `total` bytes whose header lies in `head`; `None`
+/// when the file is ascii, has list elements, or its sizes do not add up (the whole-file reader
+/// then reads it or names what is wrong).
+pub(crate) fn binary_plan(
+    cx: &Ctx,
+    head: &[u8],
+    total: u64,
+) -> Result<Option<BinaryPlan>, ReadError> {
+    let h = parse_header(cx, head)?;
+    if h.encoding == PlyEncoding::Ascii {
+        return Ok(None);
+    }
+    let Some(vi) = h.elements.iter().position(|e| e.name == "vertex") else {
+        return Ok(None);
+    };
+    let lay = layout(cx, &h.elements[vi], false)?;
+    let size_of = |el: &Element| -> Option<u64> { el.count.checked_mul(el.fixed_size()? as u64) };
+    let mut start = h.body as u64;
+    for el in &h.elements[..vi] {
+        let Some(s) = size_of(el).and_then(|s| s.checked_add(start)) else {
+            return Ok(None);
+        };
+        start = s;
+    }
+    let mut end = h.elements[vi]
+        .count
+        .checked_mul(lay.stride as u64)
+        .and_then(|s| s.checked_add(start));
+    for el in &h.elements[vi + 1..] {
+        end = end.and_then(|e| e.checked_add(size_of(el)?));
+    }
+    if end != Some(total) {
+        return Ok(None);
+    }
+    Ok(Some(BinaryPlan {
+        be: h.encoding == PlyEncoding::BinaryBigEndian,
+        encoding: h.encoding,
+        start,
+        count: h.elements[vi].count,
+        stride: lay.stride,
+        lay,
+    }))
+}
+
+impl BinaryPlan {
+    /// SH degree of the records.
+    pub(crate) fn degree(&self) -> u8 {
+        self.lay.degree
+    }
+}
+
+/// Decodes whole vertex records `recs` (a multiple of the plan's stride) into splats; returns
+/// them with the counts of repaired quaternions and overflowed scales.
+pub(crate) fn decode_chunk(plan: &BinaryPlan, recs: &[u8]) -> (Splats, usize, usize) {
+    let n = recs.len() / plan.stride;
+    let (s, notes) = decode_binary(&recs[..n * plan.stride], n, &plan.lay, plan.be);
+    (s, notes.repaired, notes.overflowed)
+}
+
 /// Iterates over body lines with their 1-based numbers, skipping blank ones.
 struct Lines<'a> {
     bytes: &'a [u8],

@@ -23,26 +23,14 @@ pub(crate) fn check_declared(cx: &Ctx, total: u64) -> Result<(), ReadError> {
     cx.check_memory(0, total / RECORD as u64, 0, total)
 }
 
-/// Reads a `.splat` body (its length must be a multiple of 32).
-pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
-    let whole = bytes.len() / RECORD * RECORD;
-    if whole != bytes.len() {
-        return Err(cx.at(
-            whole as u64,
-            ReadErrorKind::Truncated {
-                what: format!(
-                    "a .splat file is 32-byte records; {} bytes end in a partial record",
-                    bytes.len()
-                ),
-                unit: "bytes",
-                expected: (whole + RECORD) as u64,
-                actual: bytes.len() as u64,
-            },
-        ));
-    }
+/// Bytes per `.splat` record.
+pub(crate) const RECORD_BYTES: usize = RECORD;
+
+/// Decodes whole 32-byte records (a trailing partial record is ignored); returns the splats and
+/// how many quaternions were zero and became the identity.
+pub(crate) fn decode_chunk(bytes: &[u8]) -> (Splats, usize) {
     let n = bytes.len() / RECORD;
-    check_declared(cx, bytes.len() as u64)?;
-    let decoded: Vec<Decoded> = bytes
+    let decoded: Vec<Decoded> = bytes[..n * RECORD]
         .par_chunks(RECORD)
         .map(|r| {
             let pos = [
@@ -77,6 +65,28 @@ pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
         s.sh0.push(d);
         repaired += fixed as usize;
     }
+    (s, repaired)
+}
+
+/// Reads a `.splat` body (its length must be a multiple of 32).
+pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
+    let whole = bytes.len() / RECORD * RECORD;
+    if whole != bytes.len() {
+        return Err(cx.at(
+            whole as u64,
+            ReadErrorKind::Truncated {
+                what: format!(
+                    "a .splat file is 32-byte records; {} bytes end in a partial record",
+                    bytes.len()
+                ),
+                unit: "bytes",
+                expected: (whole + RECORD) as u64,
+                actual: bytes.len() as u64,
+            },
+        ));
+    }
+    check_declared(cx, bytes.len() as u64)?;
+    let (s, repaired) = decode_chunk(bytes);
     Ok(Scene {
         splats: s,
         format: InputFormat::Splat,

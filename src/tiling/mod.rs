@@ -8,5 +8,6 @@ pub mod morton;
 pub mod partition;
 pub mod subtree;
 pub mod tileset;
+pub mod variant_schema;
 
 pub use partition::{Leaf, Partition, Scheme, TileKey, partition};

@@ -127,9 +127,9 @@ pub struct Partition {
     pub levels: u32,
 }
 
-/// Quantises unit coordinates (each in [0, 1], values outside are clamped) to integer cells at
-/// `depth` and returns their Morton codes.
-fn codes(unit: &[[f64; 3]], scheme: Scheme, depth: u32) -> Vec<u64> {
+/// Morton code at `depth` of the cell holding unit coordinates `p` (each in [0, 1]; values
+/// outside are clamped, NaN goes to 0).
+pub fn code_of(p: [f64; 3], scheme: Scheme, depth: u32) -> u64 {
     let cells = (1u64 << depth) as f64;
     let max = (1u64 << depth) - 1;
     let q = |v: f64| -> u32 {
@@ -140,8 +140,13 @@ fn codes(unit: &[[f64; 3]], scheme: Scheme, depth: u32) -> Vec<u64> {
             (c as u64).min(max) as u32
         }
     };
+    scheme.encode(q(p[0]), q(p[1]), q(p[2]))
+}
+
+/// Quantises unit coordinates to integer cells at `depth` and returns their Morton codes.
+fn codes(unit: &[[f64; 3]], scheme: Scheme, depth: u32) -> Vec<u64> {
     unit.par_iter()
-        .map(|p| scheme.encode(q(p[0]), q(p[1]), q(p[2])))
+        .map(|p| code_of(*p, scheme, depth))
         .collect()
 }
 
@@ -154,6 +159,20 @@ pub fn partition(
     max_splats: usize,
     max_depth: u32,
 ) -> Partition {
+    partition_subtree(unit, scheme, max_splats, max_depth, TileKey::ROOT)
+}
+
+/// [`partition`] of the splats of one subtree rooted at `root` (all of them in its cell): the
+/// same leaves a partition of the whole scene gives inside `root`, provided the whole scene's
+/// partition splits `root`'s parent (it holds more than `max_splats`). The out-of-core
+/// converter builds each region this way.
+pub fn partition_subtree(
+    unit: &[[f64; 3]],
+    scheme: Scheme,
+    max_splats: usize,
+    max_depth: u32,
+    root: TileKey,
+) -> Partition {
     let depth = max_depth.min(scheme.max_depth());
     let code = codes(unit, scheme, depth);
     let mut order: Vec<usize> = (0..unit.len()).collect();
@@ -161,7 +180,7 @@ pub fn partition(
     let sorted: Vec<u64> = order.iter().map(|&i| code[i]).collect();
 
     let mut leaves = Vec::new();
-    let mut stack = vec![(0u32, 0usize, order.len())];
+    let mut stack = vec![(root.level.min(depth), 0usize, order.len())];
     // Depth-first, children pushed in reverse so leaves come out in Morton order.
     while let Some((level, lo, hi)) = stack.pop() {
         if hi == lo {
@@ -276,6 +295,49 @@ mod tests {
         assert_eq!(p.leaves.len(), 3);
         let empty = partition(&[], Scheme::Quadtree, 10, 8);
         assert!(empty.leaves.is_empty());
+    }
+
+    #[test]
+    fn a_subtree_partition_gives_the_whole_scenes_leaves_inside_it() {
+        let mut seed = 5;
+        let unit: Vec<[f64; 3]> = (0..6000)
+            .map(|_| {
+                let s = if lcg(&mut seed) < 0.6 { 0.2 } else { 1.0 };
+                [lcg(&mut seed) * s, lcg(&mut seed) * s, lcg(&mut seed) * s]
+            })
+            .collect();
+        let whole = partition(&unit, Scheme::Octree, 50, 10);
+        // Every level-2 tile whose parent was split: its splats alone give the same leaves.
+        let mut checked = 0;
+        for root in whole
+            .leaves
+            .iter()
+            .filter(|l| l.key.level >= 2)
+            .map(|l| l.key.ancestor(2))
+        {
+            let inside: Vec<usize> = (0..unit.len())
+                .filter(|&i| {
+                    let c = |v: f64| ((v * 4.0).floor() as i64).clamp(0, 3) as u32;
+                    (c(unit[i][0]), c(unit[i][1]), c(unit[i][2])) == (root.x, root.y, root.z)
+                })
+                .collect();
+            let sub_unit: Vec<[f64; 3]> = inside.iter().map(|&i| unit[i]).collect();
+            let sub = partition_subtree(&sub_unit, Scheme::Octree, 50, 10, root);
+            let expect: Vec<(TileKey, Vec<usize>)> = whole
+                .leaves
+                .iter()
+                .filter(|l| l.key.level >= 2 && l.key.ancestor(2) == root)
+                .map(|l| (l.key, l.indices.clone()))
+                .collect();
+            let got: Vec<(TileKey, Vec<usize>)> = sub
+                .leaves
+                .iter()
+                .map(|l| (l.key, l.indices.iter().map(|&k| inside[k]).collect()))
+                .collect();
+            assert_eq!(got, expect, "{root:?}");
+            checked += 1;
+        }
+        assert!(checked > 8);
     }
 
     #[test]

@@ -120,12 +120,12 @@ pub const CONTENT_CLASS: &str = "splatContent";
 /// semantics that override the implicit ones), per-content splat counts and quality variants.
 pub fn schema() -> Value {
     let mut s = base_schema();
-    let (variants_class, content_props) = crate::variants::schema_properties();
-    s["classes"][crate::variants::VARIANTS_CLASS] = variants_class;
+    let (variants_class, content_props) = super::variant_schema::schema_properties();
+    s["classes"][super::variant_schema::VARIANTS_CLASS] = variants_class;
     // The tileset entity's one class also carries the Web-Mercator root of georeferenced
     // tilesets (optional properties; spec/georeferencing.md).
     if let (Some(props), Some(extra)) = (
-        s["classes"][crate::variants::VARIANTS_CLASS]["properties"].as_object_mut(),
+        s["classes"][super::variant_schema::VARIANTS_CLASS]["properties"].as_object_mut(),
         mercator_root_properties().as_object(),
     ) {
         props.extend(extra.clone());

@@ -15,6 +15,7 @@ mod output;
 mod plain_clone;
 mod serve_soak;
 mod signal;
+mod spill;
 
 use std::path::Path;
 use std::process::{Command, Output};

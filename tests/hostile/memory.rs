@@ -119,15 +119,22 @@ fn exact_size_gzip_bombs_are_refused_under_an_explicit_limit() {
     }
 }
 
-/// A sparse 6 GB `.splat` (no bytes on disk) is refused from its length alone.
+/// A sparse `.splat` (no bytes on disk: every splat at the origin) is read in chunks whatever
+/// its size (the out-of-core converter spills what does not fit), but coincident splats cannot
+/// be split into tiles: more of them than `--memory-limit` lets one tile hold is refused, with
+/// nothing left behind.
 #[test]
-fn sparse_huge_splat_file_is_refused_before_reading() {
+fn sparse_splat_file_of_coincident_splats_is_refused_at_the_memory_limit() {
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("sparse.splat");
     let f = std::fs::File::create(&input).unwrap();
-    f.set_len(6 << 30).unwrap();
+    f.set_len(16 << 20).unwrap();
     drop(f);
-    assert_refused(&input, &[], &["201326592 declared splats", "memory limit"]);
+    assert_refused(
+        &input,
+        &["--memory-limit", "1MiB"],
+        &["524288 splats share one cell", "memory limit"],
+    );
 }
 
 /// `/dev/zero` named `x.ply`: refused on its first bytes (no `ply` line), never read to the end.

@@ -1,0 +1,660 @@
+//! The conversion pipeline, one module per stage, data flowing one way: chunked read (`source`)
+//! -> `frame` -> `spill` -> `region` (leaves, then LOD parents) -> `top` -> `tileset`.
+//!
+//! Everything is written into a staging folder renamed into place at the end; the working set
+//! stays within `--memory-limit` (ARCHITECTURE.md "Out-of-core conversion").
+
+mod frame;
+mod region;
+mod source;
+mod spill;
+mod store;
+mod tileset;
+mod top;
+
+use crate::frame::geo::Geodetic;
+use crate::frame::{UpAxis, source_to_tileset};
+use crate::io::{self, ChunkedInput, ReadError, Scene};
+use crate::lod::{LEAF_SIZE_DIVISOR, LodOptions};
+use crate::output::{OutputError, Staging};
+use crate::tiling::TileKey;
+use crate::variants::{ContentError, ContentFacts, VariantOptions};
+use frame::{FrameAccum, Layout};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use region::{GroupLeaves, RegionCtx};
+use source::Input;
+use spill::{Codec, Spiller};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tileset::{TreeTile, build_tree, finish_tree, tileset_json, write_subtrees};
+
+/// Folder of the spill files inside the staging folder (removed before the output is committed).
+const SPILL_DIR: &str = ".spill";
+
+/// Spacing samples the default leaf radius is the median of (about; see [`region`]).
+const SPACING_SAMPLES: u64 = 4096;
+
+/// What to do with splats holding NaN or infinite values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum NonFinitePolicy {
+    /// Drop them and report how many were dropped.
+    Drop,
+    /// Refuse the input, naming the first bad splat.
+    Fail,
+}
+
+/// Which subdivision to use for a local (not georeferenced) scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SchemeChoice {
+    /// Quadtree when the scene is flat (vertical extent < 1/4 of the horizontal), else octree.
+    Auto,
+    /// Always an octree.
+    Octree,
+    /// Always a quadtree.
+    Quadtree,
+}
+
+/// Settings of one conversion.
+#[derive(Debug, Clone)]
+pub struct ConvertOptions {
+    /// Most splats a leaf tile may hold (unless coincident splats cannot be separated).
+    pub max_splats_per_tile: usize,
+    /// Deepest level of the tree (local scenes) or deepest Web-Mercator zoom (georeferenced).
+    pub max_depth: Option<u32>,
+    /// Up axis of the input; `None` takes the format's usual one.
+    pub up_axis: Option<UpAxis>,
+    /// Turn about the up axis, degrees.
+    pub heading_deg: f64,
+    /// Georeference the scene at this place (ENU frame, Web-Mercator quadtree).
+    pub origin: Option<Geodetic>,
+    /// Subdivision of local scenes.
+    pub scheme: SchemeChoice,
+    /// NaN/Inf handling.
+    pub non_finite: NonFinitePolicy,
+    /// Levels per subtree file; `None` picks 6 (quadtree) or 4 (octree).
+    pub subtree_levels: Option<u32>,
+    /// Keep each leaf's splat indices in the report (for tests and tools).
+    pub keep_index_map: bool,
+    /// Draw progress bars (they hide themselves when stderr is not a terminal).
+    pub progress: bool,
+    /// Level of detail: parents by weighted clustering of their children.
+    pub lod: LodOptions,
+    /// Quality variants per tile, target profile, utility measurement.
+    pub variants: VariantOptions,
+    /// Memory budget in bytes (`--memory-limit`): the working set of every stage is sized to
+    /// it (regions spilled to the staging folder when the scene does not fit); inputs only the
+    /// whole-file readers take (ascii PLY, SPZ) are refused when estimated above it.
+    pub memory_limit: u64,
+}
+
+impl Default for ConvertOptions {
+    fn default() -> Self {
+        ConvertOptions {
+            max_splats_per_tile: 32_768,
+            max_depth: None,
+            up_axis: None,
+            heading_deg: 0.0,
+            origin: None,
+            scheme: SchemeChoice::Auto,
+            non_finite: NonFinitePolicy::Drop,
+            subtree_levels: None,
+            keep_index_map: false,
+            progress: false,
+            lod: LodOptions::default(),
+            variants: VariantOptions::default(),
+            memory_limit: crate::limits::MemoryLimit::machine_default().bytes(),
+        }
+    }
+}
+
+/// What a conversion did.
+#[derive(Debug, Clone, Default)]
+pub struct ConvertReport {
+    /// Splats read.
+    pub splats_in: usize,
+    /// Splats written over all leaf tiles.
+    pub splats_out: usize,
+    /// Splats dropped for NaN/Inf values.
+    pub dropped_non_finite: usize,
+    /// Zero or non-finite quaternions replaced by the identity while reading.
+    pub repaired_rotations: usize,
+    /// Splats whose finite log-scales overflow `exp` (counted among the non-finite ones).
+    pub overflowed_scales: usize,
+    /// SH degree of the output.
+    pub sh_degree: u8,
+    /// Up axis used.
+    pub up_axis: String,
+    /// "QUADTREE" or "OCTREE".
+    pub scheme: String,
+    /// Tiles in the tree (with or without content).
+    pub tiles: usize,
+    /// Tiles with content.
+    pub content_tiles: usize,
+    /// `availableLevels`.
+    pub levels: u32,
+    /// Subtree files written.
+    pub subtrees: usize,
+    /// Bytes of all files written.
+    pub bytes: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Per leaf: key and the indices of its splats in the (finite) input, in tile order.
+    pub leaves: Vec<(TileKey, Vec<usize>)>,
+    /// Leaf clustering radius `r` used by the LOD build (0 without LOD).
+    pub lod_radius: f64,
+    /// Splats over all parent (LOD) tiles.
+    pub parent_splats: usize,
+    /// Wall-clock seconds of the LOD build (clustering and writing parents).
+    pub lod_seconds: f64,
+    /// Per content tile: what its variants cost and are worth.
+    pub contents: Vec<(TileKey, ContentFacts)>,
+    /// Regions (subtrees built as units) the scene was split into (1: in memory).
+    pub regions: usize,
+    /// Bytes written to spill files in the staging folder (0: in memory).
+    pub spill_bytes: u64,
+    /// Wall-clock seconds at the end of each stage since the conversion started (frame, spill,
+    /// leaves, parents, top, tileset).
+    pub stage_seconds: Vec<(&'static str, f64)>,
+    /// Notes about the output folder (leftovers of interrupted runs cleaned, an earlier result
+    /// that could not be deleted); the command line prints them on stderr.
+    pub notes: Vec<String>,
+}
+
+/// Why a conversion failed. Nothing is left at the output path when it does.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConvertError {
+    /// The input could not be read.
+    #[error(transparent)]
+    Read(#[from] ReadError),
+    /// A splat holds NaN/Inf and the policy is to fail.
+    #[error(
+        "{file}: {location}: splat {index} has a NaN or infinite value{note} (use --non-finite drop to skip such splats)"
+    )]
+    NonFinite {
+        /// Input file.
+        file: String,
+        /// Where in the file.
+        location: String,
+        /// Splat index.
+        index: usize,
+        /// Extra explanation (finite log-scales that overflow).
+        note: String,
+    },
+    /// More splats share one cell at the deepest level than the memory limit lets one tile hold.
+    #[error(
+        "{file}: {count} splats share one cell at the deepest tree level ({level}); a tile holding \
+         them all needs more than the memory limit ({limit}); raise --memory-limit or --max-depth"
+    )]
+    TooDense {
+        /// Input file.
+        file: String,
+        /// Splats in the cell.
+        count: u64,
+        /// The deepest level.
+        level: u32,
+        /// The memory limit, human-readable.
+        limit: String,
+    },
+    /// No splat is left to tile.
+    #[error("{file}: no splats to convert{why}")]
+    Empty {
+        /// Input file.
+        file: String,
+        /// Extra explanation.
+        why: String,
+    },
+    /// The output cannot be written.
+    #[error("{path}: {what}: {source}")]
+    Io {
+        /// Path involved.
+        path: PathBuf,
+        /// What was being done.
+        what: &'static str,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A tile's contents could not be written.
+    #[error(transparent)]
+    Content(#[from] ContentError),
+    /// The output path is not something we may replace.
+    #[error("{path}: {why}")]
+    Output {
+        /// Path involved.
+        path: PathBuf,
+        /// Why not.
+        why: String,
+    },
+    /// The output folder is refused, busy, unwritable, or the run was interrupted.
+    #[error(transparent)]
+    Out(#[from] OutputError),
+}
+
+impl ConvertError {
+    /// Whether an interrupt (Ctrl-C, SIGTERM) stopped the run.
+    pub fn is_interrupt(&self) -> bool {
+        matches!(self, ConvertError::Out(OutputError::Interrupted))
+    }
+
+    /// Names the user's output path instead of the staging folder in file errors.
+    fn relocated(self, staging: &Path, output: &Path) -> Self {
+        let swap = |p: PathBuf| match p.strip_prefix(staging) {
+            Ok(rel) => output.join(rel),
+            Err(_) => p,
+        };
+        match self {
+            ConvertError::Io { path, what, source } => ConvertError::Io {
+                path: swap(path),
+                what,
+                source,
+            },
+            ConvertError::Content(ContentError::Io { path, source }) => {
+                ConvertError::Content(ContentError::Io {
+                    path: swap(path),
+                    source,
+                })
+            }
+            e => e,
+        }
+    }
+}
+
+/// Stops the pipeline when an interrupt arrived (polled between tiles).
+fn check_interrupt() -> Result<(), ConvertError> {
+    if crate::output::interrupted() {
+        Err(OutputError::Interrupted.into())
+    } else {
+        Ok(())
+    }
+}
+
+fn io_err<'a>(
+    path: &'a Path,
+    what: &'static str,
+) -> impl FnOnce(std::io::Error) -> ConvertError + 'a {
+    move |source| ConvertError::Io {
+        path: path.to_path_buf(),
+        what,
+        source,
+    }
+}
+
+/// Reads `input` and writes its tileset to the folder `output` (atomically). Binary PLY and
+/// `.splat` files are read in chunks, never whole; other inputs through the whole-file readers.
+pub fn convert(
+    input: &Path,
+    output: &Path,
+    opts: &ConvertOptions,
+) -> Result<ConvertReport, ConvertError> {
+    let start = Instant::now();
+    let source = match ChunkedInput::open(input)? {
+        Some(c) => Input::Chunked(c),
+        None => {
+            let spinner = spinner(opts.progress, format!("reading {}", input.display()));
+            let scene = io::read_path_limited(input, opts.memory_limit)?;
+            spinner.finish_and_clear();
+            Input::Memory(scene)
+        }
+    };
+    let mut report = run(source, &input.display().to_string(), output, opts)?;
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// Writes the tileset of an already-read scene to `output`; `name` names the input in errors.
+pub fn convert_scene(
+    scene: Scene,
+    name: &str,
+    output: &Path,
+    opts: &ConvertOptions,
+) -> Result<ConvertReport, ConvertError> {
+    run(Input::Memory(scene), name, output, opts)
+}
+
+/// How the memory limit is shared out between the stages (see ARCHITECTURE.md).
+#[derive(Debug, Clone, Copy)]
+struct Budget {
+    /// Records decoded per input chunk.
+    chunk: usize,
+    /// Most splats one group of regions holds in memory.
+    cap: u64,
+    /// Bytes of spill write buffers in one routing pass.
+    write_budget: usize,
+}
+
+impl Budget {
+    fn new(limit: u64, degree: u8, max_splats: usize) -> Budget {
+        let splat = crate::limits::splat_bytes(degree);
+        Budget {
+            chunk: (limit / 64 / (3 * splat)).clamp(1024, 1 << 18) as usize,
+            cap: crate::limits::region_splats(limit, degree).max(max_splats as u64),
+            write_budget: (limit / 16).clamp(1 << 20, 256 << 20) as usize,
+        }
+    }
+}
+
+/// What the frame pass counted.
+#[derive(Debug, Default)]
+struct Counts {
+    finite: u64,
+    dropped: u64,
+    first_bad: Option<u64>,
+    repaired: usize,
+    overflowed: usize,
+}
+
+/// The pipeline: frame pass, spill, regions (leaves, then parents), top levels, tileset.
+fn run(
+    input: Input,
+    name: &str,
+    output: &Path,
+    opts: &ConvertOptions,
+) -> Result<ConvertReport, ConvertError> {
+    let start = Instant::now();
+    let up = opts.up_axis.unwrap_or_else(|| {
+        input
+            .format()
+            .default_up_axis()
+            .parse()
+            .unwrap_or(UpAxis::NegY)
+    });
+    let a = source_to_tileset(up, opts.heading_deg);
+    let degree = input.sh_degree();
+    let budget = Budget::new(opts.memory_limit, degree, opts.max_splats_per_tile);
+
+    // Frame stage: one pass for the non-finite policy, the bounds and the georeferenced root.
+    let mut acc = FrameAccum::new(opts.origin.is_some());
+    let enu = opts.origin.map(Geodetic::enu_to_ecef);
+    let mut counts = Counts::default();
+    input.for_each_raw(budget.chunk, |ch| {
+        check_interrupt()?;
+        let s = ch.splats;
+        let keep: Vec<bool> = (0..s.len())
+            .into_par_iter()
+            .map(|i| s.is_finite(i))
+            .collect();
+        let kept = keep.iter().filter(|k| **k).count() as u64;
+        if counts.first_bad.is_none() && kept < s.len() as u64 {
+            counts.first_bad = keep.iter().position(|k| !k).map(|i| ch.first + i as u64);
+        }
+        counts.finite += kept;
+        counts.dropped += s.len() as u64 - kept;
+        counts.repaired += ch.repaired_rotations;
+        counts.overflowed += ch.overflowed_scales;
+        acc.add(s, &keep, a, enu);
+        Ok(())
+    })?;
+    let mut report = ConvertReport {
+        splats_in: input.len() as usize,
+        repaired_rotations: counts.repaired,
+        overflowed_scales: counts.overflowed,
+        sh_degree: degree,
+        up_axis: up.to_string(),
+        ..Default::default()
+    };
+    if let Some(i) = counts.first_bad {
+        match opts.non_finite {
+            NonFinitePolicy::Fail => {
+                let note = if counts.overflowed > 0 {
+                    format!(
+                        " ({} splats have finite log-scales too large for exp(), e.g. above 88.7: \
+                         their scale overflows)",
+                        counts.overflowed
+                    )
+                } else {
+                    String::new()
+                };
+                return Err(ConvertError::NonFinite {
+                    file: name.to_string(),
+                    location: input.locator().describe(i as usize),
+                    index: i as usize,
+                    note,
+                });
+            }
+            NonFinitePolicy::Drop => report.dropped_non_finite = counts.dropped as usize,
+        }
+    }
+    if counts.finite == 0 {
+        let why = if report.dropped_non_finite > 0 && counts.overflowed > 0 {
+            format!(
+                " (all {} splats had NaN or infinite values; {} of them are finite in the file but \
+                 have log-scales too large for exp(), e.g. above 88.7, so their scale overflows)",
+                report.dropped_non_finite, counts.overflowed
+            )
+        } else if report.dropped_non_finite > 0 {
+            format!(
+                " (all {} splats had NaN or infinite values)",
+                report.dropped_non_finite
+            )
+        } else {
+            " (the file holds zero splats)".to_string()
+        };
+        return Err(ConvertError::Empty {
+            file: name.to_string(),
+            why,
+        });
+    }
+    report
+        .stage_seconds
+        .push(("frame", start.elapsed().as_secs_f64()));
+    let layout = Layout::new(&acc, a, opts);
+    report.scheme = layout.scheme.as_str().to_string();
+
+    let staging = Staging::prepare(output)?;
+    let dir = staging.path().to_path_buf();
+    let relocate = |e: ConvertError| e.relocated(&dir, output);
+    let codec = Codec::new(degree);
+
+    // Spill stage: regions that fit the budget (one in memory when the whole scene does).
+    let spinner = spinner(opts.progress, "partitioning".to_string());
+    let mut spiller = Spiller::new(
+        name,
+        opts.memory_limit,
+        &layout,
+        codec,
+        dir.join(SPILL_DIR),
+        budget.cap,
+        budget.chunk,
+        budget.write_budget,
+    );
+    let groups = spiller.split(&input, counts.finite).map_err(relocate)?;
+    drop(input);
+    spinner.finish_and_clear();
+    report.spill_bytes = spiller.bytes;
+    report
+        .stage_seconds
+        .push(("spill", start.elapsed().as_secs_f64()));
+    report.regions = groups.iter().map(|g| g.regions.len()).sum();
+
+    // Region stage, pass 1: leaves.
+    let cx = RegionCtx {
+        layout: &layout,
+        opts,
+        dir: &dir,
+        codec,
+        nn_step: counts.finite.div_ceil(SPACING_SAMPLES).max(1) as usize,
+    };
+    let leaf_bar = bar(opts.progress, groups.len() as u64, "writing leaves");
+    let mut built: Vec<GroupLeaves> = Vec::with_capacity(groups.len());
+    let mut leaves: HashMap<TileKey, TreeTile> = HashMap::new();
+    let mut spacing = Vec::new();
+    let mut index_map = Vec::new();
+    for g in groups {
+        let mut gl = region::build_leaves(g, &cx).map_err(relocate)?;
+        leaves.extend(std::mem::take(&mut gl.tiles));
+        spacing.append(&mut gl.spacing);
+        index_map.append(&mut gl.index_map);
+        built.push(gl);
+        leaf_bar.inc(1);
+    }
+    leaf_bar.finish_and_clear();
+    report
+        .stage_seconds
+        .push(("leaves", start.elapsed().as_secs_f64()));
+    report.levels = leaves.keys().map(|k| k.level + 1).max().unwrap_or(1);
+    report.content_tiles = leaves.len();
+    report.contents = leaves
+        .iter()
+        .filter_map(|(k, t)| t.facts.clone().map(|f| (*k, f)))
+        .collect();
+    report.contents.sort_by_key(|(k, _)| *k);
+    report.splats_out = leaves.values().map(|t| t.splat_count as usize).sum();
+    report.bytes = leaves.values().map(|t| t.bytes).sum();
+    let mut tree = build_tree(leaves);
+
+    // Region stage, pass 2, and the top stage: LOD parents.
+    if opts.lod.enabled {
+        let t0 = Instant::now();
+        let r = opts.lod.radius.unwrap_or_else(|| {
+            default_radius(
+                &mut spacing,
+                layout.tile_edge(report.levels.saturating_sub(1)),
+                layout.tile_edge(0),
+            )
+        });
+        let diagonals: HashMap<TileKey, f64> = tree
+            .iter()
+            .map(|(k, t)| (*k, (t.hi - t.lo).length()))
+            .collect();
+        let lod_bar = bar(opts.progress, built.len() as u64, "building LOD");
+        let mut parents = std::collections::BTreeMap::new();
+        let mut roots = Vec::new();
+        let spill = dir.join(SPILL_DIR);
+        std::fs::create_dir_all(&spill)
+            .map_err(io_err(&spill, "creating folder"))
+            .map_err(relocate)?;
+        let store =
+            store::ContentStore::create(spill.join("contents.bin"), codec).map_err(relocate)?;
+        for gl in built {
+            let (p, rc) =
+                region::build_parents(gl, r, &diagonals, &store, &cx).map_err(relocate)?;
+            parents.extend(p);
+            roots.extend(rc);
+            lod_bar.inc(1);
+        }
+        lod_bar.finish_and_clear();
+        report
+            .stage_seconds
+            .push(("parents", start.elapsed().as_secs_f64()));
+        parents
+            .extend(top::build_top(&roots, &store, degree, r, &diagonals, &cx).map_err(relocate)?);
+        drop(store);
+        report
+            .stage_seconds
+            .push(("top", start.elapsed().as_secs_f64()));
+        for (key, p) in parents {
+            // Parents that are no real level of detail keep no content (tiling::levels).
+            let Some((facts, lo, hi)) = p.content else {
+                continue;
+            };
+            let t = tree.get_mut(&key).expect("parents are tree tiles");
+            t.splat_count = facts.splat_count;
+            t.bytes = facts.bytes;
+            t.has_content = true;
+            t.error = p.error;
+            t.lo = t.lo.min(lo);
+            t.hi = t.hi.max(hi);
+            report.content_tiles += 1;
+            report.parent_splats += facts.splat_count as usize;
+            report.bytes += facts.bytes;
+            report.contents.push((key, facts.clone()));
+            t.facts = Some(facts);
+        }
+        report.contents.sort_by_key(|(k, _)| *k);
+        report.lod_radius = r;
+        report.lod_seconds = t0.elapsed().as_secs_f64();
+    } else {
+        drop(built);
+    }
+    let spill = dir.join(SPILL_DIR);
+    if spill.exists() {
+        std::fs::remove_dir_all(&spill)
+            .map_err(io_err(&spill, "removing spill files"))
+            .map_err(relocate)?;
+    }
+    finish_tree(&mut tree);
+    report.tiles = tree.len();
+
+    // Tileset stage.
+    let subtree_levels = opts
+        .subtree_levels
+        .unwrap_or(match layout.scheme {
+            crate::tiling::Scheme::Quadtree => 6,
+            crate::tiling::Scheme::Octree => 4,
+        })
+        .clamp(1, report.levels.max(1));
+    let (subtrees, subtree_bytes) =
+        write_subtrees(&tree, layout.scheme, subtree_levels, &dir).map_err(relocate)?;
+    report.subtrees = subtrees;
+    report.bytes += subtree_bytes;
+    let tileset = tileset_json(
+        &tree,
+        &layout,
+        report.levels,
+        subtree_levels,
+        &report,
+        name,
+        &opts.variants,
+    );
+    let json = serde_json::to_vec_pretty(&tileset).expect("tileset serialises");
+    let path = dir.join("tileset.json");
+    std::fs::write(&path, &json)
+        .map_err(io_err(&path, "writing"))
+        .map_err(relocate)?;
+    report.bytes += json.len() as u64;
+
+    report.notes = staging.commit()?;
+    report
+        .stage_seconds
+        .push(("tileset", start.elapsed().as_secs_f64()));
+    if opts.keep_index_map {
+        report.leaves = index_map;
+    }
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// The default leaf radius `r`: the deepest leaf tile's edge divided by [`LEAF_SIZE_DIVISOR`],
+/// but never below the median nearest-neighbour spacing of the sampled splats (each measured
+/// within its own leaf, so the value is the same however the scene is split into regions).
+fn default_radius(spacing: &mut [f64], deepest_edge: f64, root_size: f64) -> f64 {
+    let from_tiles = deepest_edge / LEAF_SIZE_DIVISOR;
+    let nn = if spacing.is_empty() {
+        0.0
+    } else {
+        let mid = spacing.len() / 2;
+        *spacing.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+    };
+    let r = from_tiles.max(nn);
+    if r.is_finite() && r > 0.0 {
+        r
+    } else {
+        1e-6_f64.max(root_size * 1e-6)
+    }
+}
+
+fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    let b = ProgressBar::new(len);
+    b.set_style(
+        ProgressStyle::with_template("{msg:>14} [{bar:40}] {pos}/{len} ({eta})")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    b.set_message(msg);
+    b
+}
+
+fn spinner(show: bool, msg: String) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    let s = ProgressBar::new_spinner();
+    s.set_message(msg);
+    s.enable_steady_tick(std::time::Duration::from_millis(120));
+    s
+}

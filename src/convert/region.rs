@@ -1,0 +1,378 @@
+//! Region stage: one subtree built as a unit from its splats alone: leaves (partition, importance
+//! order, contents), then LOD parents up to the region root, bottom-up.
+//!
+//! Pass 1 ([`build_leaves`]) writes every leaf and keeps the group's splats in leaf order; pass 2
+//! ([`build_parents`]) needs the global leaf radius and the leaf boxes, known after pass 1 of
+//! every region. A region's output depends only on its splats and global parameters, never on
+//! how the scene was split, so the in-memory path (one region) and the spill path agree.
+
+use super::frame::Layout;
+use super::spill::{Codec, Group, GroupData, RegionSpec};
+use super::store::ContentStore;
+use super::tileset::TreeTile;
+use super::{ConvertError, ConvertOptions, check_interrupt};
+use crate::frame::node_matrix;
+use crate::lod::ParentTile;
+use crate::splat::Splats;
+use crate::splat::importance::sort_indices_by_importance;
+use crate::tiling::TileKey;
+use crate::tiling::extent::{reach, reach_bounds};
+use crate::tiling::levels::keeps_content;
+use crate::tiling::partition::partition_subtree;
+use crate::variants::{ContentFacts, write_tile_contents};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// Most leaf splats a sampled splat's nearest neighbour is searched among.
+const NN_SEARCH_CAP: usize = 65_536;
+
+/// Appends every splat of `b` to `a` (same SH degree).
+pub(super) fn append(a: &mut Splats, b: &Splats) {
+    crate::lod::append(a, b);
+}
+
+/// What the region stage needs besides a region's splats.
+pub(super) struct RegionCtx<'a> {
+    pub(super) layout: &'a Layout,
+    pub(super) opts: &'a ConvertOptions,
+    /// The staging folder (contents go under it).
+    pub(super) dir: &'a Path,
+    pub(super) codec: Codec,
+    /// Every `nn_step`-th splat of a leaf (importance order) is a spacing sample.
+    pub(super) nn_step: usize,
+}
+
+/// One region after pass 1: its leaves in Morton order with their splat counts.
+#[derive(Debug, Clone)]
+pub(super) struct RegionLeaves {
+    pub(super) spec: RegionSpec,
+    pub(super) leaves: Vec<(TileKey, usize)>,
+}
+
+/// A group after pass 1.
+#[derive(Debug)]
+pub(super) struct GroupLeaves {
+    pub(super) regions: Vec<RegionLeaves>,
+    /// The group's splats in leaf order (regions in order, leaves in order, importance order).
+    pub(super) data: GroupData,
+    /// The written leaves.
+    pub(super) tiles: Vec<(TileKey, TreeTile)>,
+    /// Nearest-neighbour spacing samples.
+    pub(super) spacing: Vec<f64>,
+    /// Per leaf, the input indices of its splats (only when the report keeps the index map).
+    pub(super) index_map: Vec<(TileKey, Vec<usize>)>,
+}
+
+/// Writes one tile's contents centred on its splats; returns the box around their visible
+/// 3-sigma ellipsoids in the tileset frame and what was written.
+pub(super) fn write_centred(
+    layout: &Layout,
+    key: TileKey,
+    tile: &Splats,
+    dir: &Path,
+    opts: &ConvertOptions,
+) -> Result<(DVec3, DVec3, ContentFacts), ConvertError> {
+    check_interrupt()?;
+    let pts: Vec<DVec3> = tile
+        .positions
+        .iter()
+        .map(|p| layout.to_tileset(*p))
+        .collect();
+    let (clo, chi) = pts.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(lo, hi), q| (lo.min(*q), hi.max(*q)),
+    );
+    let (lo, hi) = reach_bounds(&pts, &three_sigma(tile, layout));
+    let centre_s = layout.a.transpose() * ((clo + chi) * 0.5);
+    let facts = write_tile_contents(
+        dir,
+        layout.scheme,
+        key,
+        tile,
+        centre_s.to_array(),
+        node_matrix(layout.a, centre_s),
+        &opts.variants,
+    )?;
+    Ok((lo, hi, facts))
+}
+
+/// Half extents in the tileset frame of every splat's full 3-sigma ellipsoid (what
+/// `validate --check-extent` and the 3DGS rasterizers' footprints assume, whatever the opacity).
+fn three_sigma(tile: &Splats, layout: &Layout) -> Vec<DVec3> {
+    tile.scales
+        .iter()
+        .zip(&tile.rotations)
+        .map(|(s, r)| reach(layout.a, *s, *r, 1.0))
+        .collect()
+}
+
+/// The group's splats and input indices, loaded (or taken from memory).
+fn load(group: Group, codec: Codec) -> Result<(Splats, Vec<u64>, Option<PathBuf>), ConvertError> {
+    let count = group.count();
+    match group.data {
+        GroupData::Memory(s, idx) => Ok((s, idx, None)),
+        GroupData::File(p) => {
+            let (s, idx) = codec.load(&p, count)?;
+            Ok((s, idx, Some(p)))
+        }
+    }
+}
+
+/// First Morton code (at the layout depth) of `key`'s cell.
+fn first_code(layout: &Layout, key: TileKey) -> u64 {
+    let s = layout.scheme;
+    s.encode(key.x, key.y, key.z) << (s.dims() * (layout.depth() - key.level.min(layout.depth())))
+}
+
+/// Pass 1 of a group: per region, partition into leaves, importance order, write the leaves;
+/// sample the nearest-neighbour spacing; keep the splats in leaf order for pass 2.
+pub(super) fn build_leaves(group: Group, cx: &RegionCtx<'_>) -> Result<GroupLeaves, ConvertError> {
+    let specs = group.regions.clone();
+    let (splats, idx, file) = load(group, cx.codec)?;
+    let layout = cx.layout;
+    // Which region each splat belongs to (regions are consecutive Morton ranges).
+    let members: Vec<Vec<usize>> = if specs.len() == 1 {
+        vec![(0..splats.len()).collect()]
+    } else {
+        let starts: Vec<u64> = specs.iter().map(|r| first_code(layout, r.key)).collect();
+        let which: Vec<usize> = splats
+            .positions
+            .par_iter()
+            .map(|p| {
+                starts
+                    .partition_point(|&s| s <= layout.code(*p))
+                    .saturating_sub(1)
+            })
+            .collect();
+        let mut m = vec![Vec::new(); specs.len()];
+        for (i, &w) in which.iter().enumerate() {
+            m[w].push(i);
+        }
+        m
+    };
+    let mut out = GroupLeaves {
+        regions: Vec::with_capacity(specs.len()),
+        data: GroupData::Memory(Splats::new(splats.sh_degree), Vec::new()),
+        tiles: Vec::new(),
+        spacing: Vec::new(),
+        index_map: Vec::new(),
+    };
+    let mut order: Vec<usize> = Vec::with_capacity(splats.len());
+    for (spec, list) in specs.iter().zip(members) {
+        let unit: Vec<[f64; 3]> = list
+            .par_iter()
+            .map(|&i| layout.unit(splats.positions[i]))
+            .collect();
+        let part = partition_subtree(
+            &unit,
+            layout.scheme,
+            cx.opts.max_splats_per_tile,
+            layout.max_depth,
+            spec.key,
+        );
+        drop(unit);
+        let mut leaves: Vec<(TileKey, Vec<usize>)> = part
+            .leaves
+            .into_iter()
+            .map(|l| (l.key, l.indices.into_iter().map(|k| list[k]).collect()))
+            .collect();
+        // Importance order inside every leaf (SGSS eq. 7); the index map follows it.
+        leaves
+            .par_iter_mut()
+            .for_each(|(_, ind)| sort_indices_by_importance(&splats, ind));
+        let written: Result<Vec<(TileKey, TreeTile)>, ConvertError> = leaves
+            .par_iter()
+            .map(|(key, ind)| {
+                let tile = splats.select(ind);
+                let (lo, hi, facts) = write_centred(layout, *key, &tile, cx.dir, cx.opts)?;
+                Ok((*key, TreeTile::leaf(lo, hi, facts)))
+            })
+            .collect();
+        out.tiles.extend(written?);
+        let spacing: Vec<f64> = leaves
+            .par_iter()
+            .flat_map_iter(|(_, ind)| leaf_spacing(&splats, ind, cx.nn_step))
+            .collect();
+        out.spacing.extend(spacing);
+        if cx.opts.keep_index_map {
+            out.index_map.extend(
+                leaves
+                    .iter()
+                    .map(|(k, ind)| (*k, ind.iter().map(|&i| idx[i] as usize).collect())),
+            );
+        }
+        out.regions.push(RegionLeaves {
+            spec: *spec,
+            leaves: leaves.iter().map(|(k, ind)| (*k, ind.len())).collect(),
+        });
+        for (_, ind) in leaves {
+            order.extend(ind);
+        }
+    }
+    let sorted = splats.select(&order);
+    drop(splats);
+    let sorted_idx: Vec<u64> = order.iter().map(|&i| idx[i]).collect();
+    out.data = match file {
+        None => GroupData::Memory(sorted, sorted_idx),
+        Some(p) => {
+            let q = p.with_extension("sorted");
+            let f = std::fs::File::create(&q).map_err(super::io_err(&q, "creating spill file"))?;
+            let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+            cx.codec
+                .write_all(&sorted, &sorted_idx, &mut w)
+                .and_then(|_| std::io::Write::flush(&mut w))
+                .map_err(super::io_err(&q, "writing spill file"))?;
+            std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
+            GroupData::File(q)
+        }
+    };
+    Ok(out)
+}
+
+/// Spacing samples of one leaf (`ind` in importance order): for every `step`-th splat, the
+/// distance to the nearest other distinct centre among the leaf's first [`NN_SEARCH_CAP`].
+fn leaf_spacing(s: &Splats, ind: &[usize], step: usize) -> Vec<f64> {
+    let pool = &ind[..ind.len().min(NN_SEARCH_CAP)];
+    ind.iter()
+        .step_by(step.max(1))
+        .filter_map(|&i| {
+            let p = s.positions[i];
+            let best = pool
+                .iter()
+                .map(|&j| {
+                    let q = s.positions[j];
+                    let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+                })
+                .filter(|&d2| d2 > 0.0)
+                .fold(f64::INFINITY, f64::min);
+            best.is_finite().then(|| best.sqrt())
+        })
+        .collect()
+}
+
+/// A region root as the levels above see it: its key and the deepest leaf level below it (its
+/// content, splats and radius, is in the [`ContentStore`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct RootContent {
+    pub(super) key: TileKey,
+    pub(super) deepest: u32,
+}
+
+/// What the tree keeps of a parent tile: its content (facts and its box) when it is a real
+/// level of detail, and its clustering radius.
+#[derive(Debug)]
+pub(super) struct WrittenParent {
+    pub(super) content: Option<(ContentFacts, DVec3, DVec3)>,
+    pub(super) error: f64,
+}
+
+/// Writes a built parent when it is a real level of detail ([`keeps_content`] against its box
+/// diagonal) through the same per-tile writer as the leaves.
+pub(super) fn write_parent(
+    p: &ParentTile,
+    diagonals: &HashMap<TileKey, f64>,
+    cx: &RegionCtx<'_>,
+) -> Result<WrittenParent, ConvertError> {
+    let diagonal = diagonals.get(&p.key).copied().unwrap_or(f64::INFINITY);
+    if !keeps_content(
+        p.splats.len(),
+        p.radius,
+        diagonal,
+        cx.opts.max_splats_per_tile,
+    ) {
+        return Ok(WrittenParent {
+            content: None,
+            error: p.radius,
+        });
+    }
+    let (lo, hi, facts) = write_centred(cx.layout, p.key, &p.splats, cx.dir, cx.opts)?;
+    Ok(WrittenParent {
+        content: Some((facts, lo, hi)),
+        error: p.radius,
+    })
+}
+
+/// Pass 2 of a group: the LOD parents of every region up to its root (through
+/// [`crate::lod::build_parents`], children in Morton order), written as they are built.
+/// Returns them and each region's root (its content put into `store`).
+pub(super) fn build_parents(
+    group: GroupLeaves,
+    r: f64,
+    diagonals: &HashMap<TileKey, f64>,
+    store: &ContentStore,
+    cx: &RegionCtx<'_>,
+) -> Result<(BTreeMap<TileKey, WrittenParent>, Vec<RootContent>), ConvertError> {
+    let count: u64 = group.regions.iter().map(|g| g.spec.count).sum();
+    let (splats, _idx) = match group.data {
+        GroupData::Memory(s, idx) => (s, idx),
+        GroupData::File(p) => {
+            let loaded = cx.codec.load(&p, count)?;
+            std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
+            loaded
+        }
+    };
+    let mut parents = BTreeMap::new();
+    let mut roots = Vec::with_capacity(group.regions.len());
+    let mut start = 0usize;
+    for region in &group.regions {
+        check_interrupt()?;
+        let mut ranges: HashMap<TileKey, (usize, usize)> = HashMap::new();
+        for &(k, n) in &region.leaves {
+            ranges.insert(k, (start, n));
+            start += n;
+        }
+        let keys: Vec<TileKey> = region.leaves.iter().map(|(k, _)| *k).collect();
+        let deepest = keys
+            .iter()
+            .map(|k| k.level)
+            .max()
+            .unwrap_or(region.spec.key.level);
+        let range_of = |k: TileKey| -> Vec<usize> {
+            let (a, n) = ranges[&k];
+            (a..a + n).collect()
+        };
+        let root_key = region.spec.key;
+        if keys.len() == 1 && keys[0] == root_key {
+            store.put(root_key, &splats.select(&range_of(root_key)), 0.0)?;
+            roots.push(RootContent {
+                key: root_key,
+                deepest,
+            });
+            continue;
+        }
+        let root: Mutex<Option<Result<(), ConvertError>>> = Mutex::new(None);
+        let built = if cx.opts.lod.enabled {
+            crate::lod::build_parents(
+                &keys,
+                splats.sh_degree,
+                r,
+                cx.opts.max_splats_per_tile,
+                cx.opts.lod.merge,
+                |k| splats.select(&range_of(k)),
+                |p: &ParentTile| {
+                    if p.key == root_key {
+                        *root.lock().unwrap_or_else(|e| e.into_inner()) =
+                            Some(store.put(root_key, &p.splats, p.radius));
+                    }
+                    write_parent(p, diagonals, cx)
+                },
+            )?
+        } else {
+            BTreeMap::new()
+        };
+        parents.extend(built);
+        match root.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            Some(stored) => stored?,
+            None => store.put(root_key, &Splats::new(splats.sh_degree), 0.0)?,
+        }
+        roots.push(RootContent {
+            key: root_key,
+            deepest,
+        });
+    }
+    Ok((parents, roots))
+}

@@ -1,0 +1,105 @@
+//! Read stage: the input as a sequence of chunks, either decoded from the file a bounded number
+//! of records at a time (binary PLY, `.splat`) or one scene already in memory.
+//!
+//! Every later pass sees the finite splats only, each with its index among the finite splats
+//! of the input (the index map of the report and the tie-break that keeps orders identical).
+
+use super::ConvertError;
+use crate::io::{ChunkedInput, InputFormat, Locator, Scene};
+use crate::splat::Splats;
+
+/// Where the splats come from.
+#[derive(Debug)]
+pub(super) enum Input {
+    /// A file decoded in chunks.
+    Chunked(ChunkedInput),
+    /// A scene held in memory.
+    Memory(Scene),
+}
+
+/// One raw chunk: the index of its first splat in the input and its splats (NaN/Inf included).
+pub(super) struct RawChunk<'a> {
+    pub(super) first: u64,
+    pub(super) splats: &'a Splats,
+    pub(super) repaired_rotations: usize,
+    pub(super) overflowed_scales: usize,
+}
+
+impl Input {
+    /// SH degree of the splats.
+    pub(super) fn sh_degree(&self) -> u8 {
+        match self {
+            Input::Chunked(c) => c.sh_degree(),
+            Input::Memory(s) => s.splats.sh_degree,
+        }
+    }
+
+    /// The input's format.
+    pub(super) fn format(&self) -> InputFormat {
+        match self {
+            Input::Chunked(c) => c.format(),
+            Input::Memory(s) => s.format,
+        }
+    }
+
+    /// Where splat `i` of the input sits.
+    pub(super) fn locator(&self) -> Locator {
+        match self {
+            Input::Chunked(c) => c.locator(),
+            Input::Memory(s) => s.locator.clone(),
+        }
+    }
+
+    /// Splats in the input, NaN/Inf included.
+    pub(super) fn len(&self) -> u64 {
+        match self {
+            Input::Chunked(c) => c.len(),
+            Input::Memory(s) => s.splats.len() as u64,
+        }
+    }
+
+    /// One pass over every splat, chunks of at most `records` (a scene in memory is one chunk).
+    pub(super) fn for_each_raw(
+        &self,
+        records: usize,
+        mut f: impl FnMut(RawChunk<'_>) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        match self {
+            Input::Chunked(c) => c.for_each_chunk(records, |ch| {
+                f(RawChunk {
+                    first: ch.first,
+                    splats: &ch.splats,
+                    repaired_rotations: ch.repaired_rotations,
+                    overflowed_scales: ch.overflowed_scales,
+                })
+            }),
+            Input::Memory(s) => f(RawChunk {
+                first: 0,
+                splats: &s.splats,
+                repaired_rotations: s.repaired_rotations,
+                overflowed_scales: s.overflowed_scales,
+            }),
+        }
+    }
+
+    /// One pass over the finite splats: `f` gets each chunk's finite splats and their indices
+    /// among the input's finite splats (increasing).
+    pub(super) fn for_each_finite(
+        &self,
+        records: usize,
+        mut f: impl FnMut(&Splats, &[u64]) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        let mut next = 0u64;
+        self.for_each_raw(records, |ch| {
+            let s = ch.splats;
+            let keep: Vec<usize> = (0..s.len()).filter(|&i| s.is_finite(i)).collect();
+            let idx: Vec<u64> = (next..next + keep.len() as u64).collect();
+            next += keep.len() as u64;
+            if keep.len() == s.len() {
+                f(s, &idx)
+            } else {
+                f(&s.select(&keep), &idx)
+            }
+        })
+    }
+}

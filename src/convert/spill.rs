@@ -1,0 +1,632 @@
+//! Spill stage: splats routed into files in the staging folder by the subtree (region) holding
+//! them, chosen from a histogram of Morton cells (a counting sort, like PotreeConverter 2's
+//! chunker), so that every region fits the working-set budget.
+//!
+//! A region is a subtree whose splat count fits the cap while its parent's does not (so the
+//! whole-scene partition splits the parent, and the region's leaves are the same either way).
+//! Consecutive small regions share one file; a cell still too big at the histogram's depth is
+//! routed again from its own file, one histogram deeper. Files keep input order.
+
+use super::ConvertError;
+use super::frame::Layout;
+use super::source::Input;
+use crate::splat::Splats;
+use crate::tiling::TileKey;
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Byte layout of one spilled splat: u64 index among the finite input, f64 centre, f32 scale,
+/// rotation, opacity, DC colour and the higher SH, little-endian.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Codec {
+    degree: u8,
+    rest: usize,
+}
+
+impl Codec {
+    /// The codec for splats of SH degree `degree`.
+    pub(super) fn new(degree: u8) -> Codec {
+        Codec {
+            degree,
+            rest: crate::splat::sh_rest_count(degree),
+        }
+    }
+
+    /// SH degree of the records.
+    pub(super) fn degree(&self) -> u8 {
+        self.degree
+    }
+
+    /// Bytes of one record.
+    pub(super) fn record_bytes(&self) -> usize {
+        8 + 24 + 12 + 16 + 4 + 12 + 12 * self.rest
+    }
+
+    /// Appends splat `i` of `s` with input index `idx` to `out`.
+    pub(super) fn encode(&self, s: &Splats, i: usize, idx: u64, out: &mut Vec<u8>) {
+        out.extend_from_slice(&idx.to_le_bytes());
+        for v in s.positions[i] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        let f32s = s.scales[i]
+            .iter()
+            .chain(&s.rotations[i])
+            .chain(std::iter::once(&s.opacities[i]))
+            .chain(&s.sh0[i])
+            .chain(s.rest_of(i).iter().flatten());
+        for v in f32s {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    /// Decodes whole records of `bytes`, appending to `s` and `idx`.
+    pub(super) fn decode(&self, bytes: &[u8], s: &mut Splats, idx: &mut Vec<u64>) {
+        let rb = self.record_bytes();
+        let f = |r: &[u8], k: usize| f32::from_le_bytes(r[k..k + 4].try_into().expect("4 bytes"));
+        let d = |r: &[u8], k: usize| f64::from_le_bytes(r[k..k + 8].try_into().expect("8 bytes"));
+        for r in bytes.chunks_exact(rb) {
+            idx.push(u64::from_le_bytes(r[..8].try_into().expect("8 bytes")));
+            s.positions.push([d(r, 8), d(r, 16), d(r, 24)]);
+            s.scales.push([f(r, 32), f(r, 36), f(r, 40)]);
+            s.rotations.push([f(r, 44), f(r, 48), f(r, 52), f(r, 56)]);
+            s.opacities.push(f(r, 60));
+            s.sh0.push([f(r, 64), f(r, 68), f(r, 72)]);
+            for j in 0..self.rest {
+                let k = 76 + 12 * j;
+                s.sh_rest.push([f(r, k), f(r, k + 4), f(r, k + 8)]);
+            }
+        }
+    }
+
+    /// Writes every splat of `s` (indices `idx`) to `w`.
+    pub(super) fn write_all(
+        &self,
+        s: &Splats,
+        idx: &[u64],
+        w: &mut impl Write,
+    ) -> std::io::Result<()> {
+        let mut buf = Vec::with_capacity(self.record_bytes() * 4096);
+        for (i, &x) in idx.iter().enumerate() {
+            self.encode(s, i, x, &mut buf);
+            if buf.len() >= self.record_bytes() * 4096 {
+                w.write_all(&buf)?;
+                buf.clear();
+            }
+        }
+        w.write_all(&buf)
+    }
+
+    /// One pass over a spill file in chunks of at most `records` splats.
+    pub(super) fn for_each_chunk(
+        &self,
+        path: &Path,
+        records: usize,
+        mut f: impl FnMut(&Splats, &[u64]) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        let file = std::fs::File::open(path).map_err(super::io_err(path, "reading spill file"))?;
+        let mut r = BufReader::with_capacity(1 << 20, file);
+        let rb = self.record_bytes();
+        let mut buf = vec![0u8; rb * records.max(1)];
+        loop {
+            let n =
+                read_full(&mut r, &mut buf).map_err(super::io_err(path, "reading spill file"))?;
+            if n == 0 {
+                return Ok(());
+            }
+            let mut s = Splats::with_capacity(self.degree, n / rb);
+            let mut idx = Vec::with_capacity(n / rb);
+            self.decode(&buf[..n - n % rb], &mut s, &mut idx);
+            f(&s, &idx)?;
+            if n < buf.len() {
+                return Ok(());
+            }
+        }
+    }
+
+    /// Reads a whole spill file of `count` splats.
+    pub(super) fn load(&self, path: &Path, count: u64) -> Result<(Splats, Vec<u64>), ConvertError> {
+        let mut s = Splats::with_capacity(self.degree, count as usize);
+        let mut idx = Vec::with_capacity(count as usize);
+        self.for_each_chunk(path, 65_536, |c, i| {
+            super::region::append(&mut s, c);
+            idx.extend_from_slice(i);
+            Ok(())
+        })?;
+        Ok((s, idx))
+    }
+}
+
+/// Reads until `buf` is full or the input ends; returns the bytes read.
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+/// Most spill files one routing pass writes at once (more groups take two passes).
+const MAX_OPEN_FILES: usize = 256;
+
+/// A region: one subtree, built as a unit by the region stage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct RegionSpec {
+    /// Its root tile.
+    pub(super) key: TileKey,
+    /// Splats in it.
+    pub(super) count: u64,
+}
+
+/// Where a group's splats are.
+#[derive(Debug)]
+pub(super) enum GroupData {
+    /// A spill file in the staging folder.
+    File(PathBuf),
+    /// In memory (the whole scene fits the budget).
+    Memory(Splats, Vec<u64>),
+}
+
+/// Consecutive regions (Morton order) stored together; their total fits the cap unless one
+/// region alone exceeds it (a cell at the deepest level).
+#[derive(Debug)]
+pub(super) struct Group {
+    /// The regions, in Morton order.
+    pub(super) regions: Vec<RegionSpec>,
+    /// Their splats, in input order.
+    pub(super) data: GroupData,
+}
+
+impl Group {
+    /// Splats in the group.
+    pub(super) fn count(&self) -> u64 {
+        self.regions.iter().map(|r| r.count).sum()
+    }
+}
+
+/// What routing needs besides the splats.
+pub(super) struct Spiller<'a> {
+    /// The input's name (for errors).
+    name: &'a str,
+    /// The memory limit (for errors).
+    limit: u64,
+    pub(super) layout: &'a Layout,
+    pub(super) codec: Codec,
+    /// Folder of the spill files (inside the staging folder).
+    pub(super) dir: PathBuf,
+    /// Most splats a group may hold.
+    pub(super) cap: u64,
+    /// Records per chunk when reading.
+    pub(super) chunk: usize,
+    /// Bytes of write buffers shared by the files of one routing pass.
+    pub(super) write_budget: usize,
+    /// Bytes written to spill files so far.
+    pub(super) bytes: u64,
+    /// Most spill files one pass writes at once.
+    pub(super) max_open: usize,
+    next_file: u64,
+}
+
+/// Where the splats of one routing pass come from.
+enum Feed<'a> {
+    Input(&'a Input),
+    File(&'a Path),
+}
+
+impl<'a> Spiller<'a> {
+    /// A spiller writing under `dir`.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn new(
+        name: &'a str,
+        limit: u64,
+        layout: &'a Layout,
+        codec: Codec,
+        dir: PathBuf,
+        cap: u64,
+        chunk: usize,
+        write_budget: usize,
+    ) -> Spiller<'a> {
+        Spiller {
+            name,
+            limit,
+            layout,
+            codec,
+            dir,
+            cap,
+            chunk,
+            write_budget,
+            bytes: 0,
+            max_open: MAX_OPEN_FILES,
+            next_file: 0,
+        }
+    }
+
+    fn feed(
+        &self,
+        feed: &Feed<'_>,
+        f: impl FnMut(&Splats, &[u64]) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        match feed {
+            Feed::Input(i) => i.for_each_finite(self.chunk, f),
+            Feed::File(p) => self.codec.for_each_chunk(p, self.chunk, f),
+        }
+    }
+
+    /// Splits the `count` finite splats of `input` into groups of regions: one group in memory
+    /// when they fit the cap, else spill files.
+    pub(super) fn split(&mut self, input: &Input, count: u64) -> Result<Vec<Group>, ConvertError> {
+        if count > self.cap && self.layout.depth() == 0 {
+            return Err(self.too_dense(count, 0));
+        }
+        if count <= self.cap {
+            let mut s = Splats::new(input.sh_degree());
+            let mut idx = Vec::new();
+            input.for_each_finite(self.chunk, |c, i| {
+                super::region::append(&mut s, c);
+                idx.extend_from_slice(i);
+                Ok(())
+            })?;
+            return Ok(vec![Group {
+                regions: vec![RegionSpec {
+                    key: TileKey::ROOT,
+                    count,
+                }],
+                data: GroupData::Memory(s, idx),
+            }]);
+        }
+        std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
+        self.route(Feed::Input(input), TileKey::ROOT)
+    }
+
+    fn too_dense(&self, count: u64, level: u32) -> ConvertError {
+        ConvertError::TooDense {
+            file: self.name.to_string(),
+            count,
+            level,
+            limit: crate::limits::human(self.limit),
+        }
+    }
+
+    /// One pass over `feed` writing each splat to file `which(centre)` of `n` new spill files.
+    fn write_pass(
+        &mut self,
+        feed: &Feed<'_>,
+        n: usize,
+        which: impl Fn([f64; 3]) -> usize,
+    ) -> Result<Vec<PathBuf>, ConvertError> {
+        let per_file = (self.write_budget / n.max(1)).clamp(8 << 10, 4 << 20);
+        let mut paths = Vec::with_capacity(n);
+        let mut writers = Vec::with_capacity(n);
+        for _ in 0..n {
+            let path = self.dir.join(format!("{}.spill", self.next_file));
+            self.next_file += 1;
+            let file = std::fs::File::create(&path)
+                .map_err(super::io_err(&path, "creating spill file"))?;
+            writers.push(BufWriter::with_capacity(per_file, file));
+            paths.push(path);
+        }
+        let codec = self.codec;
+        let mut rec = Vec::with_capacity(codec.record_bytes());
+        let mut written = 0u64;
+        self.feed(feed, |s, idx| {
+            super::check_interrupt()?;
+            for (i, &x) in idx.iter().enumerate() {
+                let gi = which(s.positions[i]);
+                rec.clear();
+                codec.encode(s, i, x, &mut rec);
+                writers[gi]
+                    .write_all(&rec)
+                    .map_err(super::io_err(&paths[gi], "writing spill file"))?;
+                written += rec.len() as u64;
+            }
+            Ok(())
+        })?;
+        for (w, p) in writers.into_iter().zip(&paths) {
+            w.into_inner()
+                .map_err(|e| e.into_error())
+                .map_err(super::io_err(p, "writing spill file"))?;
+        }
+        self.bytes += written;
+        Ok(paths)
+    }
+
+    /// Routes the splats of `feed`, all inside `key`'s cell, into groups of regions below it.
+    fn route(&mut self, feed: Feed<'_>, key: TileKey) -> Result<Vec<Group>, ConvertError> {
+        let layout = self.layout;
+        let scheme = layout.scheme;
+        let dims = scheme.dims();
+        let depth = layout.depth();
+        // Histogram of the cells `g` levels below `key` (at most 2^15 cells).
+        let g = (15 / dims).min(depth - key.level);
+        let level = key.level + g;
+        let cells = 1usize << (dims * g);
+        let cell_of = |p: [f64; 3]| -> usize {
+            let code = layout.code(p);
+            ((code >> (dims * (depth - level))) as usize) & (cells - 1)
+        };
+        let mut hist = vec![0u64; cells];
+        self.feed(&feed, |s, _| {
+            super::check_interrupt()?;
+            for p in &s.positions {
+                hist[cell_of(*p)] += 1;
+            }
+            Ok(())
+        })?;
+        let mut prefix = vec![0u64; cells + 1];
+        for i in 0..cells {
+            prefix[i + 1] = prefix[i] + hist[i];
+        }
+        drop(hist);
+        // Regions top-down: a subtree that fits (or a cell at the histogram's depth).
+        let base = scheme.encode(key.x, key.y, key.z);
+        let mut regions: Vec<(RegionSpec, usize, usize)> = Vec::new();
+        let mut stack = vec![(key.level, 0usize, cells)];
+        while let Some((l, a, n)) = stack.pop() {
+            let count = prefix[a + n] - prefix[a];
+            if count == 0 {
+                continue;
+            }
+            if count <= self.cap || l == level {
+                let rel = (a >> (dims * (level - l))) as u64;
+                let (x, y, z) = scheme.decode((base << (dims * (l - key.level))) | rel);
+                regions.push((
+                    RegionSpec {
+                        key: TileKey { level: l, x, y, z },
+                        count,
+                    },
+                    a,
+                    n,
+                ));
+                continue;
+            }
+            let step = n >> dims;
+            for c in (0..scheme.arity() as usize).rev() {
+                stack.push((l + 1, a + c * step, step));
+            }
+        }
+        // Groups of consecutive regions up to the cap; an oversize region is a group alone.
+        let mut groups: Vec<Vec<(RegionSpec, usize, usize)>> = Vec::new();
+        let mut total = 0u64;
+        for r in regions {
+            let fits = groups.last().is_some() && total + r.0.count <= self.cap;
+            if fits {
+                total += r.0.count;
+                groups.last_mut().expect("a group").push(r);
+            } else {
+                total = r.0.count;
+                groups.push(vec![r]);
+            }
+        }
+        let mut table = vec![u32::MAX; cells];
+        for (gi, grp) in groups.iter().enumerate() {
+            for &(_, a, n) in grp {
+                table[a..a + n].fill(gi as u32);
+            }
+        }
+        // One file per group; past `max_open` groups, a first pass writes batches of
+        // consecutive groups and a second pass splits each batch (bounded open files).
+        let per = groups.len().div_ceil(self.max_open).max(1);
+        let paths = if per == 1 {
+            self.write_pass(&feed, groups.len(), |p| table[cell_of(p)] as usize)?
+        } else {
+            let batches = self.write_pass(&feed, groups.len().div_ceil(per), |p| {
+                table[cell_of(p)] as usize / per
+            })?;
+            let mut paths = Vec::with_capacity(groups.len());
+            for (b, batch) in batches.iter().enumerate() {
+                let n = per.min(groups.len() - b * per);
+                paths.extend(self.write_pass(&Feed::File(batch), n, |p| {
+                    table[cell_of(p)] as usize - b * per
+                })?);
+                std::fs::remove_file(batch).map_err(super::io_err(batch, "removing spill file"))?;
+            }
+            paths
+        };
+        let mut out = Vec::new();
+        for (grp, path) in groups.into_iter().zip(paths) {
+            let only = grp[0].0;
+            if grp.len() == 1 && only.count > self.cap && only.key.level == depth {
+                // Coincident splats a leaf must hold together: more than the budget allows.
+                return Err(self.too_dense(only.count, depth));
+            }
+            if grp.len() == 1 && only.count > self.cap {
+                // Too big at the histogram's depth: route it again, one histogram deeper.
+                let sub = self.route(Feed::File(&path), only.key)?;
+                std::fs::remove_file(&path).map_err(super::io_err(&path, "removing spill file"))?;
+                out.extend(sub);
+            } else {
+                out.push(Group {
+                    regions: grp.into_iter().map(|(r, _, _)| r).collect(),
+                    data: GroupData::File(path),
+                });
+            }
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::splat::Splat;
+
+    #[test]
+    fn records_round_trip_bit_for_bit() {
+        for degree in [0u8, 1, 3] {
+            let mut s = Splats::new(degree);
+            let rest: Vec<[f32; 3]> = (0..crate::splat::sh_rest_count(degree))
+                .map(|j| [j as f32, -0.5, 1e-30])
+                .collect();
+            for i in 0..5 {
+                s.push(
+                    Splat {
+                        position: [1e7 + i as f64 * 0.1, -3.25, f64::MIN_POSITIVE],
+                        scale: [0.1, 0.2, 0.3],
+                        rotation: [0.0, 0.6, 0.0, 0.8],
+                        opacity: 0.5,
+                        sh0: [i as f32, 2.0, -1.0],
+                    },
+                    &rest,
+                );
+            }
+            let codec = Codec::new(degree);
+            let mut bytes = Vec::new();
+            codec.write_all(&s, &[9, 8, 7, 6, 5], &mut bytes).unwrap();
+            assert_eq!(bytes.len(), 5 * codec.record_bytes());
+            let (mut back, mut idx) = (Splats::new(degree), Vec::new());
+            codec.decode(&bytes, &mut back, &mut idx);
+            assert_eq!(back, s);
+            assert_eq!(idx, [9, 8, 7, 6, 5]);
+        }
+        assert_eq!(Codec::new(0).record_bytes(), 76);
+        assert_eq!(Codec::new(3).record_bytes(), 256);
+    }
+}
+
+#[cfg(test)]
+mod split_tests {
+    use super::super::frame::{FrameAccum, Layout};
+    use super::super::source::Input;
+    use super::super::{ConvertOptions, SchemeChoice};
+    use super::*;
+    use crate::io::{InputFormat, Locator, Scene};
+    use crate::splat::Splat;
+    use glam::DMat3;
+
+    /// A clumpy scene: a third of the splats in a corner 1/20 of the size.
+    fn scene(n: usize) -> Scene {
+        let mut s = Splats::new(0);
+        let mut x = 0x9e3779b97f4a7c15u64;
+        let mut r = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for i in 0..n {
+            let k = if i % 3 == 0 { 0.05 } else { 1.0 };
+            s.push(
+                Splat {
+                    position: [r() * k * 100.0, r() * k * 100.0, r() * k * 100.0],
+                    scale: [0.1; 3],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                    opacity: 0.5,
+                    sh0: [0.0; 3],
+                },
+                &[],
+            );
+        }
+        Scene {
+            splats: s,
+            format: InputFormat::Splat,
+            locator: Locator::Index,
+            repaired_rotations: 0,
+            overflowed_scales: 0,
+        }
+    }
+
+    /// Regions are disjoint subtrees in Morton order covering every splat, each group fits the
+    /// cap, and every region's parent holds more than the cap (so the whole-scene partition
+    /// splits it and the region's leaves are the same either way).
+    #[test]
+    fn regions_are_disjoint_subtrees_whose_parents_overflow_the_cap() {
+        let n = 20_000;
+        let input = Input::Memory(scene(n));
+        let opts = ConvertOptions {
+            scheme: SchemeChoice::Octree,
+            ..Default::default()
+        };
+        let mut acc = FrameAccum::new(false);
+        let Input::Memory(sc) = &input else {
+            unreachable!()
+        };
+        acc.add(&sc.splats, &vec![true; n], DMat3::IDENTITY, None);
+        let layout = Layout::new(&acc, DMat3::IDENTITY, &opts);
+        let tmp = tempfile::tempdir().unwrap();
+        let cap = 700u64;
+        let mut sp = Spiller::new(
+            "test",
+            1 << 20,
+            &layout,
+            Codec::new(0),
+            tmp.path().join("spill"),
+            cap,
+            1000,
+            1 << 20,
+        );
+        let groups = sp.split(&input, n as u64).unwrap();
+        // With at most 3 files open per pass (batches, then groups) the groups are the same.
+        let mut narrow = Spiller::new(
+            "test",
+            1 << 20,
+            &layout,
+            Codec::new(0),
+            tmp.path().join("narrow"),
+            cap,
+            1000,
+            1 << 20,
+        );
+        narrow.max_open = 3;
+        let again = narrow.split(&input, n as u64).unwrap();
+        assert_eq!(again.len(), groups.len());
+        for (a, b) in groups.iter().zip(&again) {
+            assert_eq!(a.regions, b.regions);
+            let (GroupData::File(pa), GroupData::File(pb)) = (&a.data, &b.data) else {
+                panic!("spilled")
+            };
+            assert_eq!(std::fs::read(pa).unwrap(), std::fs::read(pb).unwrap());
+        }
+        assert!(narrow.bytes > sp.bytes, "two passes write more");
+        // Dense cells of the clump are routed a second time, one histogram deeper.
+        assert!(sp.bytes > n as u64 * 76, "{}", sp.bytes);
+        let regions: Vec<RegionSpec> = groups.iter().flat_map(|g| g.regions.clone()).collect();
+        assert!(regions.len() > 20, "{}", regions.len());
+        assert_eq!(regions.iter().map(|r| r.count).sum::<u64>(), n as u64);
+        for g in &groups {
+            assert!(g.count() <= cap);
+            let GroupData::File(p) = &g.data else {
+                panic!("spilled")
+            };
+            let (s, idx) = Codec::new(0).load(p, g.count()).unwrap();
+            assert!(idx.windows(2).all(|w| w[0] < w[1]), "input order kept");
+            // Each splat lies in one of the group's regions.
+            for q in &s.positions {
+                let code = layout.code(*q);
+                assert!(g.regions.iter().any(|r| {
+                    let shift = layout.scheme.dims() * (layout.depth() - r.key.level);
+                    code >> shift == layout.scheme.encode(r.key.x, r.key.y, r.key.z)
+                }));
+            }
+        }
+        // Parents overflow: count the splats under each region's parent.
+        let all: Vec<u64> = sc
+            .splats
+            .positions
+            .iter()
+            .map(|p| layout.code(*p))
+            .collect();
+        let dims = layout.scheme.dims();
+        let mut last = None;
+        for r in &regions {
+            let p = r.key.parent().expect("below the root");
+            let pm = layout.scheme.encode(p.x, p.y, p.z);
+            let shift = dims * (layout.depth() - p.level);
+            let under = all.iter().filter(|c| *c >> shift == pm).count() as u64;
+            assert!(under > cap, "{r:?}: parent holds {under}");
+            // Morton order, disjoint.
+            let first = layout.scheme.encode(r.key.x, r.key.y, r.key.z)
+                << (dims * (layout.depth() - r.key.level));
+            if let Some(l) = last {
+                assert!(first >= l);
+            }
+            last = Some(
+                (layout.scheme.encode(r.key.x, r.key.y, r.key.z) + 1)
+                    << (dims * (layout.depth() - r.key.level)),
+            );
+        }
+    }
+}
