@@ -110,6 +110,27 @@ fn main() {
                     f(v.map(|v| v.aerial_ssim)),
                 );
             }
+            for scale in std::env::var("LOD_CITY_ERROR_SCALES")
+                .unwrap_or_default()
+                .split(',')
+                .filter_map(|v| v.trim().parse::<f64>().ok())
+            {
+                let d = evaluate_views(
+                    &ts_path,
+                    &ViewOptions {
+                        error_scale: scale,
+                        ..ViewOptions::default()
+                    },
+                )
+                .expect("scaled views");
+                for v in d {
+                    let _ = writeln!(
+                        tables,
+                        "errors x{scale}: level {} SSIM street {:.3} aerial {:.3}",
+                        v.level, v.street_ssim, v.aerial_ssim
+                    );
+                }
+            }
             if let Some(level) = damage {
                 let d = evaluate_views(
                     &ts_path,

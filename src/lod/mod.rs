@@ -4,7 +4,7 @@
 //! A parent clusters the union of its children's splats into about [`target_count`] splats
 //! (a quarter of the tile budget, at most half its input) with one radius chosen from the
 //! input's grid occupancy (`radius`), at least [`MIN_RADIUS_GROWTH`] times its children's
-//! radii. Its geometric error is the radius it used. Every parent's work is bounded by its
+//! radii. Its geometric error is [`ERROR_PER_RADIUS`] times the radius it used. Every parent's work is bounded by its
 //! input (at most arity x budget splats), so the whole build is linear in the scene size.
 
 pub mod cluster;
@@ -34,9 +34,15 @@ pub const TARGET_DIVISOR: usize = 4;
 /// A parent keeps at most this share of its input, so every level is a real reduction.
 pub const MAX_KEEP: f64 = 0.5;
 
-/// A parent's radius is at least its children's largest times this (the tile edge doubles per
-/// level; so does the radius at least, and errors grow strictly up the tree).
-pub const MIN_RADIUS_GROWTH: f64 = 2.0;
+/// A parent's geometric error is at least its children's largest times this, so errors grow
+/// strictly up the tree (a larger floor would let one sparse child coarsen its whole parent).
+pub const MIN_RADIUS_GROWTH: f64 = 1.25;
+
+/// A parent's geometric error is its clustering radius times this. A merged Gaussian spans its
+/// members' spread (its 2-sigma reach is about two radii), and a level's cut reaches SSIM 0.9
+/// against all leaves at the switching distance of about four radii on generated cities
+/// (BENCHMARKS.md "Level of detail on generated cities").
+pub const ERROR_PER_RADIUS: f64 = 4.0;
 
 /// How many splats a parent whose children hold `input` splats aims at:
 /// `min(budget / TARGET_DIVISOR, ceil(input * MAX_KEEP))`, at least 1.
@@ -74,8 +80,11 @@ pub struct ParentTile {
     pub key: TileKey,
     /// Merged splats, in descending importance order.
     pub splats: Splats,
-    /// Clustering radius used (its geometric error).
+    /// Its geometric error: [`ERROR_PER_RADIUS`] times the clustering radius it used (the field
+    /// keeps its historical name).
     pub radius: f64,
+    /// Clustering radius used.
+    pub cluster_radius: f64,
     /// Mean displacement of the merged input splats.
     pub mean_displacement: f64,
     /// Splats gathered from the children.
@@ -146,7 +155,7 @@ pub fn append(a: &mut Splats, b: &Splats) {
 pub struct ChildContent<'a> {
     /// The child's splats (a leaf's, or a built parent's merged splats).
     pub splats: &'a Splats,
-    /// The clustering radius the child used (0 for a leaf).
+    /// The child's geometric error, [`ParentTile::radius`] (0 for a leaf).
     pub radius: f64,
 }
 
@@ -183,7 +192,7 @@ pub fn build_parent(
     let c = cluster_to_target(
         &input,
         target,
-        child_radius * MIN_RADIUS_GROWTH,
+        child_radius * MIN_RADIUS_GROWTH / ERROR_PER_RADIUS,
         params.leaf_radius,
         params.budget,
         params.rule,
@@ -192,7 +201,8 @@ pub fn build_parent(
     ParentTile {
         key,
         splats: c.splats.select(&order),
-        radius: c.radius,
+        radius: c.radius * ERROR_PER_RADIUS,
+        cluster_radius: c.radius,
         mean_displacement: c.mean_displacement,
         input: input.len(),
     }

@@ -5,10 +5,11 @@
 //! at `L`, leaves above it, and below a level-`L` tile without content the first content on each
 //! path. A camera direction (azimuth, elevation) from the scene's centre is walked out until every
 //! tile of the cut with an error `e > 0` lies at least `switching_distance(e)` beyond its
-//! bounding sphere. Images keep at most the intended viewer's pixel density (their field of view
-//! frames the scene, never wider than the viewer's 50 degrees, never denser than 1280x720).
+//! bounding sphere. Images have the pixel scale of a `width x 3/4 width` frame with the viewer's
+//! 50 degree vertical field of view (256x192: 0.27 of the 1280x720 viewer's), cropped to the
+//! scene's bounding sphere so that empty background does not inflate the SSIM.
 
-use super::eval::{VIEWER_HEIGHT, parents_of, sphere, switching_distance};
+use super::eval::{parents_of, sphere, switching_distance};
 use crate::encode::tile::read_tile_glb;
 use crate::render::camera::{DEFAULT_FOV_Y_DEG, fov_to_focal};
 use crate::render::cli::content_model;
@@ -59,6 +60,8 @@ pub struct ViewOptions {
     /// Drop every second splat of this level's tiles (a deliberately damaged level, to show the
     /// measurement can fail).
     pub damage_level: Option<u32>,
+    /// Every geometric error times this when placing cameras (1: the written errors).
+    pub error_scale: f64,
 }
 
 impl Default for ViewOptions {
@@ -68,6 +71,7 @@ impl Default for ViewOptions {
             azimuths: 2,
             pictures: None,
             damage_level: None,
+            error_scale: 1.0,
         }
     }
 }
@@ -191,6 +195,7 @@ pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> anyhow::Result<Vec<
     let north = up.cross(east);
     let width = opts.width.max(16);
     let height = (width * 3 / 4).max(12);
+    let focal = fov_to_focal(DEFAULT_FOV_Y_DEG, height);
     let ro = RenderOptions::default();
     let mut out = Vec::new();
     for level in levels {
@@ -231,19 +236,18 @@ pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> anyhow::Result<Vec<
                         exit_distance(
                             scene_c - t.centre,
                             u,
-                            t.radius + switching_distance(t.error),
+                            t.radius + switching_distance(t.error * opts.error_scale),
                         )
                     })
                     .fold(scene_r * 0.01, f64::max);
                 let eye = scene_c + u * s;
-                // Frame the scene sphere, no wider than the viewer's field of view and no denser
-                // than its pixels.
+                // The full frame's pixel scale, cropped to the scene sphere (never below 64 px).
                 let half = (scene_r / s.max(scene_r * 1.001)).clamp(-1.0, 1.0).asin() * 1.1;
-                let min_fov = 2.0
-                    * ((height as f64 * 0.5) / fov_to_focal(DEFAULT_FOV_Y_DEG, VIEWER_HEIGHT))
-                        .atan();
-                let fov = (2.0 * half).max(min_fov).to_degrees().min(DEFAULT_FOV_Y_DEG);
-                let cam = Camera::look_at(width, height, fov, eye, scene_c, up);
+                let span = 2.0 * focal * half.tan();
+                let w = (span.ceil() as u32).clamp(64.min(width), width);
+                let h = (span.ceil() as u32).clamp(48.min(height), height);
+                let fov = (2.0 * ((h as f64 * 0.5) / focal).atan()).to_degrees();
+                let cam = Camera::look_at(w, h, fov, eye, scene_c, up);
                 let img_cut = render(&cut, &cam, &ro);
                 let img_ref = render(&reference, &cam, &ro);
                 let v = ssim(&img_cut, &img_ref)?;
