@@ -54,7 +54,10 @@ fn main() {
                 ..CityLayout::default()
             },
         );
-        eprintln!("city of {n} generated in {:.1} s", t0.elapsed().as_secs_f64());
+        eprintln!(
+            "city of {n} generated in {:.1} s",
+            t0.elapsed().as_secs_f64()
+        );
         let out = tmp.join(format!("lod-city-{n}"));
         let _ = std::fs::remove_dir_all(&out);
         let opts = ConvertOptions {

@@ -58,6 +58,7 @@ pub fn cluster(splats: &Splats, radius: f64, rule: MergeRule) -> Clustered {
             let mut near: Vec<usize> = tree
                 .query(&pts[seed])
                 .within::<SquaredEuclidean<f64>>(r2)
+                .unsorted()
                 .execute()
                 .into_iter()
                 .map(|r| r.item as usize)
@@ -150,7 +151,8 @@ pub fn cluster_to_target(
     // The budget is a hard limit: grow the radius until it holds (rarely taken).
     while c.splats.len() > budget.max(1) && d < 1e300 {
         let ratio = c.splats.len() as f64 / budget.max(1) as f64;
-        d *= ratio.sqrt().max(1.25);
+        let dim = occ.dimension_at(d * CELL_PER_RADIUS);
+        d *= (ratio.powf(1.0 / dim) * 1.02).max(1.02);
         c = cluster(splats, d, rule);
     }
     c

@@ -2,10 +2,11 @@
 //! splats (TileSplat sec. 3.1.2, eq. 2), each parent aiming at a fixed share of the tile budget.
 //!
 //! A parent clusters the union of its children's splats into about [`target_count`] splats
-//! (a quarter of the tile budget, at most half its input) with one radius chosen from the
-//! input's grid occupancy (`radius`), at least [`MIN_RADIUS_GROWTH`] times its children's
-//! radii. Its geometric error is [`ERROR_PER_RADIUS`] times the radius it used. Every parent's work is bounded by its
-//! input (at most arity x budget splats), so the whole build is linear in the scene size.
+//! (half the tile budget, at most a fifth of its input; [`count_cap`] is the hard limit) with
+//! one radius chosen from the input's grid occupancy (`radius`), its error at least
+//! [`MIN_RADIUS_GROWTH`] times its children's. Its geometric error is [`ERROR_PER_RADIUS`] times
+//! the radius it used. Every parent's work is bounded by its input (at most arity x budget
+//! splats), so the whole build is linear in the scene size.
 
 pub mod cluster;
 pub mod eval;
@@ -29,27 +30,35 @@ use std::collections::{BTreeMap, HashMap};
 pub const LEAF_SIZE_DIVISOR: f64 = 16.0;
 
 /// A parent aims at the tile budget divided by this many splats.
-pub const TARGET_DIVISOR: usize = 4;
+pub const TARGET_DIVISOR: usize = 2;
 
 /// A parent keeps at most this share of its input, so every level is a real reduction.
-pub const MAX_KEEP: f64 = 0.5;
+pub const MAX_KEEP: f64 = 0.25;
 
 /// A parent's geometric error is at least its children's largest times this, so errors grow
 /// strictly up the tree (a larger floor would let one sparse child coarsen its whole parent).
 pub const MIN_RADIUS_GROWTH: f64 = 1.25;
 
 /// A parent's geometric error is its clustering radius times this. A merged Gaussian spans its
-/// members' spread (its 2-sigma reach is about two radii), and a level's cut reaches SSIM 0.9
-/// against all leaves at the switching distance of about four radii on generated cities
+/// members' spread (its 2-sigma reach is about two radii); on generated cities a level's cut
+/// scored higher SSIM against all leaves from the switching distance of 4 radii than of 1-3
 /// (BENCHMARKS.md "Level of detail on generated cities").
 pub const ERROR_PER_RADIUS: f64 = 4.0;
 
 /// How many splats a parent whose children hold `input` splats aims at:
-/// `min(budget / TARGET_DIVISOR, ceil(input * MAX_KEEP))`, at least 1.
+/// `min(budget / TARGET_DIVISOR, 0.8 * input * MAX_KEEP)`, at least 1 (below [`count_cap`], so
+/// that an estimate a little over the target rarely needs a second clustering).
 pub fn target_count(input: usize, budget: usize) -> usize {
     let share = (budget / TARGET_DIVISOR).max(1);
-    let half = (input as f64 * MAX_KEEP).ceil() as usize;
-    share.min(half).max(1)
+    let keep = (input as f64 * MAX_KEEP * 0.8).ceil() as usize;
+    share.min(keep).max(1)
+}
+
+/// Most splats a parent whose children hold `input` splats may keep (a hard limit):
+/// `min(budget, ceil(input * MAX_KEEP))`, at least 1.
+pub fn count_cap(input: usize, budget: usize) -> usize {
+    let keep = (input as f64 * MAX_KEEP).ceil() as usize;
+    budget.min(keep).max(1)
 }
 
 /// Settings of the LOD build.
@@ -194,7 +203,7 @@ pub fn build_parent(
         target,
         child_radius * MIN_RADIUS_GROWTH / ERROR_PER_RADIUS,
         params.leaf_radius,
-        params.budget,
+        count_cap(input.len(), params.budget),
         params.rule,
     );
     let order = importance_order(&c.splats);

@@ -242,7 +242,12 @@ pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> anyhow::Result<Vec<
                     .fold(scene_r * 0.01, f64::max);
                 let eye = scene_c + u * s;
                 // The full frame's pixel scale, cropped to the scene sphere (never below 64 px).
-                let half = (scene_r / s.max(scene_r * 1.001)).clamp(-1.0, 1.0).asin() * 1.1;
+                let max_half = (DEFAULT_FOV_Y_DEG * 0.5).to_radians();
+                let half = if s > scene_r {
+                    ((scene_r / s).asin() * 1.1).min(max_half)
+                } else {
+                    max_half
+                };
                 let span = 2.0 * focal * half.tan();
                 let w = (span.ceil() as u32).clamp(64.min(width), width);
                 let h = (span.ceil() as u32).clamp(48.min(height), height);
@@ -264,7 +269,10 @@ pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> anyhow::Result<Vec<
                     && let Some(dir) = &opts.pictures
                 {
                     std::fs::create_dir_all(dir)?;
-                    save(&img_cut, &dir.join(format!("level{level}-{}.png", kind.as_str())))?;
+                    save(
+                        &img_cut,
+                        &dir.join(format!("level{level}-{}.png", kind.as_str())),
+                    )?;
                     save(
                         &img_ref,
                         &dir.join(format!("level{level}-{}-leaves.png", kind.as_str())),
@@ -307,14 +315,9 @@ mod tests {
         ] {
             content.insert(k, 1.0);
         }
-        let parents: HashSet<TileKey> = [
-            TileKey::ROOT,
-            key(1, 0, 0),
-            key(1, 1, 0),
-            key(2, 2, 0),
-        ]
-        .into_iter()
-        .collect();
+        let parents: HashSet<TileKey> = [TileKey::ROOT, key(1, 0, 0), key(1, 1, 0), key(2, 2, 0)]
+            .into_iter()
+            .collect();
         assert_eq!(cut_keys(&content, &parents, 0), vec![TileKey::ROOT]);
         assert_eq!(
             cut_keys(&content, &parents, 1),

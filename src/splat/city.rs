@@ -4,8 +4,8 @@
 use super::Splats;
 use crate::frame::UpAxis;
 use crate::io::{InputFormat, Locator, PlyEncoding, Scene, read_path};
-use std::path::Path;
 use glam::{DMat3, DQuat, DVec3};
+use std::path::Path;
 
 /// Layout of a generated city.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -217,13 +217,7 @@ mod tests {
         assert_eq!(a, b);
         let (lo, hi) = a.bounds().unwrap();
         assert!(hi[0] - lo[0] > layout.spacing, "copies spread over blocks");
-        let other = generate_city(
-            &[src],
-            &CityLayout {
-                seed: 16,
-                ..layout
-            },
-        );
+        let other = generate_city(&[src], &CityLayout { seed: 16, ..layout });
         assert_ne!(a.positions, other.positions);
         for q in &a.rotations {
             let n: f32 = q.iter().map(|c| c * c).sum();
