@@ -5,7 +5,7 @@
 //! Run: `cargo bench --bench lod_city` (release). `LOD_CITY_SIZES` (comma-separated splat counts,
 //! default `5000000`), `LOD_MAX_SPLATS` (tile budget, default 32768), `LOD_CITY_PICTURES` (a
 //! folder for each level's street and aerial picture), `LOD_CITY_DAMAGE` (a level measured again
-//! with half its splats dropped). Cities: displaced, rotated, scaled copies of the three shared
+//! with half its splats dropped), `LOD_CITY_VIEWS=0` (timing only). Cities: displaced, rotated, scaled copies of the three shared
 //! scenes (`../shared/scenes/README.md`), built in memory. Writes `target/lod_city.md`.
 
 use splat2tiles::convert::{ConvertOptions, convert_scene};
@@ -77,7 +77,7 @@ fn main() {
             r.levels
         );
         eprint!("{md}");
-        if i == 0 {
+        if i == 0 && env_or("LOD_CITY_VIEWS", 1) != 0 {
             let ts_path = out.join("tileset.json");
             let ts = load_tileset(&ts_path).expect("load");
             let rows = level_table(&ts).expect("table");
