@@ -31,10 +31,10 @@ impl Occupancy {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
         for p in positions {
-            for a in 0..3 {
-                if p[a].is_finite() {
-                    lo[a] = lo[a].min(p[a]);
-                    hi[a] = hi[a].max(p[a]);
+            for ((v, l), h) in p.iter().zip(lo.iter_mut()).zip(hi.iter_mut()) {
+                if v.is_finite() {
+                    *l = l.min(*v);
+                    *h = h.max(*v);
                 }
             }
         }
@@ -71,9 +71,9 @@ impl Occupancy {
             }
         }
         let mut acc = 1u64;
-        for j in 0..=LEVELS {
-            acc += first_split[j];
-            counts[j] = acc;
+        for (c, f) in counts.iter_mut().zip(first_split) {
+            acc += f;
+            *c = acc;
         }
         Occupancy { edge, counts }
     }
