@@ -55,8 +55,9 @@ pub struct ConvertArgs {
     /// How merged LOD splats get their shape: covariance moment matching or TileSplat's axis cover.
     #[arg(long, value_enum, default_value_t = MergeRule::Moment)]
     pub lod_merge: MergeRule,
-    /// Leaf clustering radius r in scene units (parents k levels above their deepest leaf cluster
-    /// within r*2^k) [default: 1/16 of the deepest leaf tile's edge, at least the median spacing].
+    /// Fallback LOD clustering radius in scene units, used only where a parent's input centres
+    /// all coincide (parents choose their radius from a target splat count)
+    /// [default: 1/16 of the deepest leaf tile's edge, at least the median spacing].
     #[arg(long, value_parser = positive_f64)]
     pub lod_radius: Option<f64>,
     /// Target clients: `default` (content.uri -> Best, lossless float) or `cesium` (content.uri ->

@@ -2,6 +2,7 @@
 //! each still unassigned seed takes every unassigned splat within the radius; clusters are merged.
 
 use super::merge::{MergeRule, merge_into};
+use super::radius::{CELL_PER_RADIUS, Occupancy, radius_for_count};
 use crate::splat::Splats;
 use crate::splat::importance::importance_order;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -57,6 +58,7 @@ pub fn cluster(splats: &Splats, radius: f64, rule: MergeRule) -> Clustered {
             let mut near: Vec<usize> = tree
                 .query(&pts[seed])
                 .within::<SquaredEuclidean<f64>>(r2)
+                .unsorted()
                 .execute()
                 .into_iter()
                 .map(|r| r.item as usize)
@@ -97,4 +99,61 @@ pub fn cluster_to_budget(
         }
         r *= 2.0;
     }
+}
+
+/// Relative miss of the target count beyond which [`cluster_to_target`] corrects its radius once.
+pub const TARGET_TOLERANCE: f64 = 1.25;
+
+/// Clusters `splats` into about `target` splats (never more than `budget`) with one radius chosen
+/// from the input's grid occupancy ([`radius_for_count`]), at least `min_radius`; when the result
+/// misses the target by more than [`TARGET_TOLERANCE`], the radius is corrected once by the
+/// local dimension of the occupancy. `fallback_radius` is used when the occupancy gives no
+/// radius (coincident centres) and `min_radius` is 0. Cost: one sort and usually one or two
+/// clusterings, each O(n log n).
+pub fn cluster_to_target(
+    splats: &Splats,
+    target: usize,
+    min_radius: f64,
+    fallback_radius: f64,
+    budget: usize,
+    rule: MergeRule,
+) -> Clustered {
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    let min_radius = if positive(min_radius) {
+        min_radius
+    } else {
+        0.0
+    };
+    let occ = Occupancy::of(&splats.positions);
+    let target = target.max(1);
+    let mut d = radius_for_count(&occ, target).max(min_radius);
+    if !positive(d) {
+        d = if positive(fallback_radius) {
+            fallback_radius
+        } else {
+            1e-6
+        };
+    }
+    let mut c = cluster(splats, d, rule);
+    let (n, t) = (c.splats.len() as f64, target as f64);
+    if n > t * TARGET_TOLERANCE || (n * TARGET_TOLERANCE < t && d > min_radius) {
+        let dim = occ.dimension_at(d * CELL_PER_RADIUS);
+        let d2 = (d * (n / t).powf(1.0 / dim)).max(min_radius);
+        if positive(d2) && d2 != d {
+            let c2 = cluster(splats, d2, rule);
+            // Keep the correction unless it broke the budget the first radius met.
+            if c2.splats.len() <= budget.max(1) || c.splats.len() > budget.max(1) {
+                c = c2;
+                d = d2;
+            }
+        }
+    }
+    // The budget is a hard limit: grow the radius until it holds (rarely taken).
+    while c.splats.len() > budget.max(1) && d < 1e300 {
+        let ratio = c.splats.len() as f64 / budget.max(1) as f64;
+        let dim = occ.dimension_at(d * CELL_PER_RADIUS);
+        d *= (ratio.powf(1.0 / dim) * 1.02).max(1.02);
+        c = cluster(splats, d, rule);
+    }
+    c
 }

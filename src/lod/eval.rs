@@ -57,7 +57,7 @@ pub struct LevelRow {
 }
 
 /// Keys of the tiles that have children.
-fn parents_of(ts: &LoadedTileset) -> HashSet<TileKey> {
+pub(crate) fn parents_of(ts: &LoadedTileset) -> HashSet<TileKey> {
     ts.tiles.iter().filter_map(|t| t.key.parent()).collect()
 }
 
@@ -157,7 +157,7 @@ struct Decoded {
 }
 
 /// World-space centre and bounding-sphere radius of a tile's box.
-fn sphere(ts: &LoadedTileset, b: &[f64; 12]) -> (DVec3, f64) {
+pub(crate) fn sphere(ts: &LoadedTileset, b: &[f64; 12]) -> (DVec3, f64) {
     let corners = box_corners(b).map(|c| ts.root_transform.transform_point3(c));
     let c = corners.iter().copied().sum::<DVec3>() / 8.0;
     let r = corners.iter().map(|p| p.distance(c)).fold(0.0, f64::max);

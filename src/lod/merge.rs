@@ -1,5 +1,6 @@
 //! One cluster of Gaussians -> one representative Gaussian (TileSplat eq. 2): opacity-weighted
-//! means of centre and SH, alpha* = sum(a^2)/sum(a), and a shape by moment matching or axis cover.
+//! means of centre and SH, alpha* = sum(a^2)/sum(a) raised to keep the members' coverage, and a
+//! shape by moment matching or axis cover.
 #![allow(clippy::needless_range_loop)] // dense small-matrix maths reads best indexed
 
 use super::math::{covariance, decompose_covariance, markley_average, mat_to_quat, quat_to_mat};
@@ -47,6 +48,10 @@ fn weights(splats: &Splats, members: &[usize]) -> Vec<f64> {
 
 /// Merges the splats `members` of `splats` into one splat, appended to `out` (same SH degree).
 /// Returns the opacity-weighted mean distance of the members' centres from the merged centre.
+///
+/// Opacity: eq. 2's `sum(a^2)/sum(a)`, raised to the members' opacity mass (`a` times the
+/// product of the two largest scales, summed) over the merged splat's, but never above the
+/// coverage of the members' union `1 - prod(1 - a)`: a tiled surface stays opaque from afar.
 ///
 /// A single member is copied exactly. Never produces NaN from finite input: zero total opacity
 /// falls back to equal weights, degenerate covariances to zero scales along the flat axes.
@@ -128,6 +133,26 @@ pub fn merge_into(splats: &Splats, members: &[usize], rule: MergeRule, out: &mut
         }
     };
     let finite_or = |v: f64, f: f64| if v.is_finite() { v } else { f };
+    // Coverage: the merged splat's opacity mass (alpha x its two largest scales' product) matches
+    // the members' total, never above their union's coverage nor below eq. 2's alpha.
+    let area = |s: [f64; 3]| {
+        let mut v = s.map(|x| if x.is_finite() { x.abs() } else { 0.0 });
+        v.sort_by(|a, b| b.total_cmp(a));
+        v[0] * v[1]
+    };
+    let merged_area = area([scale.x, scale.y, scale.z]);
+    let mut mass = 0.0;
+    let mut clear = 1.0;
+    for &i in members {
+        let a = (splats.opacities[i] as f64).clamp(0.0, 1.0);
+        mass += a * area(splats.scales[i].map(|x| x as f64));
+        clear *= 1.0 - a;
+    }
+    let alpha = if merged_area > 0.0 && mass.is_finite() {
+        (mass / merged_area).min(1.0 - clear).max(alpha)
+    } else {
+        alpha
+    };
     out.push(
         Splat {
             position: mu.to_array(),

@@ -1,16 +1,21 @@
 //! Level of detail: parent tiles built bottom-up by opacity-weighted clustering of their children's
-//! splats (TileSplat sec. 3.1.2, eq. 2), with the radius doubling per level above the leaves.
+//! splats (TileSplat sec. 3.1.2, eq. 2), each parent aiming at a fixed share of the tile budget.
 //!
-//! A parent at level `L` whose subtree's deepest leaf sits at level `Ld` clusters the union of its
-//! children's splats within `d = r * 2^(Ld - L)` (and at least its children's radii), doubling
-//! `d` until the result fits the tile budget. Its geometric error is the radius `d` it used.
+//! A parent clusters the union of its children's splats into about [`target_count`] splats
+//! (half the tile budget, at most a fifth of its input; [`count_cap`] is the hard limit) with
+//! one radius chosen from the input's grid occupancy (`radius`), its error at least
+//! [`MIN_RADIUS_GROWTH`] times its children's. Its geometric error is [`ERROR_PER_RADIUS`] times
+//! the radius it used. Every parent's work is bounded by its input (at most arity x budget
+//! splats), so the whole build is linear in the scene size.
 
 pub mod cluster;
 pub mod eval;
 pub mod math;
 pub mod merge;
+pub mod radius;
+pub mod views;
 
-pub use cluster::{Clustered, cluster, cluster_to_budget};
+pub use cluster::{Clustered, cluster, cluster_to_budget, cluster_to_target};
 pub use merge::{MergeRule, merge_all, merge_into};
 
 use crate::splat::Splats;
@@ -23,6 +28,38 @@ use std::collections::{BTreeMap, HashMap};
 /// Divisor of the deepest leaf tile's size giving the default leaf radius `r` (see
 /// [`default_leaf_radius`]).
 pub const LEAF_SIZE_DIVISOR: f64 = 16.0;
+
+/// A parent aims at the tile budget divided by this many splats.
+pub const TARGET_DIVISOR: usize = 2;
+
+/// A parent keeps at most this share of its input, so every level is a real reduction.
+pub const MAX_KEEP: f64 = 0.25;
+
+/// A parent's geometric error is at least its children's largest times this, so errors grow
+/// strictly up the tree (a larger floor would let one sparse child coarsen its whole parent).
+pub const MIN_RADIUS_GROWTH: f64 = 1.25;
+
+/// A parent's geometric error is its clustering radius times this. A merged Gaussian spans its
+/// members' spread (its 2-sigma reach is about two radii); on generated cities a level's cut
+/// scored higher SSIM against all leaves from the switching distance of 4 radii than of 1-3
+/// (BENCHMARKS.md "Level of detail on generated cities").
+pub const ERROR_PER_RADIUS: f64 = 4.0;
+
+/// How many splats a parent whose children hold `input` splats aims at:
+/// `min(budget / TARGET_DIVISOR, 0.8 * input * MAX_KEEP)`, at least 1 (below [`count_cap`], so
+/// that an estimate a little over the target rarely needs a second clustering).
+pub fn target_count(input: usize, budget: usize) -> usize {
+    let share = (budget / TARGET_DIVISOR).max(1);
+    let keep = (input as f64 * MAX_KEEP * 0.8).ceil() as usize;
+    share.min(keep).max(1)
+}
+
+/// Most splats a parent whose children hold `input` splats may keep (a hard limit):
+/// `min(budget, ceil(input * MAX_KEEP))`, at least 1.
+pub fn count_cap(input: usize, budget: usize) -> usize {
+    let keep = (input as f64 * MAX_KEEP).ceil() as usize;
+    budget.min(keep).max(1)
+}
 
 /// Settings of the LOD build.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,8 +89,11 @@ pub struct ParentTile {
     pub key: TileKey,
     /// Merged splats, in descending importance order.
     pub splats: Splats,
-    /// Clustering radius used (its geometric error).
+    /// Its geometric error: [`ERROR_PER_RADIUS`] times the clustering radius it used (the field
+    /// keeps its historical name).
     pub radius: f64,
+    /// Clustering radius used.
+    pub cluster_radius: f64,
     /// Mean displacement of the merged input splats.
     pub mean_displacement: f64,
     /// Splats gathered from the children.
@@ -95,8 +135,8 @@ pub fn median_nn_spacing(positions: &[[f64; 3]]) -> Option<f64> {
 
 /// The default leaf radius `r`: the deepest leaf tile's edge (`root_size / 2^deepest_level`)
 /// divided by [`LEAF_SIZE_DIVISOR`], but never below the median nearest-neighbour spacing (so the
-/// first parent level always merges neighbours). Parents at `k` levels above their deepest leaf
-/// then cluster within `r * 2^k`, i.e. about 1/16 of their own edge.
+/// first parent level always merges neighbours). Parents use it only when their children's
+/// centres give no radius (all coincident); see [`build_parent`].
 pub fn default_leaf_radius(positions: &[[f64; 3]], root_size: f64, deepest_level: u32) -> f64 {
     let from_tiles = root_size / 2f64.powi(deepest_level as i32) / LEAF_SIZE_DIVISOR;
     let nn = median_nn_spacing(positions).unwrap_or(0.0);
@@ -124,16 +164,18 @@ pub fn append(a: &mut Splats, b: &Splats) {
 pub struct ChildContent<'a> {
     /// The child's splats (a leaf's, or a built parent's merged splats).
     pub splats: &'a Splats,
-    /// The clustering radius the child used (0 for a leaf).
+    /// The child's geometric error, [`ParentTile::radius`] (0 for a leaf).
     pub radius: f64,
 }
 
 /// What one parent's clustering depends on besides its children's content.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParentParams {
-    /// Leaf clustering radius `r` (scene units).
+    /// Leaf clustering radius `r` (scene units): the radius used when the children's centres
+    /// give none (all coincident) and no child has a radius.
     pub leaf_radius: f64,
-    /// Levels between this parent and the deepest leaf below it (>= 1).
+    /// Levels between this parent and the deepest leaf below it (>= 1); informational, the
+    /// count target does not depend on it.
     pub levels_above_deepest: u32,
     /// Tile budget (most splats a parent may hold).
     pub budget: usize,
@@ -155,13 +197,21 @@ pub fn build_parent(
         append(&mut input, c.splats);
         child_radius = child_radius.max(c.radius);
     }
-    let d = (params.leaf_radius * 2f64.powi(params.levels_above_deepest as i32)).max(child_radius);
-    let c = cluster_to_budget(&input, d, params.budget, params.rule);
+    let target = target_count(input.len(), params.budget);
+    let c = cluster_to_target(
+        &input,
+        target,
+        child_radius * MIN_RADIUS_GROWTH / ERROR_PER_RADIUS,
+        params.leaf_radius,
+        count_cap(input.len(), params.budget),
+        params.rule,
+    );
     let order = importance_order(&c.splats);
     ParentTile {
         key,
         splats: c.splats.select(&order),
-        radius: c.radius,
+        radius: c.radius * ERROR_PER_RADIUS,
+        cluster_radius: c.radius,
         mean_displacement: c.mean_displacement,
         input: input.len(),
     }

@@ -2,6 +2,7 @@
 //! and f32 attributes already in the KHR_gaussian_splatting conventions (linear scale, opacity in
 //! [0,1], unit quaternion x,y,z,w, SH coefficients per coefficient as RGB).
 
+pub mod city;
 pub mod importance;
 pub mod sh;
 
