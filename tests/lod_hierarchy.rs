@@ -89,13 +89,36 @@ fn shared_scenes_hierarchy_and_quality() {
             100.0 * root,
             report.lod_radius
         );
-        // The count-target rule (lod::target_count) aims at half the tile budget at the root: a
-        // small share of these 45k-153k splat scenes, and more than a token handful.
+        // The count-target rule (lod::target_count) aims at min(half the tile budget, 0.8 x a
+        // quarter of the parent's input): its input is the content of the nearest content
+        // descendants (whose nearest content ancestor it is).
         let kept = coarsest.splat_count.unwrap() as usize;
-        let aim = BUDGET / splat2tiles::lod::TARGET_DIVISOR;
+        let has_content: std::collections::HashMap<_, _> = ts
+            .tiles
+            .iter()
+            .filter_map(|t| t.splat_count.map(|n| (t.key, n as usize)))
+            .collect();
+        let input: usize = has_content
+            .iter()
+            .filter(|(k, _)| {
+                let mut a = k.parent();
+                while let Some(p) = a {
+                    if has_content.contains_key(&p) {
+                        return p == coarsest.key;
+                    }
+                    a = p.parent();
+                }
+                false
+            })
+            .map(|(_, n)| *n)
+            .sum();
+        // It may hold fewer than its aim (its radius is at least 1.25x its children's, so errors
+        // grow upwards), never more than the cap, and more than a token handful.
+        let aim = splat2tiles::lod::target_count(input, BUDGET);
+        let cap = splat2tiles::lod::count_cap(input, BUDGET);
         assert!(
-            (aim / 2..=aim * 5 / 4).contains(&kept),
-            "{name}: the coarsest content holds {kept} splats"
+            (1000..=cap).contains(&kept),
+            "{name}: the coarsest content holds {kept} splats of {input} input (aim {aim}, cap {cap})"
         );
         assert!(
             root < 0.2,
