@@ -215,11 +215,7 @@ pub fn evaluate(tileset: &Path, opts: &EvalOptions) -> anyhow::Result<Vec<LevelQ
     let ts = load_tileset(tileset)?;
     let rows = level_table(&ts)?;
     let parents = parents_of(&ts);
-    let up = ts
-        .root_transform
-        .transform_vector3(DVec3::Z)
-        .try_normalize()
-        .unwrap_or(DVec3::Z);
+    let up = crate::render::cli::tileset_up(&ts);
     let mut tiles: HashMap<TileKey, Decoded> = HashMap::new();
     for t in &ts.tiles {
         let Some(path) = &t.content else { continue };

@@ -143,11 +143,7 @@ fn exit_distance(w: DVec3, u: DVec3, rho: f64) -> f64 {
 pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> anyhow::Result<Vec<LevelViews>> {
     let ts = load_tileset(tileset)?;
     let parents = parents_of(&ts);
-    let up = ts
-        .root_transform
-        .transform_vector3(DVec3::Z)
-        .try_normalize()
-        .unwrap_or(DVec3::Z);
+    let up = crate::render::cli::tileset_up(&ts);
     let mut tiles: BTreeMap<TileKey, Tile> = BTreeMap::new();
     for t in &ts.tiles {
         let (Some(path), Some(b)) = (&t.content, t.bounding_box) else {
