@@ -861,7 +861,7 @@ mod split_tests {
         assert_eq!(seen, n);
         // 40-byte records (re-routed dense cells are written twice).
         assert!(
-            sp.bytes >= 40 * n as u64 && sp.bytes % 40 == 0,
+            sp.bytes >= 40 * n as u64 && sp.bytes.is_multiple_of(40),
             "{}",
             sp.bytes
         );

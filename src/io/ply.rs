@@ -519,15 +519,19 @@ pub(crate) fn decode_positions(
 ) {
     let f = &plan.lay.fixed;
     let fast = !plan.be && f[..3].iter().all(|f| f.ty == Scalar::F32);
-    for rec in recs.chunks_exact(step.max(plan.stride)) {
-        out.push(if fast {
-            let s = LeF32(rec);
-            [s.f64(f[0]), s.f64(f[1]), s.f64(f[2])]
-        } else {
-            let s = AnyBin { rec, be: plan.be };
-            [s.f64(f[0]), s.f64(f[1]), s.f64(f[2])]
-        });
-    }
+    out.par_extend(
+        recs.par_chunks_exact(step.max(plan.stride))
+            .with_min_len(4096)
+            .map(|rec| {
+                if fast {
+                    let s = LeF32(rec);
+                    [s.f64(f[0]), s.f64(f[1]), s.f64(f[2])]
+                } else {
+                    let s = AnyBin { rec, be: plan.be };
+                    [s.f64(f[0]), s.f64(f[1]), s.f64(f[2])]
+                }
+            }),
+    );
 }
 
 /// Decodes whole vertex records `recs` (a multiple of the plan's stride) into splats; returns
