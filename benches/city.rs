@@ -4,7 +4,8 @@
 //! Run: `cargo bench --bench city` (all four sizes: 10M, 50M, 200M SH0 and 40M SH3) or
 //! `cargo bench --bench city -- 10M:0 40M:3` (splats:SH degree; `plot` alone redraws the plot). `CITY_LIMIT` (default 2GiB) is
 //! the `--memory-limit`; `CITY_DIR` (default `target/city-bench`) holds the generated inputs and
-//! outputs, each deleted after its run. Sizes whose in-memory conversion fits in 3/4 of the RAM
+//! outputs, each deleted after its run (`CITY_KEEP=1` keeps the inputs and reuses them when
+//! present, for repeated timing runs). Sizes whose in-memory conversion fits in 3/4 of the RAM
 //! are also converted with a limit that large (the in-memory path) for comparison. Writes
 //! `target/city-bench.md` (the table), `target/city-rss-*.csv` and `docs/city-rss.svg`.
 //! SH0 cities are written as antimatter15 `.splat` (32 B/splat), SH3 cities as trainer PLY
@@ -406,8 +407,13 @@ fn main() {
         let (n, degree) = parse_spec(spec);
         let ext = if degree == 0 { "splat" } else { "ply" };
         let input = dir.join(format!("city-{n}-sh{degree}.{ext}"));
+        let keep = std::env::var_os("CITY_KEEP").is_some_and(|v| v == "1");
         let t0 = Instant::now();
-        let side = generate(&input, n, degree, &blocks);
+        let side = if keep && input.exists() {
+            f64::NAN
+        } else {
+            generate(&input, n, degree, &blocks)
+        };
         let gen_s = t0.elapsed().as_secs_f64();
         let in_bytes = std::fs::metadata(&input).map(|m| m.len()).unwrap_or(0);
         eprintln!(
@@ -458,7 +464,9 @@ fn main() {
             eprintln!("{}", md.lines().last().unwrap_or(""));
             std::fs::remove_dir_all(&out).unwrap();
         }
-        std::fs::remove_file(&input).unwrap();
+        if !keep {
+            std::fs::remove_file(&input).unwrap();
+        }
     }
     std::fs::write(root.join("target/city-bench.md"), &md).unwrap();
     // The plot shows every out-of-core run whose samples are in target/ (earlier invocations'

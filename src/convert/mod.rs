@@ -17,6 +17,7 @@ use crate::frame::{UpAxis, source_to_tileset};
 use crate::io::{self, ChunkedInput, ReadError, Scene};
 use crate::lod::{LEAF_SIZE_DIVISOR, LodOptions};
 use crate::output::{OutputError, Staging};
+use crate::splat::Splats;
 use crate::tiling::TileKey;
 use crate::variants::{ContentError, ContentFacts, VariantOptions};
 use frame::{FrameAccum, Layout};
@@ -24,7 +25,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use region::{GroupLeaves, RegionCtx};
 use source::Input;
-use spill::{Codec, Spiller};
+use spill::{Codec, SpillFormat, Spiller};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -368,6 +369,9 @@ fn run(
     let mut acc = FrameAccum::new(opts.origin.is_some());
     let enu = opts.origin.map(Geodetic::enu_to_ecef);
     let mut counts = Counts::default();
+    // A chunked scene that fits the budget is kept from this pass (not decoded a second time).
+    let hold = matches!(input, Input::Chunked(_)) && input.len() <= budget.cap;
+    let mut held = Splats::with_capacity(degree, if hold { input.len() as usize } else { 0 });
     input.for_each_raw(budget.chunk, |ch| {
         check_interrupt()?;
         let s = ch.splats;
@@ -384,6 +388,14 @@ fn run(
         counts.repaired += ch.repaired_rotations;
         counts.overflowed += ch.overflowed_scales;
         acc.add(s, &keep, a, enu);
+        if hold {
+            if kept == s.len() as u64 {
+                region::append(&mut held, s);
+            } else {
+                let finite: Vec<usize> = (0..s.len()).filter(|&i| keep[i]).collect();
+                region::append(&mut held, &s.select(&finite));
+            }
+        }
         Ok(())
     })?;
     let mut report = ConvertReport {
@@ -446,6 +458,7 @@ fn run(
     let dir = staging.path().to_path_buf();
     let relocate = |e: ConvertError| e.relocated(&dir, output);
     let codec = Codec::new(degree);
+    let format = SpillFormat::for_input(&input);
 
     // Spill stage: regions that fit the budget (one in memory when the whole scene does).
     let spinner = spinner(opts.progress, "partitioning".to_string());
@@ -453,14 +466,33 @@ fn run(
         name,
         opts.memory_limit,
         &layout,
-        codec,
+        format.clone(),
         dir.join(SPILL_DIR),
         budget.cap,
         budget.chunk,
         budget.write_budget,
     );
-    let groups = spiller.split(&input, counts.finite).map_err(relocate)?;
-    drop(input);
+    spiller.all_finite = counts.dropped == 0;
+    let groups = if counts.finite <= budget.cap {
+        // The whole scene is one region in memory: the splats kept by the frame pass, or the
+        // scene already read (moved, not copied, when every splat is finite).
+        let s = match input {
+            Input::Chunked(_) => held,
+            Input::Memory(scene) if counts.dropped == 0 => scene.splats,
+            Input::Memory(scene) => {
+                let finite: Vec<usize> = (0..scene.splats.len())
+                    .filter(|&i| scene.splats.is_finite(i))
+                    .collect();
+                scene.splats.select(&finite)
+            }
+        };
+        vec![spill::whole(s, counts.finite)]
+    } else {
+        drop(held);
+        let groups = spiller.split(&input, counts.finite).map_err(relocate)?;
+        drop(input);
+        groups
+    };
     spinner.finish_and_clear();
     report.spill_bytes = spiller.bytes;
     report
@@ -473,7 +505,7 @@ fn run(
         layout: &layout,
         opts,
         dir: &dir,
-        codec,
+        format: &format,
         nn_step: counts.finite.div_ceil(SPACING_SAMPLES).max(1) as usize,
     };
     let leaf_bar = bar(opts.progress, groups.len() as u64, "writing leaves");

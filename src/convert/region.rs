@@ -7,7 +7,7 @@
 //! how the scene was split, so the in-memory path (one region) and the spill path agree.
 
 use super::frame::Layout;
-use super::spill::{Codec, Group, GroupData, RegionSpec};
+use super::spill::{Group, GroupData, RegionSpec, SpillFormat};
 use super::store::ContentStore;
 use super::tileset::TreeTile;
 use super::{ConvertError, ConvertOptions, check_interrupt};
@@ -40,7 +40,8 @@ pub(super) struct RegionCtx<'a> {
     pub(super) opts: &'a ConvertOptions,
     /// The staging folder (contents go under it).
     pub(super) dir: &'a Path,
-    pub(super) codec: Codec,
+    /// How the spill files hold splats.
+    pub(super) format: &'a SpillFormat,
     /// Every `nn_step`-th splat of a leaf (importance order) is a spacing sample.
     pub(super) nn_step: usize,
 }
@@ -109,16 +110,81 @@ fn three_sigma(tile: &Splats, layout: &Layout) -> Vec<DVec3> {
         .collect()
 }
 
-/// The group's splats and input indices, loaded (or taken from memory).
-fn load(group: Group, codec: Codec) -> Result<(Splats, Vec<u64>, Option<PathBuf>), ConvertError> {
-    let count = group.count();
-    match group.data {
+/// The group's splats and input indices, loaded (or taken from memory), in the order the data
+/// gives (input order, or leaf order after pass 1), and the spill file they came from.
+fn load(
+    data: GroupData,
+    count: u64,
+    format: &SpillFormat,
+) -> Result<(Splats, Vec<u64>, Option<PathBuf>), ConvertError> {
+    match data {
         GroupData::Memory(s, idx) => Ok((s, idx, None)),
         GroupData::File(p) => {
-            let (s, idx) = codec.load(&p, count)?;
+            let (s, idx) = format.load(&p, count)?;
             Ok((s, idx, Some(p)))
         }
+        GroupData::Ordered { file, order } => {
+            let (s, idx) = format.load(&file, count)?;
+            let perm = read_order(&order, count)?;
+            std::fs::remove_file(&order).map_err(super::io_err(&order, "removing spill file"))?;
+            let sorted_idx = perm.iter().map(|&i| idx[i]).collect();
+            Ok((s.select(&perm), sorted_idx, Some(file)))
+        }
     }
+}
+
+/// Bytes of one entry of an order file: u32 while a group's positions fit one, else u64.
+fn order_bytes(count: u64) -> usize {
+    if count <= u32::MAX as u64 { 4 } else { 8 }
+}
+
+/// Writes `order` (positions in the spill file, leaf order) to `path`, little-endian.
+fn write_order(path: &Path, order: &[usize]) -> Result<(), ConvertError> {
+    let wide = order_bytes(order.len() as u64) == 8;
+    let f = std::fs::File::create(path).map_err(super::io_err(path, "creating spill file"))?;
+    let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+    let mut put = || -> std::io::Result<()> {
+        for &i in order {
+            if wide {
+                std::io::Write::write_all(&mut w, &(i as u64).to_le_bytes())?;
+            } else {
+                std::io::Write::write_all(&mut w, &(i as u32).to_le_bytes())?;
+            }
+        }
+        std::io::Write::flush(&mut w)
+    };
+    put().map_err(super::io_err(path, "writing spill file"))
+}
+
+/// Reads the order file of a group of `count` splats: a permutation of `0..count`.
+fn read_order(path: &Path, count: u64) -> Result<Vec<usize>, ConvertError> {
+    let width = order_bytes(count);
+    let bytes = std::fs::read(path).map_err(super::io_err(path, "reading spill file"))?;
+    let bad = |what: String| ConvertError::Io {
+        path: path.to_path_buf(),
+        what: "reading spill file",
+        source: std::io::Error::new(std::io::ErrorKind::InvalidData, what),
+    };
+    if bytes.len() as u64 != count * width as u64 {
+        return Err(bad(format!(
+            "{} bytes where {count} entries of {width} were written (changed by another program?)",
+            bytes.len()
+        )));
+    }
+    let order: Vec<usize> = bytes
+        .chunks_exact(width)
+        .map(|b| {
+            if width == 4 {
+                u32::from_le_bytes(b.try_into().expect("4 bytes")) as usize
+            } else {
+                u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize
+            }
+        })
+        .collect();
+    if let Some((at, _)) = order.iter().enumerate().find(|(_, i)| **i as u64 >= count) {
+        return Err(bad(format!("entry {at} points past the {count} splats")));
+    }
+    Ok(order)
 }
 
 /// First Morton code (at the layout depth) of `key`'s cell.
@@ -131,7 +197,8 @@ fn first_code(layout: &Layout, key: TileKey) -> u64 {
 /// sample the nearest-neighbour spacing; keep the splats in leaf order for pass 2.
 pub(super) fn build_leaves(group: Group, cx: &RegionCtx<'_>) -> Result<GroupLeaves, ConvertError> {
     let specs = group.regions.clone();
-    let (splats, idx, file) = load(group, cx.codec)?;
+    let count = group.count();
+    let (splats, idx, file) = load(group.data, count, cx.format)?;
     let layout = cx.layout;
     // Which region each splat belongs to (regions are consecutive Morton ranges).
     let members: Vec<Vec<usize>> = if specs.len() == 1 {
@@ -212,21 +279,19 @@ pub(super) fn build_leaves(group: Group, cx: &RegionCtx<'_>) -> Result<GroupLeav
             order.extend(ind);
         }
     }
-    let sorted = splats.select(&order);
-    drop(splats);
-    let sorted_idx: Vec<u64> = order.iter().map(|&i| idx[i]).collect();
     out.data = match file {
-        None => GroupData::Memory(sorted, sorted_idx),
+        None => {
+            let sorted = splats.select(&order);
+            drop(splats);
+            let sorted_idx: Vec<u64> = order.iter().map(|&i| idx[i]).collect();
+            GroupData::Memory(sorted, sorted_idx)
+        }
         Some(p) => {
-            let q = p.with_extension("sorted");
-            let f = std::fs::File::create(&q).map_err(super::io_err(&q, "creating spill file"))?;
-            let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
-            cx.codec
-                .write_all(&sorted, &sorted_idx, &mut w)
-                .and_then(|_| std::io::Write::flush(&mut w))
-                .map_err(super::io_err(&q, "writing spill file"))?;
-            std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
-            GroupData::File(q)
+            // The spill file stays; pass 2 reads it again in leaf order (4 bytes per splat
+            // written here instead of the whole group again).
+            let q = p.with_extension("order");
+            write_order(&q, &order)?;
+            GroupData::Ordered { file: p, order: q }
         }
     };
     Ok(out)
@@ -307,14 +372,10 @@ pub(super) fn build_parents(
     cx: &RegionCtx<'_>,
 ) -> Result<(BTreeMap<TileKey, WrittenParent>, Vec<RootContent>), ConvertError> {
     let count: u64 = group.regions.iter().map(|g| g.spec.count).sum();
-    let (splats, _idx) = match group.data {
-        GroupData::Memory(s, idx) => (s, idx),
-        GroupData::File(p) => {
-            let loaded = cx.codec.load(&p, count)?;
-            std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
-            loaded
-        }
-    };
+    let (splats, _idx, file) = load(group.data, count, cx.format)?;
+    if let Some(p) = file {
+        std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
+    }
     let mut parents = BTreeMap::new();
     let mut roots = Vec::with_capacity(group.regions.len());
     let mut start = 0usize;

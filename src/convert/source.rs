@@ -103,3 +103,107 @@ impl Input {
         })
     }
 }
+
+/// The spill records of a batch's splats.
+pub(super) enum Recs<'a> {
+    /// Decoded splats (written with the wide spill codec).
+    Splats(&'a Splats),
+    /// The input file's own records: splat `i`'s is `bytes[k * step..][..stride]`, where `k` is
+    /// `sel[i]` (or `i` without a selection).
+    Raw {
+        bytes: &'a [u8],
+        step: usize,
+        stride: usize,
+        sel: Option<&'a [usize]>,
+    },
+}
+
+impl Recs<'_> {
+    /// The raw record of splat `i` (`None` for decoded splats).
+    pub(super) fn raw(&self, i: usize) -> Option<&[u8]> {
+        match self {
+            Recs::Splats(_) => None,
+            Recs::Raw {
+                bytes,
+                step,
+                stride,
+                sel,
+            } => {
+                let k = sel.map_or(i, |s| s[i]);
+                Some(&bytes[k * step..k * step + stride])
+            }
+        }
+    }
+}
+
+/// What a routing pass sees of a chunk of finite splats: centres, indices among the input's
+/// finite splats (increasing), and their records.
+pub(super) struct Batch<'a> {
+    pub(super) positions: &'a [[f64; 3]],
+    pub(super) idx: &'a [u64],
+    pub(super) recs: Recs<'a>,
+}
+
+impl Input {
+    /// The chunked file when the spill files can hold its own records (`Some` for binary PLY
+    /// and `.splat` whose record plus an index is smaller than the wide spill record).
+    pub(super) fn raw_records(&self, wide_bytes: usize) -> Option<&ChunkedInput> {
+        match self {
+            Input::Chunked(c) if (c.record_bytes() as usize) + 8 < wide_bytes => Some(c),
+            _ => None,
+        }
+    }
+
+    /// One pass over the finite splats as batches of at most `records`. With `raw` (from
+    /// [`Input::raw_records`]) the records are the file's own and, when `all_finite`, only the
+    /// centres are decoded; otherwise the splats are decoded whole.
+    pub(super) fn for_each_batch(
+        &self,
+        records: usize,
+        raw: bool,
+        all_finite: bool,
+        mut f: impl FnMut(Batch<'_>) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        let c = match self {
+            Input::Chunked(c) if raw => c,
+            _ => {
+                return self.for_each_finite(records, |s, idx| {
+                    f(Batch {
+                        positions: &s.positions,
+                        idx,
+                        recs: Recs::Splats(s),
+                    })
+                });
+            }
+        };
+        let stride = c.record_bytes() as usize;
+        let mut positions = Vec::with_capacity(records);
+        let mut idx = Vec::with_capacity(records);
+        let mut next = 0u64;
+        c.for_each_block(records, |_, bytes| {
+            positions.clear();
+            idx.clear();
+            let keep: Option<Vec<usize>> = if all_finite {
+                c.decode_positions(bytes, stride, &mut positions);
+                None
+            } else {
+                let s = c.decode(bytes);
+                let keep: Vec<usize> = (0..s.len()).filter(|&i| s.is_finite(i)).collect();
+                positions.extend(keep.iter().map(|&i| s.positions[i]));
+                Some(keep)
+            };
+            idx.extend(next..next + positions.len() as u64);
+            next += positions.len() as u64;
+            f(Batch {
+                positions: &positions,
+                idx: &idx,
+                recs: Recs::Raw {
+                    bytes,
+                    step: stride,
+                    stride,
+                    sel: keep.as_deref(),
+                },
+            })
+        })
+    }
+}

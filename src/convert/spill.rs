@@ -9,9 +9,11 @@
 
 use super::ConvertError;
 use super::frame::Layout;
-use super::source::Input;
+use super::source::{Batch, Input, Recs};
+use crate::io::ChunkedInput;
 use crate::splat::Splats;
 use crate::tiling::TileKey;
+use rayon::prelude::*;
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
@@ -122,18 +124,6 @@ impl Codec {
             }
         }
     }
-
-    /// Reads a whole spill file of `count` splats.
-    pub(super) fn load(&self, path: &Path, count: u64) -> Result<(Splats, Vec<u64>), ConvertError> {
-        let mut s = Splats::with_capacity(self.degree, count as usize);
-        let mut idx = Vec::with_capacity(count as usize);
-        self.for_each_chunk(path, 65_536, |c, i| {
-            super::region::append(&mut s, c);
-            idx.extend_from_slice(i);
-            Ok(())
-        })?;
-        Ok((s, idx))
-    }
 }
 
 /// Reads until `buf` is full or the input ends; returns the bytes read.
@@ -148,6 +138,168 @@ fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
         }
     }
     Ok(n)
+}
+
+/// What a spill file holds per splat: the wide record of [`Codec`], or the input file's own
+/// record followed by the u64 index (lossless: decoding it again gives the same splat, and
+/// `.splat` records are 40 bytes where the wide one is 76).
+#[derive(Debug, Clone)]
+pub(super) enum SpillFormat {
+    /// [`Codec`] records.
+    Wide(Codec),
+    /// The input's records (decoded by the input's own decoder), then the index.
+    Raw(ChunkedInput),
+}
+
+impl SpillFormat {
+    /// The format for `input`: its own records when they are smaller than the wide ones.
+    pub(super) fn for_input(input: &Input) -> SpillFormat {
+        let wide = Codec::new(input.sh_degree());
+        match input.raw_records(wide.record_bytes()) {
+            Some(c) => SpillFormat::Raw(c.clone()),
+            None => SpillFormat::Wide(wide),
+        }
+    }
+
+    /// Whether records are the input's own.
+    pub(super) fn is_raw(&self) -> bool {
+        matches!(self, SpillFormat::Raw(_))
+    }
+
+    /// Bytes of one record.
+    pub(super) fn record_bytes(&self) -> usize {
+        match self {
+            SpillFormat::Wide(c) => c.record_bytes(),
+            SpillFormat::Raw(c) => c.record_bytes() as usize + 8,
+        }
+    }
+
+    /// SH degree of the splats.
+    fn degree(&self) -> u8 {
+        match self {
+            SpillFormat::Wide(c) => c.degree(),
+            SpillFormat::Raw(c) => c.sh_degree(),
+        }
+    }
+
+    /// Appends the record of splat `i` of `b` to `out`.
+    fn encode(&self, b: &Batch<'_>, i: usize, out: &mut Vec<u8>) {
+        match (&b.recs, self) {
+            (Recs::Splats(s), SpillFormat::Wide(c)) => c.encode(s, i, b.idx[i], out),
+            (recs, _) => {
+                // Raw batches come only from raw inputs and raw files (see `Spiller::feed`).
+                debug_assert!(self.is_raw());
+                out.extend_from_slice(recs.raw(i).unwrap_or_default());
+                out.extend_from_slice(&b.idx[i].to_le_bytes());
+            }
+        }
+    }
+
+    /// One pass over a spill file as batches of at most `records` (raw records: only the
+    /// centres decoded).
+    fn for_each_batch(
+        &self,
+        path: &Path,
+        records: usize,
+        mut f: impl FnMut(Batch<'_>) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        match self {
+            SpillFormat::Wide(c) => c.for_each_chunk(path, records, |s, idx| {
+                f(Batch {
+                    positions: &s.positions,
+                    idx,
+                    recs: Recs::Splats(s),
+                })
+            }),
+            SpillFormat::Raw(c) => {
+                let stride = c.record_bytes() as usize;
+                let step = stride + 8;
+                let mut positions = Vec::with_capacity(records);
+                let mut idx = Vec::with_capacity(records);
+                read_records(path, step, records, |bytes| {
+                    positions.clear();
+                    c.decode_positions(bytes, step, &mut positions);
+                    idx.clear();
+                    idx.extend(bytes.chunks_exact(step).map(|r| u64_at(r, stride)));
+                    f(Batch {
+                        positions: &positions,
+                        idx: &idx,
+                        recs: Recs::Raw {
+                            bytes,
+                            step,
+                            stride,
+                            sel: None,
+                        },
+                    })
+                })
+            }
+        }
+    }
+
+    /// One pass over a spill file, decoded whole, in chunks of at most `records` splats.
+    pub(super) fn for_each_chunk(
+        &self,
+        path: &Path,
+        records: usize,
+        mut f: impl FnMut(&Splats, &[u64]) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        match self {
+            SpillFormat::Wide(c) => c.for_each_chunk(path, records, f),
+            SpillFormat::Raw(c) => {
+                let stride = c.record_bytes() as usize;
+                let step = stride + 8;
+                let mut packed = Vec::with_capacity(records.max(1) * stride);
+                let mut idx = Vec::with_capacity(records);
+                read_records(path, step, records, |bytes| {
+                    packed.clear();
+                    idx.clear();
+                    for r in bytes.chunks_exact(step) {
+                        packed.extend_from_slice(&r[..stride]);
+                        idx.push(u64_at(r, stride));
+                    }
+                    f(&c.decode(&packed), &idx)
+                })
+            }
+        }
+    }
+
+    /// Reads a whole spill file of `count` splats.
+    pub(super) fn load(&self, path: &Path, count: u64) -> Result<(Splats, Vec<u64>), ConvertError> {
+        let mut s = Splats::with_capacity(self.degree(), count as usize);
+        let mut idx = Vec::with_capacity(count as usize);
+        self.for_each_chunk(path, 65_536, |c, i| {
+            super::region::append(&mut s, c);
+            idx.extend_from_slice(i);
+            Ok(())
+        })?;
+        Ok((s, idx))
+    }
+}
+
+fn u64_at(r: &[u8], k: usize) -> u64 {
+    u64::from_le_bytes(r[k..k + 8].try_into().expect("8 bytes"))
+}
+
+/// One pass over a file of `step`-byte records: `f` gets at most `records` whole records at a
+/// time (a trailing partial record is ignored).
+fn read_records(
+    path: &Path,
+    step: usize,
+    records: usize,
+    mut f: impl FnMut(&[u8]) -> Result<(), ConvertError>,
+) -> Result<(), ConvertError> {
+    let file = std::fs::File::open(path).map_err(super::io_err(path, "reading spill file"))?;
+    let mut r = BufReader::with_capacity(1 << 20, file);
+    let mut buf = vec![0u8; step * records.max(1)];
+    loop {
+        let n = read_full(&mut r, &mut buf).map_err(super::io_err(path, "reading spill file"))?;
+        if n >= step {
+            f(&buf[..n - n % step])?;
+        }
+        if n < buf.len() {
+            return Ok(());
+        }
+    }
 }
 
 /// Most spill files one routing pass writes at once (more groups take two passes).
@@ -169,6 +321,14 @@ pub(super) enum GroupData {
     File(PathBuf),
     /// In memory (the whole scene fits the budget).
     Memory(Splats, Vec<u64>),
+    /// A spill file in input order and an order file (u32 or u64 positions in it, leaf order):
+    /// a group after the leaves were written.
+    Ordered {
+        /// The spill file.
+        file: PathBuf,
+        /// The order file.
+        order: PathBuf,
+    },
 }
 
 /// Consecutive regions (Morton order) stored together; their total fits the cap unless one
@@ -188,6 +348,18 @@ impl Group {
     }
 }
 
+/// The one group of a scene held in memory: the root region, its `count` finite splats in input
+/// order (indices `0..count`).
+pub(super) fn whole(s: Splats, count: u64) -> Group {
+    Group {
+        regions: vec![RegionSpec {
+            key: TileKey::ROOT,
+            count,
+        }],
+        data: GroupData::Memory(s, (0..count).collect()),
+    }
+}
+
 /// What routing needs besides the splats.
 pub(super) struct Spiller<'a> {
     /// The input's name (for errors).
@@ -195,7 +367,9 @@ pub(super) struct Spiller<'a> {
     /// The memory limit (for errors).
     limit: u64,
     pub(super) layout: &'a Layout,
-    pub(super) codec: Codec,
+    pub(super) format: SpillFormat,
+    /// Every input splat is finite (routing passes need decode only the centres).
+    pub(super) all_finite: bool,
     /// Folder of the spill files (inside the staging folder).
     pub(super) dir: PathBuf,
     /// Most splats a group may hold.
@@ -224,7 +398,7 @@ impl<'a> Spiller<'a> {
         name: &'a str,
         limit: u64,
         layout: &'a Layout,
-        codec: Codec,
+        format: SpillFormat,
         dir: PathBuf,
         cap: u64,
         chunk: usize,
@@ -234,7 +408,8 @@ impl<'a> Spiller<'a> {
             name,
             limit,
             layout,
-            codec,
+            format,
+            all_finite: false,
             dir,
             cap,
             chunk,
@@ -248,11 +423,13 @@ impl<'a> Spiller<'a> {
     fn feed(
         &self,
         feed: &Feed<'_>,
-        f: impl FnMut(&Splats, &[u64]) -> Result<(), ConvertError>,
+        f: impl FnMut(Batch<'_>) -> Result<(), ConvertError>,
     ) -> Result<(), ConvertError> {
         match feed {
-            Feed::Input(i) => i.for_each_finite(self.chunk, f),
-            Feed::File(p) => self.codec.for_each_chunk(p, self.chunk, f),
+            Feed::Input(i) => {
+                i.for_each_batch(self.chunk, self.format.is_raw(), self.all_finite, f)
+            }
+            Feed::File(p) => self.format.for_each_batch(p, self.chunk, f),
         }
     }
 
@@ -264,19 +441,11 @@ impl<'a> Spiller<'a> {
         }
         if count <= self.cap {
             let mut s = Splats::new(input.sh_degree());
-            let mut idx = Vec::new();
-            input.for_each_finite(self.chunk, |c, i| {
+            input.for_each_finite(self.chunk, |c, _| {
                 super::region::append(&mut s, c);
-                idx.extend_from_slice(i);
                 Ok(())
             })?;
-            return Ok(vec![Group {
-                regions: vec![RegionSpec {
-                    key: TileKey::ROOT,
-                    count,
-                }],
-                data: GroupData::Memory(s, idx),
-            }]);
+            return Ok(vec![whole(s, count)]);
         }
         std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
         self.route(Feed::Input(input), TileKey::ROOT)
@@ -296,7 +465,7 @@ impl<'a> Spiller<'a> {
         &mut self,
         feed: &Feed<'_>,
         n: usize,
-        which: impl Fn([f64; 3]) -> usize,
+        which: impl Fn([f64; 3]) -> usize + Sync,
     ) -> Result<Vec<PathBuf>, ConvertError> {
         let per_file = (self.write_budget / n.max(1)).clamp(8 << 10, 4 << 20);
         let mut paths = Vec::with_capacity(n);
@@ -309,15 +478,20 @@ impl<'a> Spiller<'a> {
             writers.push(BufWriter::with_capacity(per_file, file));
             paths.push(path);
         }
-        let codec = self.codec;
-        let mut rec = Vec::with_capacity(codec.record_bytes());
+        let format = &self.format;
+        let mut rec = Vec::with_capacity(format.record_bytes());
         let mut written = 0u64;
-        self.feed(feed, |s, idx| {
+        let mut dest = Vec::new();
+        self.feed(feed, |b| {
             super::check_interrupt()?;
-            for (i, &x) in idx.iter().enumerate() {
-                let gi = which(s.positions[i]);
+            // Destinations on every core, then the records appended in order.
+            b.positions
+                .par_iter()
+                .map(|p| which(*p))
+                .collect_into_vec(&mut dest);
+            for (i, &gi) in dest.iter().enumerate() {
                 rec.clear();
-                codec.encode(s, i, x, &mut rec);
+                format.encode(&b, i, &mut rec);
                 writers[gi]
                     .write_all(&rec)
                     .map_err(super::io_err(&paths[gi], "writing spill file"))?;
@@ -349,10 +523,15 @@ impl<'a> Spiller<'a> {
             ((code >> (dims * (depth - level))) as usize) & (cells - 1)
         };
         let mut hist = vec![0u64; cells];
-        self.feed(&feed, |s, _| {
+        let mut of = Vec::new();
+        self.feed(&feed, |b| {
             super::check_interrupt()?;
-            for p in &s.positions {
-                hist[cell_of(*p)] += 1;
+            b.positions
+                .par_iter()
+                .map(|p| cell_of(*p) as u32)
+                .collect_into_vec(&mut of);
+            for &c in &of {
+                hist[c as usize] += 1;
             }
             Ok(())
         })?;
@@ -552,7 +731,7 @@ mod split_tests {
             "test",
             1 << 20,
             &layout,
-            Codec::new(0),
+            SpillFormat::Wide(Codec::new(0)),
             tmp.path().join("spill"),
             cap,
             1000,
@@ -564,7 +743,7 @@ mod split_tests {
             "test",
             1 << 20,
             &layout,
-            Codec::new(0),
+            SpillFormat::Wide(Codec::new(0)),
             tmp.path().join("narrow"),
             cap,
             1000,
@@ -591,7 +770,7 @@ mod split_tests {
             let GroupData::File(p) = &g.data else {
                 panic!("spilled")
             };
-            let (s, idx) = Codec::new(0).load(p, g.count()).unwrap();
+            let (s, idx) = SpillFormat::Wide(Codec::new(0)).load(p, g.count()).unwrap();
             assert!(idx.windows(2).all(|w| w[0] < w[1]), "input order kept");
             // Each splat lies in one of the group's regions.
             for q in &s.positions {
@@ -628,5 +807,63 @@ mod split_tests {
                     << (dims * (layout.depth() - r.key.level)),
             );
         }
+    }
+
+    /// A `.splat` file is spilled as its own 32-byte records plus the index (40 bytes, not 76),
+    /// with only the centres decoded while routing, and every group reads back exactly the
+    /// splats the file decodes to, in input order.
+    #[test]
+    fn splat_files_spill_their_own_records_losslessly() {
+        let n = 20_000;
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("scene.splat");
+        let mut bytes = Vec::new();
+        crate::io::write_splat_records(&scene(n).splats, &mut bytes).unwrap();
+        std::fs::write(&path, &bytes).unwrap();
+        let chunked = crate::io::ChunkedInput::open(&path).unwrap().unwrap();
+        let whole = chunked.decode(&bytes);
+        let input = Input::Chunked(chunked);
+        let format = SpillFormat::for_input(&input);
+        assert!(format.is_raw());
+        assert_eq!(format.record_bytes(), 40);
+        let mut acc = FrameAccum::new(false);
+        acc.add(&whole, &vec![true; n], DMat3::IDENTITY, None);
+        let opts = ConvertOptions {
+            scheme: SchemeChoice::Octree,
+            ..Default::default()
+        };
+        let layout = Layout::new(&acc, DMat3::IDENTITY, &opts);
+        let mut sp = Spiller::new(
+            "test",
+            1 << 20,
+            &layout,
+            format.clone(),
+            tmp.path().join("spill"),
+            700,
+            1000,
+            1 << 20,
+        );
+        sp.all_finite = true;
+        let groups = sp.split(&input, n as u64).unwrap();
+        assert!(groups.len() > 10);
+        let mut seen = 0;
+        for g in &groups {
+            let GroupData::File(p) = &g.data else {
+                panic!("spilled")
+            };
+            let (s, idx) = format.load(p, g.count()).unwrap();
+            assert_eq!(s.len() as u64, g.count());
+            assert!(idx.windows(2).all(|w| w[0] < w[1]), "input order kept");
+            let want = whole.select(&idx.iter().map(|&i| i as usize).collect::<Vec<_>>());
+            assert_eq!(s, want);
+            seen += s.len();
+        }
+        assert_eq!(seen, n);
+        // 40-byte records (re-routed dense cells are written twice).
+        assert!(
+            sp.bytes >= 40 * n as u64 && sp.bytes.is_multiple_of(40),
+            "{}",
+            sp.bytes
+        );
     }
 }

@@ -3,20 +3,21 @@
 
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use super::error::{Ctx, ReadError, ReadErrorKind};
 use super::{HEAD_BYTES, InputFormat, Kind, Locator, detect, ply, splat_file};
 use crate::splat::Splats;
 
 /// How the records of a chunked input are decoded.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 enum Decoder {
-    Ply(Box<ply::BinaryPlan>),
+    Ply(Arc<ply::BinaryPlan>),
     Splat,
 }
 
 /// A scene file read as consecutive chunks of fixed-size records (as many passes as needed).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct ChunkedInput {
     path: PathBuf,
     name: String,
@@ -72,7 +73,7 @@ impl ChunkedInput {
                     let (count, start, stride, degree) =
                         (p.count, p.start, p.stride as u64, p.degree());
                     (
-                        Decoder::Ply(Box::new(p)),
+                        Decoder::Ply(Arc::new(p)),
                         format,
                         count,
                         start,
@@ -144,6 +145,24 @@ impl ChunkedInput {
         records: usize,
         mut f: impl FnMut(Chunk) -> Result<(), E>,
     ) -> Result<(), E> {
+        self.for_each_block(records, |first, bytes| {
+            let (splats, repaired, overflowed) = self.decode_counted(bytes);
+            f(Chunk {
+                first,
+                splats,
+                repaired_rotations: repaired,
+                overflowed_scales: overflowed,
+            })
+        })
+    }
+
+    /// One pass over the file's undecoded records: `f` gets the index of each block's first
+    /// record and at most `records` whole records (decode them with [`ChunkedInput::decode`]).
+    pub fn for_each_block<E: From<ReadError>>(
+        &self,
+        records: usize,
+        mut f: impl FnMut(u64, &[u8]) -> Result<(), E>,
+    ) -> Result<(), E> {
         let cx = Ctx {
             name: &self.name,
             limit: u64::MAX,
@@ -166,21 +185,35 @@ impl ChunkedInput {
                     )),
                 )
             })?;
-            let (splats, repaired, overflowed) = match &self.decoder {
-                Decoder::Ply(p) => ply::decode_chunk(p, bytes),
-                Decoder::Splat => {
-                    let (s, r) = splat_file::decode_chunk(bytes);
-                    (s, r, 0)
-                }
-            };
-            f(Chunk {
-                first,
-                splats,
-                repaired_rotations: repaired,
-                overflowed_scales: overflowed,
-            })?;
+            f(first, bytes)?;
             first += n;
         }
         Ok(())
+    }
+
+    /// Decodes whole records of this file (a multiple of [`ChunkedInput::record_bytes`]) exactly
+    /// as a pass does.
+    pub fn decode(&self, recs: &[u8]) -> Splats {
+        self.decode_counted(recs).0
+    }
+
+    /// Appends to `out` the centres of this file's records that start every `step` bytes of
+    /// `recs` (`step` at least [`ChunkedInput::record_bytes`]; other bytes may sit between
+    /// records): the positions [`ChunkedInput::decode`] gives, the other fields undecoded.
+    pub fn decode_positions(&self, recs: &[u8], step: usize, out: &mut Vec<[f64; 3]>) {
+        match &self.decoder {
+            Decoder::Ply(p) => ply::decode_positions(p, recs, step, out),
+            Decoder::Splat => splat_file::decode_positions(recs, step, out),
+        }
+    }
+
+    fn decode_counted(&self, recs: &[u8]) -> (Splats, usize, usize) {
+        match &self.decoder {
+            Decoder::Ply(p) => ply::decode_chunk(p, recs),
+            Decoder::Splat => {
+                let (s, r) = splat_file::decode_chunk(recs);
+                (s, r, 0)
+            }
+        }
     }
 }

@@ -509,6 +509,31 @@ impl BinaryPlan {
     }
 }
 
+/// Appends to `out` the centres of the vertex records that start every `step` bytes of `recs`
+/// (`step` at least the stride): the positions [`decode_chunk`] gives, other fields undecoded.
+pub(crate) fn decode_positions(
+    plan: &BinaryPlan,
+    recs: &[u8],
+    step: usize,
+    out: &mut Vec<[f64; 3]>,
+) {
+    let f = &plan.lay.fixed;
+    let fast = !plan.be && f[..3].iter().all(|f| f.ty == Scalar::F32);
+    out.par_extend(
+        recs.par_chunks_exact(step.max(plan.stride))
+            .with_min_len(4096)
+            .map(|rec| {
+                if fast {
+                    let s = LeF32(rec);
+                    [s.f64(f[0]), s.f64(f[1]), s.f64(f[2])]
+                } else {
+                    let s = AnyBin { rec, be: plan.be };
+                    [s.f64(f[0]), s.f64(f[1]), s.f64(f[2])]
+                }
+            }),
+    );
+}
+
 /// Decodes whole vertex records `recs` (a multiple of the plan's stride) into splats; returns
 /// them with the counts of repaired quaternions and overflowed scales.
 pub(crate) fn decode_chunk(plan: &BinaryPlan, recs: &[u8]) -> (Splats, usize, usize) {

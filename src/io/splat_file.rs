@@ -68,6 +68,23 @@ pub(crate) fn decode_chunk(bytes: &[u8]) -> (Splats, usize) {
     (s, repaired)
 }
 
+/// Appends to `out` the centres of the records that start every `step` bytes of `bytes` (`step`
+/// at least 32): the positions [`decode_chunk`] gives, the other fields undecoded.
+pub(crate) fn decode_positions(bytes: &[u8], step: usize, out: &mut Vec<[f64; 3]>) {
+    out.par_extend(
+        bytes
+            .par_chunks_exact(step.max(RECORD))
+            .with_min_len(4096)
+            .map(|r| {
+                [
+                    f32_at(r, 0) as f64,
+                    f32_at(r, 4) as f64,
+                    f32_at(r, 8) as f64,
+                ]
+            }),
+    );
+}
+
 /// Reads a `.splat` body (its length must be a multiple of 32).
 pub(crate) fn read(cx: &Ctx, bytes: &[u8]) -> Result<Scene, ReadError> {
     let whole = bytes.len() / RECORD * RECORD;

@@ -9,6 +9,9 @@ pub mod sh;
 /// Highest spherical-harmonic degree the model carries (glTF and the trainer stop at 3).
 pub const MAX_SH_DEGREE: u8 = 3;
 
+/// Selections of at least this many splats are gathered on every core.
+const SELECT_PARALLEL: usize = 1 << 16;
+
 /// Number of non-DC SH coefficients (per colour channel) for a degree: 0, 3, 8 or 15.
 pub const fn sh_rest_count(degree: u8) -> usize {
     let d = degree as usize;
@@ -136,13 +139,42 @@ impl Splats {
         self.push(other.get(i), other.rest_of(i));
     }
 
-    /// A new set holding the splats at `indices`, in that order.
+    /// A new set holding the splats at `indices`, in that order (gathered column by column,
+    /// on every core when large).
     pub fn select(&self, indices: &[usize]) -> Splats {
-        let mut out = Splats::with_capacity(self.sh_degree, indices.len());
-        for &i in indices {
-            out.push_from(self, i);
+        use rayon::prelude::*;
+        fn gather<T: Copy + Send + Sync>(src: &[T], indices: &[usize]) -> Vec<T> {
+            if indices.len() >= SELECT_PARALLEL {
+                let mut out = Vec::with_capacity(indices.len());
+                indices
+                    .par_iter()
+                    .with_min_len(SELECT_PARALLEL / 4)
+                    .map(|&i| src[i])
+                    .collect_into_vec(&mut out);
+                out
+            } else {
+                indices.iter().map(|&i| src[i]).collect()
+            }
         }
-        out
+        let k = self.rest_per_splat();
+        let sh_rest = if k == 0 {
+            Vec::new()
+        } else {
+            let mut out = Vec::with_capacity(indices.len() * k);
+            for &i in indices {
+                out.extend_from_slice(&self.sh_rest[i * k..(i + 1) * k]);
+            }
+            out
+        };
+        Splats {
+            positions: gather(&self.positions, indices),
+            scales: gather(&self.scales, indices),
+            rotations: gather(&self.rotations, indices),
+            opacities: gather(&self.opacities, indices),
+            sh0: gather(&self.sh0, indices),
+            sh_degree: self.sh_degree,
+            sh_rest,
+        }
     }
 
     /// Panics unless every array has the length the splat count implies (a programming error).
