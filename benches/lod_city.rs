@@ -5,8 +5,11 @@
 //! Run: `cargo bench --bench lod_city` (release). `LOD_CITY_SIZES` (comma-separated splat counts,
 //! default `5000000`), `LOD_MAX_SPLATS` (tile budget, default 32768), `LOD_CITY_PICTURES` (a
 //! folder for each level's street and aerial picture), `LOD_CITY_DAMAGE` (a level measured again
-//! with half its splats dropped), `LOD_CITY_VIEWS=0` (timing only). Cities: displaced, rotated, scaled copies of the three shared
-//! scenes (`../shared/scenes/README.md`), built in memory. Writes `target/lod_city.md`.
+//! with half its splats dropped), `LOD_CITY_VIEWS=0` (timing only), `LOD_CITY_WIDTH` (image
+//! frame width, default the viewer's pixel scale, 960), `LOD_CITY_ERROR_SCALES` (SSIM again with
+//! every error scaled), `LOD_CITY_BYTES_SCALES` (bytes a viewer loads with every error scaled).
+//! Cities: displaced, rotated, scaled copies of the three shared scenes
+//! (`../shared/scenes/README.md`), built in memory. Writes `target/lod_city.md`.
 
 use splat2tiles::convert::{ConvertOptions, convert_scene};
 use splat2tiles::frame::UpAxis;

@@ -152,7 +152,12 @@ fn the_root_aims_at_its_cap() {
         "root: {r} splats, cap {cap}"
     );
     assert!(2 * r > 3 * i, "root {r} splats, inner parent {i}");
-    assert!(root.radius < inner.radius, "{} {}", root.radius, inner.radius);
+    assert!(
+        root.radius < inner.radius,
+        "{} {}",
+        root.radius,
+        inner.radius
+    );
     assert_finite(&root, "root");
 }
 

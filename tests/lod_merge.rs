@@ -375,7 +375,9 @@ fn a_merged_splat_draws_as_much_light_as_its_sub_pixel_members_at_its_switching_
     };
     let plain = merged(0.0);
     let drawn = merged(splat2tiles::render::raster::LOW_PASS * pixel * pixel);
-    println!("light: members {leaves:.1}, merged {drawn:.1}, merged ignoring the low-pass {plain:.1}");
+    println!(
+        "light: members {leaves:.1}, merged {drawn:.1}, merged ignoring the low-pass {plain:.1}"
+    );
     assert!(
         (drawn / leaves - 1.0).abs() < 0.15,
         "modelled low-pass: {drawn} against the members' {leaves}"

@@ -3,12 +3,11 @@
 //!
 //! A parent clusters the union of its children's splats into about [`target_count`] splats
 //! (half the tile budget, at most a fifth of its input; [`count_cap`] is the hard limit, and the
-//! root's target) with
-//! one radius chosen from the input's grid occupancy (`radius`), its error at least
-//! [`MIN_RADIUS_GROWTH`] times its children's. Its geometric error is [`ERROR_PER_RADIUS`] times
-//! the radius it used; merged splats keep the opacity mass they are drawn with at that distance
-//! ([`DRAWN_DILATION_PER_RADIUS2`]). Every parent's work is bounded by its input (at most arity x budget
-//! splats), so the whole build is linear in the scene size.
+//! root's target) with one radius chosen from the input's grid occupancy (`radius`), its error
+//! at least [`MIN_RADIUS_GROWTH`] times its children's. Its geometric error is
+//! [`ERROR_PER_RADIUS`] times the radius it used; merged splats keep the opacity mass they are
+//! drawn with at that distance ([`DRAWN_DILATION_PER_RADIUS2`]). Every parent's work is bounded
+//! by its input (at most arity x budget splats), so the whole build is linear in the scene size.
 
 pub mod cluster;
 pub mod eval;

@@ -392,7 +392,10 @@ mod tests {
         // viewer's focal length widen sub-pixel splats as the viewer does.
         let w = ViewOptions::default().width;
         let focal = fov_to_focal(DEFAULT_FOV_Y_DEG, w * 3 / 4);
-        assert!((focal - super::super::eval::viewer_focal()).abs() < 1e-9, "{focal}");
+        assert!(
+            (focal - super::super::eval::viewer_focal()).abs() < 1e-9,
+            "{focal}"
+        );
     }
 
     #[test]
