@@ -5,13 +5,16 @@
 //! Run: `cargo bench --bench lod_city` (release). `LOD_CITY_SIZES` (comma-separated splat counts,
 //! default `5000000`), `LOD_MAX_SPLATS` (tile budget, default 32768), `LOD_CITY_PICTURES` (a
 //! folder for each level's street and aerial picture), `LOD_CITY_DAMAGE` (a level measured again
-//! with half its splats dropped), `LOD_CITY_VIEWS=0` (timing only). Cities: displaced, rotated, scaled copies of the three shared
-//! scenes (`../shared/scenes/README.md`), built in memory. Writes `target/lod_city.md`.
+//! with half its splats dropped), `LOD_CITY_VIEWS=0` (timing only), `LOD_CITY_WIDTH` (image
+//! frame width, default the viewer's pixel scale, 960), `LOD_CITY_ERROR_SCALES` (SSIM again with
+//! every error scaled), `LOD_CITY_BYTES_SCALES` (bytes a viewer loads with every error scaled).
+//! Cities: displaced, rotated, scaled copies of the three shared scenes
+//! (`../shared/scenes/README.md`), built in memory. Writes `target/lod_city.md`.
 
 use splat2tiles::convert::{ConvertOptions, convert_scene};
 use splat2tiles::frame::UpAxis;
 use splat2tiles::lod::eval::level_table;
-use splat2tiles::lod::views::{ViewOptions, evaluate_views};
+use splat2tiles::lod::views::{ViewKind, ViewOptions, evaluate_views, viewer_bytes};
 use splat2tiles::splat::city::{CityLayout, city_scene, generate_city, shared_sources};
 use splat2tiles::tiling::load::load_tileset;
 use std::fmt::Write as _;
@@ -36,6 +39,10 @@ fn main() {
     let damage: Option<u32> = std::env::var("LOD_CITY_DAMAGE")
         .ok()
         .and_then(|v| v.parse().ok());
+    let base = ViewOptions {
+        width: env_or("LOD_CITY_WIDTH", ViewOptions::default().width),
+        ..ViewOptions::default()
+    };
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let sources = shared_sources(&root.join("../shared/scenes")).expect("shared scenes");
     let tmp = root.join("target/tmp-big");
@@ -86,14 +93,16 @@ fn main() {
                 &ts_path,
                 &ViewOptions {
                     pictures: pictures.clone(),
-                    ..ViewOptions::default()
+                    ..base.clone()
                 },
             )
             .expect("views");
             eprintln!("views measured in {:.1} s", t1.elapsed().as_secs_f64());
             let _ = writeln!(
                 tables,
-                "\ncity of {n} splats; SSIM: lowest of 2 azimuths, 256x192, cut vs all leaves, cameras at the level's switching distance (viewer 1280x720, 50 deg, 16 px SSE)\n\n| level | tiles (leaves) | splats | share of input | bytes | geometric error (mean) | cut splats | SSIM street | SSIM aerial |\n|---|---|---|---|---|---|---|---|---|"
+                "\ncity of {n} splats; SSIM: lowest of 2 azimuths, pixel scale of a {}x{} frame, cut vs all leaves, cameras at the level's switching distance (viewer 1280x720, 50 deg, 16 px SSE)\n\n| level | tiles (leaves) | splats | share of input | bytes | geometric error (mean) | cut splats | SSIM street | SSIM aerial |\n|---|---|---|---|---|---|---|---|---|",
+                base.width,
+                base.width * 3 / 4
             );
             for row in &rows {
                 let v = views.iter().find(|v| v.level == row.level);
@@ -122,7 +131,7 @@ fn main() {
                     &ts_path,
                     &ViewOptions {
                         error_scale: scale,
-                        ..ViewOptions::default()
+                        ..base.clone()
                     },
                 )
                 .expect("scaled views");
@@ -134,12 +143,43 @@ fn main() {
                     );
                 }
             }
+            let byte_scales: Vec<f64> = std::env::var("LOD_CITY_BYTES_SCALES")
+                .unwrap_or_default()
+                .split(',')
+                .filter_map(|v| v.trim().parse::<f64>().ok())
+                .collect();
+            if !byte_scales.is_empty() {
+                let distances = [0.25, 0.5, 1.0, 2.0, 4.0];
+                let cols: Vec<Vec<(ViewKind, f64, u64)>> = byte_scales
+                    .iter()
+                    .map(|&k| viewer_bytes(&ts_path, &distances, k).expect("viewer bytes"))
+                    .collect();
+                let _ = write!(
+                    tables,
+                    "\nbytes the viewer (1280x720, 16 px SSE) loads, every geometric error times k\n\n| camera | distance / scene radius |"
+                );
+                for k in &byte_scales {
+                    let _ = write!(tables, " k = {k} |");
+                }
+                let _ = write!(tables, "\n|---|---|");
+                for _ in &byte_scales {
+                    let _ = write!(tables, "---|");
+                }
+                let _ = writeln!(tables);
+                for (i, (kind, m, _)) in cols[0].iter().enumerate() {
+                    let _ = write!(tables, "| {} | {m} |", kind.as_str());
+                    for c in &cols {
+                        let _ = write!(tables, " {} |", c[i].2);
+                    }
+                    let _ = writeln!(tables);
+                }
+            }
             if let Some(level) = damage {
                 let d = evaluate_views(
                     &ts_path,
                     &ViewOptions {
                         damage_level: Some(level),
-                        ..ViewOptions::default()
+                        ..base.clone()
                     },
                 )
                 .expect("damaged views");

@@ -89,9 +89,10 @@ fn shared_scenes_hierarchy_and_quality() {
             100.0 * root,
             report.lod_radius
         );
-        // The count-target rule (lod::target_count) aims at min(half the tile budget, 0.8 x a
-        // quarter of the parent's input): its input is the content of the nearest content
-        // descendants (whose nearest content ancestor it is).
+        // The count-target rule aims an inner parent at min(half the tile budget, 0.8 x a quarter
+        // of its input) (lod::target_count) and the root at its cap, min(budget, a quarter of its
+        // input) (lod::count_cap): its input is the content of the nearest content descendants
+        // (whose nearest content ancestor it is).
         let kept = coarsest.splat_count.unwrap() as usize;
         let has_content: std::collections::HashMap<_, _> = ts
             .tiles
@@ -120,8 +121,10 @@ fn shared_scenes_hierarchy_and_quality() {
             (1000..=cap).contains(&kept),
             "{name}: the coarsest content holds {kept} splats of {input} input (aim {aim}, cap {cap})"
         );
+        // A root directly over the leaves holds up to a quarter of the input (its cap; the donut
+        // measured 23.76%; it was under 20% while the root aimed at 0.8 of the cap).
         assert!(
-            root < 0.2,
+            root <= splat2tiles::lod::MAX_KEEP + 1.0 / report.splats_in as f64,
             "{name}: the coarsest content holds {:.2}% of the input",
             100.0 * root
         );

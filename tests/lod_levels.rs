@@ -57,8 +57,16 @@ fn parent_of(children: &[Splats], budget: usize) -> ParentTile {
             radius: 0.0,
         })
         .collect();
-    build_parent(TileKey::ROOT, 0, &kids, &params(budget))
+    build_parent(INNER, 0, &kids, &params(budget))
 }
+
+/// A parent below the root (the root aims at its cap instead of the target).
+const INNER: TileKey = TileKey {
+    level: 1,
+    x: 0,
+    y: 0,
+    z: 0,
+};
 
 fn bits(s: &Splats) -> Vec<u64> {
     let mut v = Vec::new();
@@ -119,6 +127,38 @@ fn build_parent_hits_its_target_and_is_deterministic_across_thread_counts() {
     rev.reverse();
     let b = parent_of(&rev, budget);
     assert!(b.splats.len() <= budget);
+}
+
+#[test]
+fn the_root_aims_at_its_cap() {
+    // Same input as above: an inner parent aims at 2048 splats, the root (the coarsest level,
+    // shown from every distance beyond its switching distance) at its cap of 4096, so it is
+    // finer and switches nearer.
+    let children: Vec<Splats> = (0..4).map(|i| cloud(6000, i + 1)).collect();
+    let kids: Vec<ChildContent<'_>> = children
+        .iter()
+        .map(|s| ChildContent {
+            splats: s,
+            radius: 0.0,
+        })
+        .collect();
+    let budget = 4096;
+    let cap = splat2tiles::lod::count_cap(24_000, budget);
+    let root = build_parent(TileKey::ROOT, 0, &kids, &params(budget));
+    let inner = build_parent(INNER, 0, &kids, &params(budget));
+    let (r, i) = (root.splats.len(), inner.splats.len());
+    assert!(
+        r <= cap && r as f64 >= 0.75 * cap as f64,
+        "root: {r} splats, cap {cap}"
+    );
+    assert!(2 * r > 3 * i, "root {r} splats, inner parent {i}");
+    assert!(
+        root.radius < inner.radius,
+        "{} {}",
+        root.radius,
+        inner.radius
+    );
+    assert_finite(&root, "root");
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! Greedy radius clustering with a kiddo KD-tree: splats are visited by descending importance and
 //! each still unassigned seed takes every unassigned splat within the radius; clusters are merged.
 
-use super::merge::{MergeRule, merge_into};
+use super::merge::{MergeRule, merge_drawn};
 use super::radius::{CELL_PER_RADIUS, Occupancy, radius_for_count};
 use crate::splat::Splats;
 use crate::splat::importance::importance_order;
@@ -21,6 +21,17 @@ pub struct Clustered {
 
 /// Clusters `splats` within `radius` (same units as the positions) and merges every cluster.
 pub fn cluster(splats: &Splats, radius: f64, rule: MergeRule) -> Clustered {
+    cluster_drawn(splats, radius, rule, 0.0)
+}
+
+/// [`cluster`] whose merged splats model a viewer's pixel low-pass filter of variance
+/// `dilation_per_radius2 * radius^2` (see [`merge_drawn`]).
+pub fn cluster_drawn(
+    splats: &Splats,
+    radius: f64,
+    rule: MergeRule,
+    dilation_per_radius2: f64,
+) -> Clustered {
     let n = splats.len();
     let mut out = Splats::with_capacity(splats.sh_degree, n / 2 + 1);
     if n == 0 {
@@ -44,6 +55,7 @@ pub fn cluster(splats: &Splats, radius: f64, rule: MergeRule) -> Clustered {
         .collect();
     let tree = ImmutableKdTree::<f64, 3>::new_from_slice(&pts).expect("finite points");
     let r2 = radius * radius;
+    let dilation = dilation_per_radius2 * r2;
     let mut assigned = vec![false; n];
     let mut members: Vec<usize> = Vec::new();
     let mut displacement = 0.0;
@@ -70,7 +82,8 @@ pub fn cluster(splats: &Splats, radius: f64, rule: MergeRule) -> Clustered {
                 members.push(i);
             }
         }
-        displacement += merge_into(splats, &members, rule, &mut out) * members.len() as f64;
+        displacement +=
+            merge_drawn(splats, &members, rule, dilation, &mut out) * members.len() as f64;
     }
     Clustered {
         splats: out,
@@ -108,8 +121,9 @@ pub const TARGET_TOLERANCE: f64 = 1.25;
 /// from the input's grid occupancy ([`radius_for_count`]), at least `min_radius`; when the result
 /// misses the target by more than [`TARGET_TOLERANCE`], the radius is corrected once by the
 /// local dimension of the occupancy. `fallback_radius` is used when the occupancy gives no
-/// radius (coincident centres) and `min_radius` is 0. Cost: one sort and usually one or two
-/// clusterings, each O(n log n).
+/// radius (coincident centres) and `min_radius` is 0. Merged splats model a viewer's low-pass
+/// filter of variance `dilation_per_radius2 * d^2` at the radius `d` used ([`cluster_drawn`]).
+/// Cost: one sort and usually one or two clusterings, each O(n log n).
 pub fn cluster_to_target(
     splats: &Splats,
     target: usize,
@@ -117,7 +131,10 @@ pub fn cluster_to_target(
     fallback_radius: f64,
     budget: usize,
     rule: MergeRule,
+    dilation_per_radius2: f64,
 ) -> Clustered {
+    let cluster =
+        |s: &Splats, d: f64, rule: MergeRule| cluster_drawn(s, d, rule, dilation_per_radius2);
     let positive = |v: f64| v.is_finite() && v > 0.0;
     let min_radius = if positive(min_radius) {
         min_radius

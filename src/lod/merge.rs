@@ -52,10 +52,41 @@ fn weights(splats: &Splats, members: &[usize]) -> Vec<f64> {
 /// Opacity: eq. 2's `sum(a^2)/sum(a)`, raised to the members' opacity mass (`a` times the
 /// product of the two largest scales, summed) over the merged splat's, but never above the
 /// coverage of the members' union `1 - prod(1 - a)`: a tiled surface stays opaque from afar.
+/// (Its area here is undilated; [`merge_drawn`] models a viewer's low-pass filter.)
 ///
 /// A single member is copied exactly. Never produces NaN from finite input: zero total opacity
 /// falls back to equal weights, degenerate covariances to zero scales along the flat axes.
 pub fn merge_into(splats: &Splats, members: &[usize], rule: MergeRule, out: &mut Splats) -> f64 {
+    merge_drawn(splats, members, rule, 0.0, out)
+}
+
+/// Footprint area (product of the two largest standard deviations) of a splat with `scales`
+/// once `dilation` (a variance) is added to every axis: what a rasterizer's low-pass filter
+/// makes of it.
+fn drawn_area(scales: [f64; 3], dilation: f64) -> f64 {
+    let mut v = scales.map(|x| if x.is_finite() { x.abs() } else { 0.0 });
+    v.sort_by(|a, b| b.total_cmp(a));
+    if dilation > 0.0 {
+        ((v[0] * v[0] + dilation) * (v[1] * v[1] + dilation)).sqrt()
+    } else {
+        v[0] * v[1]
+    }
+}
+
+/// [`merge_into`] for a merged splat first drawn from where a viewer's pixel low-pass filter
+/// adds `dilation` (a world-space variance) to every member's footprint.
+pub fn merge_drawn(
+    splats: &Splats,
+    members: &[usize],
+    rule: MergeRule,
+    dilation: f64,
+    out: &mut Splats,
+) -> f64 {
+    let dilation = if dilation.is_finite() {
+        dilation.max(0.0)
+    } else {
+        0.0
+    };
     assert!(!members.is_empty(), "empty cluster");
     if members.len() == 1 {
         out.push_from(splats, members[0]);
@@ -133,13 +164,10 @@ pub fn merge_into(splats: &Splats, members: &[usize], rule: MergeRule, out: &mut
         }
     };
     let finite_or = |v: f64, f: f64| if v.is_finite() { v } else { f };
-    // Coverage: the merged splat's opacity mass (alpha x its two largest scales' product) matches
-    // the members' total, never above their union's coverage nor below eq. 2's alpha.
-    let area = |s: [f64; 3]| {
-        let mut v = s.map(|x| if x.is_finite() { x.abs() } else { 0.0 });
-        v.sort_by(|a, b| b.total_cmp(a));
-        v[0] * v[1]
-    };
+    // Coverage: the merged splat's opacity mass (alpha x its two largest scales' product, each
+    // widened by the viewer's low-pass `dilation`) matches the members' total, never above their
+    // union's coverage nor below eq. 2's alpha.
+    let area = |s: [f64; 3]| drawn_area(s, dilation);
     let merged_area = area([scale.x, scale.y, scale.z]);
     let mut mass = 0.0;
     let mut clear = 1.0;

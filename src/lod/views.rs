@@ -6,13 +6,14 @@
 //! path. A camera direction (azimuth, elevation) from the scene's centre is walked out until every
 //! tile of the cut with an error `e > 0` lies at least `switching_distance(e)` beyond its
 //! bounding sphere. Images have the pixel scale of a `width x 3/4 width` frame with the viewer's
-//! 50 degree vertical field of view (256x192: 0.27 of the 1280x720 viewer's), cropped to the
-//! scene's bounding sphere so that empty background does not inflate the SSIM.
+//! 50 degree vertical field of view (by default 960x720: the 1280x720 viewer's own pixels, so
+//! the renderer's 0.3 px^2 low-pass filter widens sub-pixel splats exactly as in the viewer),
+//! cropped to the scene's bounding sphere so that empty background does not inflate the SSIM.
 
-use super::eval::{parents_of, sphere, switching_distance};
+use super::eval::{MAX_SSE, VIEWER_HEIGHT, parents_of, sphere, switching_distance};
 use crate::encode::tile::read_tile_glb;
 use crate::render::camera::{DEFAULT_FOV_Y_DEG, fov_to_focal};
-use crate::render::cli::content_model;
+use crate::render::cli::{content_model, select_tiles};
 use crate::render::{Camera, Image, RenderOptions, render, ssim};
 use crate::splat::Splats;
 use crate::tiling::TileKey;
@@ -20,6 +21,12 @@ use crate::tiling::load::load_tileset;
 use glam::{DMat4, DVec3};
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
+
+/// Frame width whose 3:4 height is the intended viewer's ([`VIEWER_HEIGHT`]): images at the
+/// viewer's own pixel scale. A smaller frame widens every splat by the renderer's fixed
+/// 0.3 px^2 low-pass in larger pixels, which the viewer never does (at 256 px a sub-pixel leaf is
+/// drawn 3.75 times wider than on screen).
+pub const VIEWER_PIXEL_WIDTH: u32 = VIEWER_HEIGHT * 4 / 3;
 
 /// A camera kind: elevation of the viewing direction above the horizon.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,7 +58,7 @@ impl ViewKind {
 /// Settings of the per-level view measurement.
 #[derive(Debug, Clone)]
 pub struct ViewOptions {
-    /// Image width (height follows at 3:4).
+    /// Image width (height follows at 3:4); [`VIEWER_PIXEL_WIDTH`] gives the viewer's pixel scale.
     pub width: u32,
     /// Azimuths per camera kind (evenly spaced, starting at 30 degrees).
     pub azimuths: usize,
@@ -67,7 +74,7 @@ pub struct ViewOptions {
 impl Default for ViewOptions {
     fn default() -> Self {
         ViewOptions {
-            width: 256,
+            width: VIEWER_PIXEL_WIDTH,
             azimuths: 2,
             pictures: None,
             damage_level: None,
@@ -281,6 +288,60 @@ pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> anyhow::Result<Vec<
     Ok(out)
 }
 
+/// Content bytes the intended viewer (1280x720, 50 degrees, [`MAX_SSE`] px) loads looking at the
+/// scene's centre from the first street and aerial directions at each of `distances` times the
+/// scene's bounding radius, with every geometric error times `error_scale`: what a larger error
+/// per clustering radius would cost in streamed bytes. Rows: (kind, distance multiple, bytes).
+pub fn viewer_bytes(
+    tileset: &Path,
+    distances: &[f64],
+    error_scale: f64,
+) -> anyhow::Result<Vec<(ViewKind, f64, u64)>> {
+    let ts = load_tileset(tileset)?;
+    let up = crate::render::cli::tileset_up(&ts);
+    let root = ts
+        .tiles
+        .iter()
+        .find(|t| t.key == TileKey::ROOT)
+        .and_then(|t| t.bounding_box)
+        .ok_or_else(|| anyhow::anyhow!("root has no bounding box"))?;
+    let (scene_c, scene_r) = sphere(&ts, &root);
+    let east = up.any_orthonormal_vector();
+    let north = up.cross(east);
+    let mut sizes: HashMap<PathBuf, u64> = HashMap::new();
+    let mut out = Vec::new();
+    for kind in [ViewKind::Street, ViewKind::Aerial] {
+        let az = 30f64.to_radians();
+        let el = kind.elevation_deg().to_radians();
+        let u = (east * az.cos() + north * az.sin()) * el.cos() + up * el.sin();
+        for &m in distances {
+            let cam = Camera::look_at(
+                VIEWER_HEIGHT * 16 / 9,
+                VIEWER_HEIGHT,
+                DEFAULT_FOV_Y_DEG,
+                scene_c + u * (scene_r * m),
+                scene_c,
+                up,
+            );
+            let mut bytes = 0;
+            for path in select_tiles(&ts, &cam, MAX_SSE / error_scale) {
+                bytes += match sizes.get(&path) {
+                    Some(&b) => b,
+                    None => {
+                        let b = std::fs::metadata(&path)
+                            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+                            .len();
+                        sizes.insert(path, b);
+                        b
+                    }
+                };
+            }
+            out.push((kind, m, bytes));
+        }
+    }
+    Ok(out)
+}
+
 fn save(img: &Image, path: &Path) -> anyhow::Result<()> {
     img.save_png(path)
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
@@ -322,6 +383,18 @@ mod tests {
         assert_eq!(
             cut_keys(&content, &parents, 2),
             vec![key(1, 0, 1), key(2, 0, 0), key(2, 1, 0), key(2, 2, 0)]
+        );
+    }
+
+    #[test]
+    fn default_frame_has_the_viewers_pixel_scale() {
+        // The renderer's low-pass is 0.3 px^2 whatever the image size, so only frames at the
+        // viewer's focal length widen sub-pixel splats as the viewer does.
+        let w = ViewOptions::default().width;
+        let focal = fov_to_focal(DEFAULT_FOV_Y_DEG, w * 3 / 4);
+        assert!(
+            (focal - super::super::eval::viewer_focal()).abs() < 1e-9,
+            "{focal}"
         );
     }
 
