@@ -10,7 +10,9 @@ use splat2tiles::convert::{ConvertOptions, convert_scene};
 use splat2tiles::splat::Splats;
 use splat2tiles::splat::sh::SH_C0;
 use splat2tiles::tiling::load::load_tileset;
-use splat2tiles::variants::utility::{ViewSetup, scores};
+use splat2tiles::render::metrics::ssim_plane;
+use splat2tiles::render::{Camera, Image, render_splats, ssim};
+use splat2tiles::variants::utility::{BACKGROUND, ViewSetup, render_options, scores};
 use splat2tiles::variants::{Variant, VariantOptions, content_uri, decode_variant, up_in_source};
 
 /// The largest leaf tile of a shared scene converted at the default tile size: tile-relative
@@ -157,6 +159,85 @@ fn spearman_of_known_orders() {
     assert_eq!(ranks(&[5.0, 1.0, 5.0]), vec![2.5, 1.0, 2.5]);
 }
 
+/// Mean SSIM (`render::ssim`, exactly) of each candidate's full-frame renders against the
+/// reference's: the SSIM map is 1 wherever both images are plain background around the pixel's
+/// whole Gaussian window, so only the box of non-background pixels (padded by twice the window
+/// radius) is computed and the rest counted as 1.
+fn full_frame_ssim(reference: &Splats, candidates: &[&Splats], cams: &[Camera]) -> Vec<f64> {
+    let opts = render_options();
+    let base: Vec<Image> = cams.iter().map(|c| render_splats(reference, c, &opts)).collect();
+    candidates
+        .iter()
+        .map(|s| {
+            let mut total = 0.0;
+            for (c, b) in cams.iter().zip(&base) {
+                total += padded_ssim(b, &render_splats(s, c, &opts));
+            }
+            total / cams.len() as f64
+        })
+        .collect()
+}
+
+/// Kernel radius of `render::metrics::ssim` (sigma 1.5, truncated at 3.5 sigma).
+const SSIM_PAD: usize = 5;
+
+/// `ssim(a, b)` computed on the box of pixels that differ from the background in either image.
+fn padded_ssim(a: &Image, b: &Image) -> f64 {
+    let (w, h) = (a.width as usize, a.height as usize);
+    let bg = BACKGROUND;
+    let mut lo = [usize::MAX; 2];
+    let mut hi = [0usize; 2];
+    for y in 0..h {
+        for x in 0..w {
+            let i = 3 * (y * w + x);
+            let differs = (0..3).any(|c| a.data[i + c] != bg[c] || b.data[i + c] != bg[c]);
+            if differs {
+                lo = [lo[0].min(x), lo[1].min(y)];
+                hi = [hi[0].max(x), hi[1].max(y)];
+            }
+        }
+    }
+    if lo[0] == usize::MAX {
+        return 1.0;
+    }
+    let m = 2 * SSIM_PAD;
+    let (x0, y0) = (lo[0].saturating_sub(m), lo[1].saturating_sub(m));
+    let (x1, y1) = ((hi[0] + m + 1).min(w), (hi[1] + m + 1).min(h));
+    let (cw, ch) = (x1 - x0, y1 - y0);
+    let valid = |n: usize| n.saturating_sub(2 * SSIM_PAD) as f64;
+    let n_full = valid(w) * valid(h);
+    let n_crop = valid(cw) * valid(ch);
+    let mut sum = 0.0;
+    for c in 0..3 {
+        let plane = |img: &Image| -> Vec<f64> {
+            let mut v = Vec::with_capacity(cw * ch);
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    v.push(img.data[3 * (y * w + x) + c] as f64);
+                }
+            }
+            v
+        };
+        let m = ssim_plane(&plane(a), &plane(b), cw, ch);
+        sum += (m * n_crop + (n_full - n_crop)) / n_full;
+    }
+    sum / 3.0
+}
+
+#[test]
+fn padded_ssim_is_the_full_frame_ssim() {
+    let (tile, up) = largest_tile("donut_fused_sh0.ply");
+    let (lo, hi) = tile.bounds().unwrap();
+    let setup = ViewSetup::estimated(DVec3::from_array(lo), DVec3::from_array(hi), up);
+    let cams = setup.full_frames();
+    let opts = render_options();
+    let a = render_splats(&tile, &cams[1], &opts);
+    let b = render_splats(&colours_3bit(&tile), &cams[1], &opts);
+    let exact = ssim(&a, &b).unwrap();
+    let fast = padded_ssim(&a, &b);
+    assert!(exact < 1.0 && (exact - fast).abs() < 1e-9, "{exact} vs {fast}");
+}
+
 /// The correlation table (BENCHMARKS.md "Quality variants"): over every content tile of the
 /// shared scenes and the generated SH3 scene, the stored utility against the mean SSIM of the
 /// variant's full 1280x720 renders from 8 views at the tile's switching distance (its own
@@ -165,7 +246,6 @@ fn spearman_of_known_orders() {
 #[test]
 #[ignore = "slow (full-frame renders of every tile); produces the BENCHMARKS.md table"]
 fn correlation_table() {
-    use splat2tiles::variants::utility::mean_ssim;
     use splat2tiles::variants::{ALL, content_variant_metadata};
     use std::fmt::Write as _;
     let inputs = [
@@ -184,6 +264,7 @@ fn correlation_table() {
         "| scene | tiles | Spearman (utility vs 1280x720 SSIM) | tiles in order (utility) | tiles in order (1280x720 SSIM) | median error / radius | B/splat per 0.01 utility: High->Best, Medium->High, Low->Medium |\n|---|---:|---:|---:|---:|---:|---|\n",
     );
     let (mut all_u, mut all_s) = (vec![], vec![]);
+    let mut failures: Vec<String> = vec![];
     for (name, sc) in inputs {
         let tmp = tempfile::tempdir().unwrap();
         let out = tmp.path().join("ts");
@@ -229,7 +310,7 @@ fn correlation_table() {
             }
             ratios.push(error / radius);
             let cands: Vec<&Splats> = decoded[1..].iter().map(|d| &d.0).collect();
-            let full = mean_ssim(best, &cands, &setup.full_frames());
+            let full = full_frame_ssim(best, &cands, &setup.full_frames());
             let win = scores(best, &cands, &setup.windows());
             let (count, bytes, util) = meta[&t.key];
             let mut full4 = vec![1.0];
@@ -265,6 +346,12 @@ fn correlation_table() {
         }
         ratios.sort_by(f64::total_cmp);
         let rho = spearman(&us, &ss);
+        if rho < 0.9 {
+            failures.push(format!("{name}: Spearman {rho:.3} < 0.9"));
+        }
+        if (in_order_u as f64) < 0.95 * tiles as f64 {
+            failures.push(format!("{name}: {in_order_u} of {tiles} tiles in order"));
+        }
         all_u.extend(&us);
         all_s.extend(&ss);
         let per_point = |k: usize| {
@@ -286,8 +373,10 @@ fn correlation_table() {
     }
     let rho = spearman(&all_u, &all_s);
     writeln!(table, "| all | | {rho:.3} | | | | |").unwrap();
+    failures.extend((rho < 0.9).then(|| format!("pooled Spearman {rho:.3} < 0.9")));
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
     std::fs::write(dir.join("variants_utility.csv"), &csv).unwrap();
     std::fs::write(dir.join("variants_utility.md"), &table).unwrap();
     eprintln!("{table}\n(per-tile rows: {})", dir.join("variants_utility.csv").display());
+    assert!(failures.is_empty(), "{failures:?}");
 }

@@ -18,12 +18,12 @@ pub const BACKGROUND: [f32; 3] = [0.5; 3];
 /// diagonal of its splat-centre box) when the writer does not know the tile's real one.
 /// Calibrated on the shared scenes: the median of (the tile's own geometric error, or its
 /// parent's for a leaf) / radius over their content tiles (`tests/variants_utility.rs`).
-pub const VIEW_ERROR_PER_RADIUS: f64 = 0.25;
+pub const VIEW_ERROR_PER_RADIUS: f64 = 0.22;
 
 /// What `utilityMethod` in the tileset metadata says.
 pub const METHOD: &str = "footprint-v2: 1 - 20 x (1 - mean SSIM vs Best), at least 0, over 8 views (30 deg elevation, 45 deg \
     azimuth steps) of a 1280x720 viewer with 50 deg vertical fov at the tile's switching distance \
-    (geometric error 0.25 x the radius of its splat-centre box, 16 px screen-space error), cropped \
+    (geometric error 0.22 x the radius of its splat-centre box, 16 px screen-space error), cropped \
     to the square window around the tile's bounding sphere, mid-grey background, reference CPU \
     renderer (spec/quality-variants.md)";
 
