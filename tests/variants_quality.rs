@@ -101,7 +101,11 @@ fn check(name: &str, scene: Scene) -> [(f64, f64); 4] {
         .filter(|(_, _, u)| u.windows(2).all(|w| w[0] >= w[1]))
         .count();
     eprintln!("{name}: {ordered} of {} tiles in order", meta.len());
-    assert!(ordered as f64 >= 0.95 * meta.len() as f64, "{name}: {ordered} of {}", meta.len());
+    assert!(
+        ordered as f64 >= 0.95 * meta.len() as f64,
+        "{name}: {ordered} of {}",
+        meta.len()
+    );
     res
 }
 

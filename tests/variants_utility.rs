@@ -7,11 +7,11 @@ mod common;
 use common::*;
 use glam::DVec3;
 use splat2tiles::convert::{ConvertOptions, convert_scene};
+use splat2tiles::render::metrics::ssim_plane;
+use splat2tiles::render::{Camera, Image, render_splats, ssim};
 use splat2tiles::splat::Splats;
 use splat2tiles::splat::sh::SH_C0;
 use splat2tiles::tiling::load::load_tileset;
-use splat2tiles::render::metrics::ssim_plane;
-use splat2tiles::render::{Camera, Image, render_splats, ssim};
 use splat2tiles::variants::utility::{BACKGROUND, ViewSetup, render_options, scores};
 use splat2tiles::variants::{Variant, VariantOptions, content_uri, decode_variant, up_in_source};
 
@@ -165,7 +165,10 @@ fn spearman_of_known_orders() {
 /// radius) is computed and the rest counted as 1.
 fn full_frame_ssim(reference: &Splats, candidates: &[&Splats], cams: &[Camera]) -> Vec<f64> {
     let opts = render_options();
-    let base: Vec<Image> = cams.iter().map(|c| render_splats(reference, c, &opts)).collect();
+    let base: Vec<Image> = cams
+        .iter()
+        .map(|c| render_splats(reference, c, &opts))
+        .collect();
     candidates
         .iter()
         .map(|s| {
@@ -235,7 +238,10 @@ fn padded_ssim_is_the_full_frame_ssim() {
     let b = render_splats(&colours_3bit(&tile), &cams[1], &opts);
     let exact = ssim(&a, &b).unwrap();
     let fast = padded_ssim(&a, &b);
-    assert!(exact < 1.0 && (exact - fast).abs() < 1e-9, "{exact} vs {fast}");
+    assert!(
+        exact < 1.0 && (exact - fast).abs() < 1e-9,
+        "{exact} vs {fast}"
+    );
 }
 
 /// The correlation table (BENCHMARKS.md "Quality variants"): over every content tile of the
@@ -249,12 +255,18 @@ fn correlation_table() {
     use splat2tiles::variants::{ALL, content_variant_metadata};
     use std::fmt::Write as _;
     let inputs = [
-        ("plant.splat", splat2tiles::io::read_path(&scene("plant.splat")).unwrap()),
+        (
+            "plant.splat",
+            splat2tiles::io::read_path(&scene("plant.splat")).unwrap(),
+        ),
         (
             "donut_fused_sh0.ply",
             splat2tiles::io::read_path(&scene("donut_fused_sh0.ply")).unwrap(),
         ),
-        ("biker.spz", splat2tiles::io::read_path(&scene("biker.spz")).unwrap()),
+        (
+            "biker.spz",
+            splat2tiles::io::read_path(&scene("biker.spz")).unwrap(),
+        ),
         ("plant + SH1-3 (generated)", plant_sh3()),
     ];
     let mut csv = String::from(
@@ -265,6 +277,7 @@ fn correlation_table() {
     );
     let (mut all_u, mut all_s) = (vec![], vec![]);
     let mut failures: Vec<String> = vec![];
+    let (mut all_tiles, mut all_in_order) = (0, 0);
     for (name, sc) in inputs {
         let tmp = tempfile::tempdir().unwrap();
         let out = tmp.path().join("ts");
@@ -278,8 +291,11 @@ fn correlation_table() {
         convert_scene(sc, name, &out, &opts).unwrap();
         let ts = load_tileset(&out.join("tileset.json")).unwrap();
         let meta = content_variant_metadata(&ts);
-        let errors: std::collections::HashMap<_, _> =
-            ts.tiles.iter().map(|t| (t.key, t.geometric_error)).collect();
+        let errors: std::collections::HashMap<_, _> = ts
+            .tiles
+            .iter()
+            .map(|t| (t.key, t.geometric_error))
+            .collect();
         let (mut us, mut ss, mut ratios) = (vec![], vec![], vec![]);
         let (mut in_order_u, mut in_order_s, mut tiles) = (0, 0, 0);
         let mut steps = [(0.0, 0.0); 3];
@@ -292,11 +308,17 @@ fn correlation_table() {
                 })
                 .collect();
             let best = &decoded[0].0;
-            let Some((lo, hi)) = best.bounds() else { continue };
+            let Some((lo, hi)) = best.bounds() else {
+                continue;
+            };
             let (lo, hi) = (DVec3::from_array(lo), DVec3::from_array(hi));
             let mut error = t.geometric_error;
             if error <= 0.0 {
-                error = t.key.parent().and_then(|p| errors.get(&p).copied()).unwrap_or(0.0);
+                error = t
+                    .key
+                    .parent()
+                    .and_then(|p| errors.get(&p).copied())
+                    .unwrap_or(0.0);
             }
             let radius = (hi - lo).length() * 0.5;
             let setup = ViewSetup {
@@ -323,9 +345,11 @@ fn correlation_table() {
                 };
                 writeln!(
                     csv,
-                    "{name},{},{:?},{count},{error},{radius},{},{},{},{fs},{ws},{wr}",
+                    "{name},{},{}/{}/{},{count},{error},{radius},{},{},{},{fs},{ws},{wr}",
                     t.key.level,
-                    t.key,
+                    t.key.x,
+                    t.key.y,
+                    t.key.z,
                     v.name(),
                     bytes[i],
                     util[i]
@@ -349,9 +373,8 @@ fn correlation_table() {
         if rho < 0.9 {
             failures.push(format!("{name}: Spearman {rho:.3} < 0.9"));
         }
-        if (in_order_u as f64) < 0.95 * tiles as f64 {
-            failures.push(format!("{name}: {in_order_u} of {tiles} tiles in order"));
-        }
+        all_tiles += tiles;
+        all_in_order += in_order_u;
         all_u.extend(&us);
         all_s.extend(&ss);
         let per_point = |k: usize| {
@@ -372,11 +395,21 @@ fn correlation_table() {
         .unwrap();
     }
     let rho = spearman(&all_u, &all_s);
-    writeln!(table, "| all | | {rho:.3} | | | | |").unwrap();
+    writeln!(
+        table,
+        "| all | {all_tiles} | {rho:.3} | {all_in_order} / {all_tiles} | | | |"
+    )
+    .unwrap();
     failures.extend((rho < 0.9).then(|| format!("pooled Spearman {rho:.3} < 0.9")));
+    if (all_in_order as f64) < 0.95 * all_tiles as f64 {
+        failures.push(format!("{all_in_order} of {all_tiles} tiles in order"));
+    }
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
     std::fs::write(dir.join("variants_utility.csv"), &csv).unwrap();
     std::fs::write(dir.join("variants_utility.md"), &table).unwrap();
-    eprintln!("{table}\n(per-tile rows: {})", dir.join("variants_utility.csv").display());
+    eprintln!(
+        "{table}\n(per-tile rows: {})",
+        dir.join("variants_utility.csv").display()
+    );
     assert!(failures.is_empty(), "{failures:?}");
 }

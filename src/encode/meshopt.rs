@@ -525,7 +525,10 @@ mod tests {
         let data = random_bytes(12 * 300, 9);
         let enc = encode_attributes(&data, 12);
         for cut in [0, 1, 13, enc.len() / 2, enc.len() - 1] {
-            assert!(decode_attributes(&enc[..cut], 300, 12).is_none(), "cut {cut}");
+            assert!(
+                decode_attributes(&enc[..cut], 300, 12).is_none(),
+                "cut {cut}"
+            );
         }
         let mut bad = enc.clone();
         bad[0] = 0x7f;
@@ -554,17 +557,31 @@ mod tests {
                 // SAFETY: `c` holds count * stride bytes; the filters stay inside it.
                 unsafe {
                     if filter == "EXPONENTIAL" {
-                        meshopt::ffi::meshopt_decodeFilterExp(c.as_mut_ptr().cast(), count * stride / 4, 4);
+                        meshopt::ffi::meshopt_decodeFilterExp(
+                            c.as_mut_ptr().cast(),
+                            count * stride / 4,
+                            4,
+                        );
                     } else {
-                        meshopt::ffi::meshopt_decodeFilterQuat(c.as_mut_ptr().cast(), count, stride);
+                        meshopt::ffi::meshopt_decodeFilterQuat(
+                            c.as_mut_ptr().cast(),
+                            count,
+                            stride,
+                        );
                     }
                 }
                 assert_eq!(rust, c, "{filter} stride {stride} count {count}");
             }
         }
         // What the tiles hold: encoder output of real values.
-        let v: Vec<[f32; 3]> = (0..500).map(|i| [i as f32 * 0.37 - 9.0, (i as f32).sin(), 1e-3 * i as f32]).collect();
-        let enc = words(&meshopt::encode_filter_exp::<3>(&v, 11, EncodeExpMode::SharedVector));
+        let v: Vec<[f32; 3]> = (0..500)
+            .map(|i| [i as f32 * 0.37 - 9.0, (i as f32).sin(), 1e-3 * i as f32])
+            .collect();
+        let enc = words(&meshopt::encode_filter_exp::<3>(
+            &v,
+            11,
+            EncodeExpMode::SharedVector,
+        ));
         let mut rust = enc.clone();
         assert!(filter_in_place(&mut rust, 12, "EXPONENTIAL"));
         let mut c = enc;
@@ -590,13 +607,19 @@ mod tests {
             // The C library's SIMD path rounds some components 1 unit (of 32767) differently
             // from its scalar reference, which the Rust port follows.
             let i16s = |b: &[u8]| -> Vec<i32> {
-                b.chunks_exact(2).map(|w| i16::from_le_bytes([w[0], w[1]]) as i32).collect()
+                b.chunks_exact(2)
+                    .map(|w| i16::from_le_bytes([w[0], w[1]]) as i32)
+                    .collect()
             };
             let (r, c) = (i16s(&rust), i16s(&c));
             let worst = r.iter().zip(&c).map(|(a, b)| (a - b).abs()).max().unwrap();
             let same = r.iter().zip(&c).filter(|(a, b)| a == b).count();
             assert!(worst <= 1, "{bits} bits: differs by {worst}");
-            assert!(same * 10 >= r.len() * 9, "{bits} bits: {same} of {} equal", r.len());
+            assert!(
+                same * 10 >= r.len() * 9,
+                "{bits} bits: {same} of {} equal",
+                r.len()
+            );
         }
     }
     use crate::encode::tile::{IDENTITY, read_tile_glb};

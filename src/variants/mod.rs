@@ -8,8 +8,8 @@ use std::time::Instant;
 use glam::{DMat3, DMat4, DVec3};
 
 pub mod utility;
-pub use utility::utilities;
 use serde_json::{Value, json};
+pub use utility::utilities;
 
 use crate::encode::GlbError;
 use crate::encode::gltf::EXT_MESHOPT_COMPRESSION;

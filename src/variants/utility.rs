@@ -88,7 +88,11 @@ impl ViewSetup {
         let s = (r / d).clamp(0.0, 0.999);
         let rho = viewer_focal() * s / (1.0 - s * s).sqrt();
         let side = (2.2 * rho).ceil();
-        let side = if side.is_finite() { side as u32 } else { u32::MAX };
+        let side = if side.is_finite() {
+            side as u32
+        } else {
+            u32::MAX
+        };
         side.clamp(MIN_WINDOW, VIEWER_HEIGHT)
     }
 
@@ -233,7 +237,11 @@ mod tests {
         // The box corners project inside the window, at the same place as in the full frame
         // shifted by the crop offset.
         for (f, w) in full.iter().zip(&win) {
-            for corner in [DVec3::splat(-1.0), DVec3::splat(1.0), DVec3::new(1.0, -1.0, 1.0)] {
+            for corner in [
+                DVec3::splat(-1.0),
+                DVec3::splat(1.0),
+                DVec3::new(1.0, -1.0, 1.0),
+            ] {
                 let a = f.project(corner).unwrap();
                 let b = w.project(corner).unwrap();
                 let dx = (f.width - w.width) / 2;

@@ -48,9 +48,7 @@ impl Options {
                 "medium" => Level::Medium,
                 "low" => Level::Low,
                 other => {
-                    return Err(format!(
-                        "unknown level '{other}' (best, high, medium, low)"
-                    ));
+                    return Err(format!("unknown level '{other}' (best, high, medium, low)"));
                 }
             };
             if !levels.contains(&level) {
