@@ -1,8 +1,7 @@
 //! The four quality variants on the shared scenes and on the plant with synthetic SH1-3:
 //! bytes per splat strictly decreasing, utilities strictly decreasing on average and in order in
-//! >= 95% of tiles, Low
-//! within 37 B/splat before entropy coding at SH3 and smaller than SPZ v2 after it, every
-//! variant decoding back.
+//! at least 95% of the tiles, Low within 37 B/splat before entropy coding at SH3 and smaller
+//! than SPZ v2 after it, every variant decoding back.
 
 mod common;
 
@@ -160,7 +159,6 @@ fn cesium_profile_points_at_spz_tiles() {
             profile: Profile::Cesium,
             variants: vec![],
             measure_utility: false,
-            ..Default::default()
         },
         ..Default::default()
     };
