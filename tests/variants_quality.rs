@@ -95,9 +95,11 @@ fn check(name: &str, scene: Scene) -> [(f64, f64); 4] {
         assert!(w[0].1 > w[1].1, "{name}: utilities not decreasing: {res:?}");
     }
     let meta = content_variant_metadata(&ts);
+    // A step counts as in order down to a 1e-5 tie (5e-7 of SSIM, rendering noise): on biker
+    // one tile has Medium 0.999831 and Low 0.999832.
     let ordered = meta
         .values()
-        .filter(|(_, _, u)| u.windows(2).all(|w| w[0] >= w[1]))
+        .filter(|(_, _, u)| u.windows(2).all(|w| w[0] >= w[1] - 1e-5))
         .count();
     eprintln!("{name}: {ordered} of {} tiles in order", meta.len());
     assert!(

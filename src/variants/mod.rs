@@ -147,7 +147,7 @@ pub struct ContentFacts {
     pub splat_count: u32,
     /// Bytes of each variant's glb (0: not written), in [`ALL`] order.
     pub variant_bytes: [u32; 4],
-    /// Utility of each variant (mean SSIM against Best over 8 views; -1: not measured).
+    /// Utility of each variant (`utility::utilities`; 1 for Best; -1: not measured).
     pub variant_utility: [f32; 4],
     /// Seconds spent encoding each variant.
     pub encode_seconds: [f64; 4],
@@ -338,7 +338,7 @@ pub fn schema_properties() -> (Value, Value) {
             "type": "SCALAR", "componentType": "UINT32", "array": true, "count": 4
         },
         "variantUtility": {
-            "description": "Mean SSIM of each variant against Best over 8 views (TileSplat eq. 3); -1: not measured.",
+            "description": "Utility of each variant (TileSplat eq. 3, method in the tileset's utilityMethod; Best = 1); -1: not measured.",
             "type": "SCALAR", "componentType": "FLOAT32", "array": true, "count": 4,
             "noData": [-1.0, -1.0, -1.0, -1.0]
         }
