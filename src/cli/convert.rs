@@ -110,7 +110,6 @@ pub fn run(args: ConvertArgs) -> i32 {
             profile: args.profile,
             variants: args.variants.iter().flatten().copied().collect(),
             measure_utility: !args.no_utility,
-            ..Default::default()
         },
         memory_limit: args
             .memory_limit
