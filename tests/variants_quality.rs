@@ -161,6 +161,7 @@ fn cesium_profile_points_at_spz_tiles() {
             profile: Profile::Cesium,
             variants: vec![],
             measure_utility: false,
+            utility_renders: false,
         },
         ..Default::default()
     };

@@ -12,6 +12,7 @@ use splat2tiles::render::{Camera, Image, render_splats, ssim};
 use splat2tiles::splat::Splats;
 use splat2tiles::splat::sh::SH_C0;
 use splat2tiles::tiling::load::load_tileset;
+use splat2tiles::variants::estimate::estimated_utilities;
 use splat2tiles::variants::utility::{BACKGROUND, ViewSetup, render_options, scores};
 use splat2tiles::variants::{Variant, VariantOptions, content_uri, decode_variant, up_in_source};
 
@@ -273,9 +274,9 @@ fn correlation_table() {
         "scene,level,key,splats,error,radius,variant,bytes,utility,full_ssim,win_ssim_true,win_rmse_true\n",
     );
     let mut table = String::from(
-        "| scene | tiles | Spearman (utility vs 1280x720 SSIM) | tiles in order (utility) | tiles in order (1280x720 SSIM) | median error / radius | B/splat per 0.01 utility: High->Best, Medium->High, Low->Medium |\n|---|---:|---:|---:|---:|---:|---|\n",
+        "| scene | tiles | Spearman (utility vs 1280x720 SSIM) | tiles in order (utility) | tiles in order (1280x720 SSIM) | Spearman (estimate vs 1280x720 SSIM) | tiles in order (estimate) | median error / radius | B/splat per 0.01 utility: High->Best, Medium->High, Low->Medium |\n|---|---:|---:|---:|---:|---:|---:|---:|---|\n",
     );
-    let (mut all_u, mut all_s) = (vec![], vec![]);
+    let (mut all_u, mut all_s, mut all_e) = (vec![], vec![], vec![]);
     let mut failures: Vec<String> = vec![];
     let (mut all_tiles, mut all_in_order) = (0, 0);
     for (name, sc) in inputs {
@@ -284,6 +285,7 @@ fn correlation_table() {
         let opts = ConvertOptions {
             variants: VariantOptions {
                 variants: ALL.to_vec(),
+                utility_renders: true,
                 ..Default::default()
             },
             ..Default::default()
@@ -296,8 +298,8 @@ fn correlation_table() {
             .iter()
             .map(|t| (t.key, t.geometric_error))
             .collect();
-        let (mut us, mut ss, mut ratios) = (vec![], vec![], vec![]);
-        let (mut in_order_u, mut in_order_s, mut tiles) = (0, 0, 0);
+        let (mut us, mut ss, mut es, mut ratios) = (vec![], vec![], vec![], vec![]);
+        let (mut in_order_u, mut in_order_s, mut in_order_e, mut tiles) = (0, 0, 0, 0);
         let mut steps = [(0.0, 0.0); 3];
         for t in ts.tiles.iter().filter(|t| t.content.is_some()) {
             let decoded: Vec<(Splats, [f64; 16])> = ALL
@@ -333,6 +335,9 @@ fn correlation_table() {
             ratios.push(error / radius);
             let cands: Vec<&Splats> = decoded[1..].iter().map(|d| &d.0).collect();
             let full = full_frame_ssim(best, &cands, &setup.full_frames());
+            let est = estimated_utilities(best, &cands, setup.up);
+            es.extend(&est);
+            in_order_e += est.windows(2).all(|w| w[0] >= w[1]) as usize;
             let win = scores(best, &cands, &setup.windows());
             let (count, bytes, util) = meta[&t.key];
             let mut full4 = vec![1.0];
@@ -370,6 +375,8 @@ fn correlation_table() {
         }
         ratios.sort_by(f64::total_cmp);
         let rho = spearman(&us, &ss);
+        let rho_e = spearman(&es, &ss);
+        all_e.extend(&es);
         if rho < 0.9 {
             failures.push(format!("{name}: Spearman {rho:.3} < 0.9"));
         }
@@ -386,7 +393,7 @@ fn correlation_table() {
         };
         writeln!(
             table,
-            "| {name} | {tiles} | {rho:.3} | {in_order_u} / {tiles} | {in_order_s} / {tiles} | {:.3} | {}, {}, {} |",
+            "| {name} | {tiles} | {rho:.3} | {in_order_u} / {tiles} | {in_order_s} / {tiles} | {rho_e:.3} | {in_order_e} / {tiles} | {:.3} | {}, {}, {} |",
             ratios.get(ratios.len() / 2).copied().unwrap_or(f64::NAN),
             per_point(0),
             per_point(1),
@@ -395,9 +402,10 @@ fn correlation_table() {
         .unwrap();
     }
     let rho = spearman(&all_u, &all_s);
+    let rho_e = spearman(&all_e, &all_s);
     writeln!(
         table,
-        "| all | {all_tiles} | {rho:.3} | {all_in_order} / {all_tiles} | | | |"
+        "| all | {all_tiles} | {rho:.3} | {all_in_order} / {all_tiles} | | {rho_e:.3} | | | |"
     )
     .unwrap();
     failures.extend((rho < 0.9).then(|| format!("pooled Spearman {rho:.3} < 0.9")));

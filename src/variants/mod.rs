@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use glam::{DMat3, DMat4, DVec3};
 
+pub mod estimate;
 pub mod utility;
 use serde_json::{Value, json};
 pub use utility::utilities;
@@ -116,8 +117,12 @@ pub struct VariantOptions {
     pub profile: Profile,
     /// Variants to write (the profile's default is always added).
     pub variants: Vec<Variant>,
-    /// Measure utilities (8 renders per variant and tile); otherwise they are stored as -1.
+    /// Store utilities; otherwise they are stored as -1.
     pub measure_utility: bool,
+    /// Measure them by rendering (`utility::utilities`, 8 views per variant and tile: the
+    /// definition, about 10x the conversion) instead of the calibrated estimate
+    /// (`estimate::estimated_utilities`, no renders).
+    pub utility_renders: bool,
 }
 
 impl Default for VariantOptions {
@@ -126,6 +131,7 @@ impl Default for VariantOptions {
             profile: Profile::Default,
             variants: vec![Variant::Best],
             measure_utility: true,
+            utility_renders: false,
         }
     }
 }
@@ -252,7 +258,11 @@ pub fn write_tile_contents(
             let reference = relative(splats, centre_s);
             let up = up_in_source(node_matrix);
             let refs: Vec<&Splats> = decoded.iter().map(|(_, s)| s).collect();
-            let u = utilities(&reference, &refs, up);
+            let u = if opts.utility_renders {
+                utilities(&reference, &refs, up)
+            } else {
+                estimate::estimated_utilities(&reference, &refs, up)
+            };
             for ((v, _), u) in decoded.iter().zip(u) {
                 facts.variant_utility[v.index()] = u as f32;
             }
@@ -323,7 +333,7 @@ pub fn tileset_metadata(scheme: Scheme, opts: &VariantOptions) -> Value {
             "variantUris": uris,
             "variantFormats": ALL.iter().map(|v| v.format()).collect::<Vec<_>>(),
             "defaultVariant": opts.profile.default_variant().index(),
-            "utilityMethod": utility::METHOD,
+            "utilityMethod": if opts.utility_renders { utility::METHOD } else { estimate::METHOD },
         }
     })
 }

@@ -20,12 +20,13 @@ pub const BACKGROUND: [f32; 3] = [0.5; 3];
 /// parent's for a leaf) / radius over their content tiles (`tests/variants_utility.rs`).
 pub const VIEW_ERROR_PER_RADIUS: f64 = 0.22;
 
-/// What `utilityMethod` in the tileset metadata says.
-pub const METHOD: &str = "footprint-v2: 1 - 20 x (1 - mean SSIM vs Best), at least 0, over 8 views (30 deg elevation, 45 deg \
-    azimuth steps) of a 1280x720 viewer with 50 deg vertical fov at the tile's switching distance \
-    (geometric error 0.22 x the radius of its splat-centre box, 16 px screen-space error), cropped \
-    to the square window around the tile's bounding sphere, mid-grey background, reference CPU \
-    renderer (spec/quality-variants.md)";
+/// What `utilityMethod` in the tileset metadata says when utilities are rendered.
+pub const METHOD: &str = "footprint-v3: 1 - 10 x (1 - SSIM) - 10 x RMSE, at least 0, SSIM and RMSE vs Best over the \
+    tile's footprint (the pixels either render draws, for SSIM those within its 11-px window), mean of 8 \
+    views (30 deg elevation, 45 deg azimuth steps) of a 1280x720 viewer with 50 deg vertical fov at the \
+    tile's switching distance (geometric error 0.22 x the radius of its splat-centre box, 16 px \
+    screen-space error), cropped to the square window around the tile's bounding sphere, mid-grey \
+    background, reference CPU renderer (spec/quality-variants.md)";
 
 /// Smallest window side, pixels (SSIM needs at least its 11-pixel Gaussian window).
 pub const MIN_WINDOW: u32 = 24;
@@ -152,13 +153,64 @@ pub fn render_options() -> RenderOptions {
 /// What the renders of a candidate show against the reference's, averaged over the views.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Score {
-    /// Mean SSIM.
+    /// Mean SSIM over the whole window.
     pub ssim: f64,
-    /// Mean root-mean-square error of the pixel values (data range 1).
+    /// Root-mean-square error of the pixel values over the whole window (data range 1).
     pub rmse: f64,
+    /// Mean SSIM over the tile's footprint: the pixels whose SSIM window holds a pixel that
+    /// either render draws (everywhere else both show plain background and SSIM is 1).
+    pub ssim_footprint: f64,
+    /// Root-mean-square error over the pixels either render draws.
+    pub rmse_footprint: f64,
 }
 
-/// Each candidate's renders against `reference`'s over `cams`: mean SSIM and RMSE.
+/// Radius of SSIM's Gaussian window (`render::metrics`: sigma 1.5, truncated at 3.5 sigma).
+const SSIM_RADIUS: usize = 5;
+
+/// Window and footprint statistics of one view: (SSIM, MSE) over the window and over the
+/// footprint (see [`Score`]).
+fn view_score(a: &Image, b: &Image) -> [f64; 4] {
+    let s = ssim(a, b).unwrap_or(0.0);
+    let m = mse(a, b).unwrap_or(1.0);
+    let (w, h) = (a.width as usize, a.height as usize);
+    if a.data.len() != 3 * w * h || b.data.len() != a.data.len() {
+        return [s, m, s, m];
+    }
+    let drawn: Vec<bool> = (0..w * h)
+        .map(|i| {
+            (0..3).any(|c| a.data[3 * i + c] != BACKGROUND[c] || b.data[3 * i + c] != BACKGROUND[c])
+        })
+        .collect();
+    let drawn_count = drawn.iter().filter(|d| **d).count();
+    if drawn_count == 0 {
+        return [1.0, 0.0, 1.0, 0.0];
+    }
+    // Pixels of the valid SSIM region whose window touches a drawn pixel (a box dilation).
+    let r = SSIM_RADIUS;
+    let mut rows = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+            rows[y * w + x] = drawn[y * w + x0..y * w + x1].iter().any(|d| *d);
+        }
+    }
+    let (mut valid, mut near) = (0usize, 0usize);
+    for y in r..h.saturating_sub(r) {
+        for x in r..w.saturating_sub(r) {
+            valid += 1;
+            near += (y - r..=y + r).any(|yy| rows[yy * w + x]) as usize;
+        }
+    }
+    let ssim_fp = if near == 0 {
+        1.0
+    } else {
+        1.0 - (1.0 - s) * valid as f64 / near as f64
+    };
+    let mse_fp = m * (w * h) as f64 / drawn_count as f64;
+    [s, m, ssim_fp, mse_fp]
+}
+
+/// Each candidate's renders against `reference`'s over `cams`, averaged over the views.
 pub fn scores(reference: &Splats, candidates: &[&Splats], cams: &[Camera]) -> Vec<Score> {
     let opts = render_options();
     let base: Vec<Image> = cams
@@ -169,15 +221,19 @@ pub fn scores(reference: &Splats, candidates: &[&Splats], cams: &[Camera]) -> Ve
     candidates
         .iter()
         .map(|s| {
-            let (mut ss, mut e) = (0.0, 0.0);
+            let mut acc = [0.0; 4];
             for (c, b) in cams.iter().zip(&base) {
-                let img = render_splats(s, c, &opts);
-                ss += ssim(b, &img).unwrap_or(0.0);
-                e += mse(b, &img).map_or(1.0, f64::sqrt);
+                let v = view_score(b, &render_splats(s, c, &opts));
+                acc[0] += v[0];
+                acc[1] += v[1].sqrt();
+                acc[2] += v[2];
+                acc[3] += v[3].sqrt();
             }
             Score {
-                ssim: ss / n,
-                rmse: e / n,
+                ssim: acc[0] / n,
+                rmse: acc[1] / n,
+                ssim_footprint: acc[2] / n,
+                rmse_footprint: acc[3] / n,
             }
         })
         .collect()
@@ -191,17 +247,20 @@ pub fn mean_ssim(reference: &Splats, candidates: &[&Splats], cams: &[Camera]) ->
         .collect()
 }
 
-/// Utility lost per unit of SSIM lost (see [`utility_of`]).
-pub const SSIM_SCALE: f64 = 20.0;
+/// Utility lost per unit of footprint SSIM lost (see [`utility_of`]).
+pub const SSIM_SCALE: f64 = 10.0;
 
-/// The utility of a score: `1 - SSIM_SCALE * (1 - mean SSIM)`, at least 0 (1 for a candidate
-/// identical to Best). SSIM of a real tile at its switching distance moves in the third
-/// decimal for damage a viewer sees (3-bit colours lose 0.003-0.02, positions jittered by 1% of
-/// the box 0.015-0.02, half the splats dropped 0.035-0.1: `tests/variants_utility.rs`); the
-/// scale spreads that over the 0..1 range the DP trades bytes against, so every such damage
-/// costs at least 0.05. A monotone map: rankings are SSIM's.
+/// Utility lost per unit of footprint RMSE (see [`utility_of`]).
+pub const RMSE_SCALE: f64 = 10.0;
+
+/// The utility of a score: `1 - SSIM_SCALE (1 - footprint SSIM) - RMSE_SCALE footprint RMSE`,
+/// at least 0 (1 for a candidate identical to Best). Over the tile's footprint, so a tile that
+/// fills little of its window is not diluted by background; the RMSE term sees the colour
+/// shifts SSIM hardly sees (its luminance term is relative to the squared mean: quantising a
+/// tile's colours to 3 bits can cost SSIM less than 0.002). Damage a viewer sees costs at least
+/// 0.05 (`tests/variants_utility.rs`).
 pub fn utility_of(s: Score) -> f64 {
-    (1.0 - SSIM_SCALE * (1.0 - s.ssim)).clamp(0.0, 1.0)
+    (1.0 - SSIM_SCALE * (1.0 - s.ssim_footprint) - RMSE_SCALE * s.rmse_footprint).clamp(0.0, 1.0)
 }
 
 /// The utility of each candidate against `reference` (tile-relative splats, Best): mean SSIM
@@ -251,10 +310,42 @@ mod tests {
                 assert!(b[0] > 0.0 && b[0] < side as f64 && b[1] > 0.0 && b[1] < side as f64);
             }
         }
-        assert!(METHOD.contains(&format!("{SSIM_SCALE} x (1 - mean SSIM")));
+        assert!(METHOD.contains(&format!(
+            "1 - {SSIM_SCALE} x (1 - SSIM) - {RMSE_SCALE} x RMSE"
+        )));
         assert!(METHOD.contains(&format!("{VIEW_ERROR_PER_RADIUS} x the radius")));
         // Further away (larger error): a smaller window.
         let far = ViewSetup { error: 2.0, ..s };
         assert!(far.window_side() < side);
+    }
+
+    #[test]
+    fn footprint_scores_ignore_the_background_around_the_tile() {
+        // A 40x40 window of background with a 4x4 patch drawn in one image only.
+        let bg = Image::filled(40, 40, BACKGROUND);
+        let mut drawn = bg.clone();
+        for y in 18..22 {
+            for x in 18..22 {
+                let i = 3 * (y * 40 + x);
+                drawn.data[i..i + 3].copy_from_slice(&[0.6, 0.5, 0.5]);
+            }
+        }
+        let [s, m, s_fp, m_fp] = view_score(&bg, &drawn);
+        // RMSE over the 16 drawn pixels: one channel off by 0.1 -> MSE 0.01 / 3 there.
+        assert!((m_fp - 0.01 / 3.0).abs() < 1e-6, "{m_fp}");
+        assert!((m - 0.01 / 3.0 * 16.0 / 1600.0).abs() < 1e-8, "{m}");
+        // SSIM: the valid region is 30x30 = 900 pixels, the footprint the 14x14 around the
+        // patch (its 4x4 dilated by the 5-px window radius).
+        assert!(s < 1.0 && s_fp < s);
+        assert!(((1.0 - s_fp) - (1.0 - s) * 900.0 / 196.0).abs() < 1e-9);
+        // Identical images: a perfect score.
+        assert_eq!(view_score(&drawn, &drawn), [1.0, 0.0, 1.0, 0.0]);
+        let perfect = Score {
+            ssim: 1.0,
+            rmse: 0.0,
+            ssim_footprint: 1.0,
+            rmse_footprint: 0.0,
+        };
+        assert_eq!(utility_of(perfect), 1.0);
     }
 }
