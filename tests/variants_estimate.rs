@@ -137,11 +137,12 @@ fn least_squares(a: &[[f64; 5]], b: &[f64], cols: &[usize]) -> Option<Vec<f64>> 
         if m[c][c].abs() < 1e-300 {
             return None;
         }
-        for r in 0..k {
+        let pivot = m[c].clone();
+        for (r, row) in m.iter_mut().enumerate() {
             if r != c {
-                let f = m[r][c] / m[c][c];
-                for j in c..=k {
-                    m[r][j] -= f * m[c][j];
+                let f = row[c] / pivot[c];
+                for (v, p) in row.iter_mut().zip(&pivot).skip(c) {
+                    *v -= f * p;
                 }
             }
         }
@@ -294,7 +295,7 @@ fn calibrate() {
             100.0 * ord
         )
         .unwrap();
-        if check && !(rho >= 0.9) {
+        if check && (rho.is_nan() || rho < 0.9) {
             failures.push(format!("{label}: Spearman {rho:.3}"));
         }
     };
