@@ -352,3 +352,62 @@ fn nnls_recovers_non_negative_weights() {
         assert!((g - w).abs() < 1e-9, "{got:?}");
     }
 }
+
+/// Every file under `dir`, by relative path.
+fn files(dir: &std::path::Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.insert(
+                    p.strip_prefix(dir).unwrap().to_path_buf(),
+                    std::fs::read(&p).unwrap(),
+                );
+            }
+        }
+    }
+    out
+}
+
+/// With every variant and estimated utilities, the out-of-core path (many spilled regions, one
+/// thread) writes the same bytes as the in-memory one (two threads).
+#[test]
+fn variants_and_estimates_are_the_same_out_of_core() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("scene.ply");
+    write_ply_file(&input, &random_splats(20_000, 2, 30.0, 11));
+    let run = |out: &std::path::Path, threads: usize, limit: u64| {
+        let opts = ConvertOptions {
+            max_splats_per_tile: 2048,
+            memory_limit: limit,
+            variants: VariantOptions {
+                variants: ALL.to_vec(),
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| splat2tiles::convert::convert(&input, out, &opts))
+            .unwrap()
+    };
+    let (mem, ooc) = (tmp.path().join("mem"), tmp.path().join("ooc"));
+    let a = run(&mem, 2, 4 << 30);
+    let b = run(&ooc, 1, 1 << 20);
+    assert_eq!(a.regions, 1);
+    assert!(b.regions > 1, "{}", b.regions);
+    let (fa, fb) = (files(&mem), files(&ooc));
+    assert_eq!(fa.keys().collect::<Vec<_>>(), fb.keys().collect::<Vec<_>>());
+    for (k, v) in &fa {
+        assert!(v == &fb[k], "{} differs", k.display());
+    }
+    let ts = load_tileset(&mem.join("tileset.json")).unwrap();
+    let meta = splat2tiles::variants::content_variant_metadata(&ts);
+    assert!(meta.values().all(|(_, _, u)| u[1] > 0.0 && u[1] < 1.0));
+}
