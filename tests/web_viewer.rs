@@ -183,3 +183,101 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
         shot.display()
     );
 }
+
+/// High and Medium (EXT_meshopt_compression, decoded by the pure-Rust decoder in wasm) stream,
+/// decode and render in headless Chromium like the native decode of the same variant: every
+/// splat resident and the picture matching a reference render of a tileset whose content
+/// template points at that variant.
+#[test]
+fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
+    require_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("donut");
+    run(Command::new(bin())
+        .arg("convert")
+        .arg(scene("donut_fused_sh0.ply"))
+        .args(["--variants", "all", "--no-utility", "-o"])
+        .arg(&dir));
+    let (w, h) = (480u32, 360u32);
+    for level in ["high", "medium"] {
+        // The native reference: the same tileset with content.uri on this variant's files.
+        let native = tmp.path().join(format!("native-{level}"));
+        std::fs::create_dir_all(&native).unwrap();
+        let ts = std::fs::read_to_string(dir.join("tileset.json")).unwrap();
+        assert!(ts.contains("tiles/best/"), "no Best content template");
+        let ts_native = dir.join(format!("tileset-{level}.json"));
+        std::fs::write(
+            &ts_native,
+            ts.replace("tiles/best/", &format!("tiles/{level}/")),
+        )
+        .unwrap();
+        let reference = native.join("reference.png");
+        let note = run(Command::new(bin())
+            .arg("render")
+            .arg(&ts_native)
+            .args(["--auto-view", "0", "--width", &w.to_string()])
+            .args(["--height", &h.to_string(), "-o"])
+            .arg(&reference));
+        std::fs::remove_file(&ts_native).unwrap();
+        let splats: u64 = note
+            .split(" tiles, ")
+            .nth(1)
+            .and_then(|s| s.split(' ').next())
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("no splat count in: {note}"));
+
+        let viewing = view(&dir, &tmp.path().join(format!("view-{level}.log")));
+        let shot = native.join("web.png");
+        let o = Command::new("node")
+            .arg(js_dir().join("web_viewer.mjs"))
+            .arg(&viewing.base)
+            .arg("--shot")
+            .arg(&shot)
+            .args(["--width", &w.to_string(), "--height", &h.to_string()])
+            .args(["--levels", level])
+            .output()
+            .expect("cannot run `node` (install Node >= 20)");
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        let v: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| {
+            panic!(
+                "web_viewer.mjs printed no JSON ({e}):\n{stdout}\n{}",
+                String::from_utf8_lossy(&o.stderr)
+            )
+        });
+        drop(viewing);
+        assert!(
+            o.status.success() && v["ok"] == true,
+            "{level}: run failed: {v:#}"
+        );
+        assert_eq!(
+            v["problems"],
+            Value::Array(vec![]),
+            "{level}: console problems: {v:#}"
+        );
+        let responses = v["responses"].as_array().unwrap();
+        assert!(
+            responses.iter().any(|r| r["url"]
+                .as_str()
+                .is_some_and(|u| u.contains(&format!("/tiles/{level}/")))),
+            "{level}: no {level} tile was fetched: {v:#}"
+        );
+        assert!(
+            !responses.iter().any(|r| r["url"]
+                .as_str()
+                .is_some_and(|u| u.contains("/tiles/best/"))),
+            "{level}: Best tiles were fetched although only {level} was allowed"
+        );
+        let fin = &v["final"];
+        assert!(u(&fin["errors"]) == 0, "{level}: {fin:#}");
+        assert_eq!(u(&fin["residentSplats"]), splats, "{level}: {fin:#}");
+        let a = Image::load_png(&shot).unwrap();
+        let b = Image::load_png(&reference).unwrap();
+        let s = ssim(&a, &b).unwrap();
+        eprintln!("web viewer {level} vs native {level}: SSIM {s:.4} ({splats} splats)");
+        assert!(
+            s >= MIN_SSIM,
+            "{level}: SSIM {s:.4} < {MIN_SSIM}: {}",
+            shot.display()
+        );
+    }
+}

@@ -71,6 +71,10 @@ pub struct ConvertArgs {
     /// Do not render tiles to measure variant utilities (stored as -1).
     #[arg(long)]
     pub no_utility: bool,
+    /// Measure variant utilities by rendering every tile (the definition; slow) instead of the
+    /// calibrated estimate from per-splat differences (spec/quality-variants.md).
+    #[arg(long, conflicts_with = "no_utility")]
+    pub utility_renders: bool,
     /// Memory budget, e.g. 512MiB or 2GiB: scenes that do not fit are split into regions spilled
     /// to the staging folder (binary PLY, .splat); ascii PLY and SPZ inputs estimated above it are
     /// refused before anything is allocated [default: half the RAM, at most 4GiB].
@@ -110,7 +114,7 @@ pub fn run(args: ConvertArgs) -> i32 {
             profile: args.profile,
             variants: args.variants.iter().flatten().copied().collect(),
             measure_utility: !args.no_utility,
-            ..Default::default()
+            utility_renders: args.utility_renders,
         },
         memory_limit: args
             .memory_limit

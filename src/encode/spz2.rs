@@ -112,9 +112,11 @@ pub fn encode_spz_v2_raw(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -
     out
 }
 
-/// Gzips `raw` (the SPZ v2 container is a gzip stream).
+/// Gzips `raw` (the SPZ v2 container is a gzip stream) at zlib's default level 6: level 9
+/// made the Low variant most of `--variants all`'s encoding time for well under 1% of its
+/// bytes (BENCHMARKS.md, "Quality variants").
 pub fn gzip(raw: &[u8]) -> Vec<u8> {
-    let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
     enc.write_all(raw).expect("writing to memory");
     enc.finish().expect("writing to memory")
 }

@@ -40,7 +40,7 @@ pub fn schema_properties() -> (Value, Value) {
             "type": "SCALAR", "componentType": "UINT32", "array": true, "count": 4
         },
         "variantUtility": {
-            "description": "Mean SSIM of each variant against Best over 8 views (TileSplat eq. 3); -1: not measured.",
+            "description": "Utility of each variant (TileSplat eq. 3, method in the tileset's utilityMethod; Best = 1); -1: not measured.",
             "type": "SCALAR", "componentType": "FLOAT32", "array": true, "count": 4,
             "noData": [-1.0, -1.0, -1.0, -1.0]
         }

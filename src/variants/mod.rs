@@ -6,15 +6,17 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::{DMat3, DMat4, DVec3};
+
+pub mod estimate;
+pub mod utility;
 use serde_json::{Value, json};
+pub use utility::utilities;
 
 use crate::encode::GlbError;
 use crate::encode::gltf::EXT_MESHOPT_COMPRESSION;
 use crate::encode::meshopt::{HIGH, MEDIUM, decompress_meshopt_glb, write_meshopt_glb};
 use crate::encode::spz2::{SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb};
 use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
-use crate::render::camera::DEFAULT_FOV_Y_DEG;
-use crate::render::{RenderOptions, auto_views_with, render_splats, ssim};
 use crate::splat::Splats;
 use crate::tiling::load::{
     LoadedTileset, expand_template, implicit_root, parse_subtree_tiles, resolve_inside,
@@ -115,10 +117,12 @@ pub struct VariantOptions {
     pub profile: Profile,
     /// Variants to write (the profile's default is always added).
     pub variants: Vec<Variant>,
-    /// Measure utilities (8 renders per variant and tile); otherwise they are stored as -1.
+    /// Store utilities; otherwise they are stored as -1.
     pub measure_utility: bool,
-    /// Size of the utility renders.
-    pub view_size: (u32, u32),
+    /// Measure them by rendering (`utility::utilities`, 8 views per variant and tile: the
+    /// definition, about 10x the conversion) instead of the calibrated estimate
+    /// (`estimate::estimated_utilities`, no renders).
+    pub utility_renders: bool,
 }
 
 impl Default for VariantOptions {
@@ -127,7 +131,7 @@ impl Default for VariantOptions {
             profile: Profile::Default,
             variants: vec![Variant::Best],
             measure_utility: true,
-            view_size: (128, 96),
+            utility_renders: false,
         }
     }
 }
@@ -149,7 +153,7 @@ pub struct ContentFacts {
     pub splat_count: u32,
     /// Bytes of each variant's glb (0: not written), in [`ALL`] order.
     pub variant_bytes: [u32; 4],
-    /// Utility of each variant (mean SSIM against Best over 8 views; -1: not measured).
+    /// Utility of each variant (`utility::utilities`; 1 for Best; -1: not measured).
     pub variant_utility: [f32; 4],
     /// Seconds spent encoding each variant.
     pub encode_seconds: [f64; 4],
@@ -254,7 +258,11 @@ pub fn write_tile_contents(
             let reference = relative(splats, centre_s);
             let up = up_in_source(node_matrix);
             let refs: Vec<&Splats> = decoded.iter().map(|(_, s)| s).collect();
-            let u = utilities(&reference, &refs, up, opts.view_size);
+            let u = if opts.utility_renders {
+                utilities(&reference, &refs, up)
+            } else {
+                estimate::estimated_utilities(&reference, &refs, up)
+            };
             for ((v, _), u) in decoded.iter().zip(u) {
                 facts.variant_utility[v.index()] = u as f32;
             }
@@ -278,43 +286,6 @@ pub fn relative(splats: &Splats, centre: [f64; 3]) -> Splats {
 pub fn up_in_source(node_matrix: [f64; 16]) -> DVec3 {
     let m = DMat3::from_mat4(DMat4::from_cols_array(&node_matrix));
     (m.transpose() * DVec3::Y).normalize_or(DVec3::Y)
-}
-
-/// TileSplat eq. 3: for each candidate, the mean SSIM of its renders against `reference`'s over
-/// the 8 automatic views (`auto_views_with`, 50 deg fov) around the reference's bounds.
-pub fn utilities(
-    reference: &Splats,
-    candidates: &[&Splats],
-    up: DVec3,
-    (w, h): (u32, u32),
-) -> Vec<f64> {
-    let Some((lo, hi)) = reference.bounds() else {
-        return vec![1.0; candidates.len()];
-    };
-    let views = auto_views_with(
-        DVec3::from_array(lo),
-        DVec3::from_array(hi),
-        up,
-        w,
-        h,
-        DEFAULT_FOV_Y_DEG,
-    );
-    let opts = RenderOptions::default();
-    let base: Vec<_> = views
-        .iter()
-        .map(|c| render_splats(reference, c, &opts))
-        .collect();
-    candidates
-        .iter()
-        .map(|s| {
-            let total: f64 = views
-                .iter()
-                .zip(&base)
-                .map(|(c, b)| ssim(b, &render_splats(s, c, &opts)).unwrap_or(0.0))
-                .sum();
-            total / views.len() as f64
-        })
-        .collect()
 }
 
 /// Decodes any variant's glb (plain, interleaved, meshopt or SPZ_2) into tile-relative splats
@@ -362,12 +333,7 @@ pub fn tileset_metadata(scheme: Scheme, opts: &VariantOptions) -> Value {
             "variantUris": uris,
             "variantFormats": ALL.iter().map(|v| v.format()).collect::<Vec<_>>(),
             "defaultVariant": opts.profile.default_variant().index(),
-            "utilityMethod": format!(
-                "mean SSIM vs Best over the 8 auto views (30 deg elevation, 45 deg steps, {} deg \
-                 vertical fov) around the tile's splat-centre box, {}x{} px, black background, \
-                 reference CPU renderer",
-                DEFAULT_FOV_Y_DEG, opts.view_size.0, opts.view_size.1
-            ),
+            "utilityMethod": if opts.utility_renders { utility::METHOD } else { estimate::METHOD },
         }
     })
 }

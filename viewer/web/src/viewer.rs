@@ -44,20 +44,19 @@ impl Options {
                 .to_ascii_lowercase();
             let level = match name.as_str() {
                 "best" => Level::Best,
+                "high" => Level::High,
+                "medium" => Level::Medium,
                 "low" => Level::Low,
-                "high" | "medium" => {
-                    return Err(format!(
-                        "level '{name}' needs the native build (meshopt); the web viewer decodes best and low"
-                    ));
+                other => {
+                    return Err(format!("unknown level '{other}' (best, high, medium, low)"));
                 }
-                other => return Err(format!("unknown level '{other}' (best, low)")),
             };
             if !levels.contains(&level) {
                 levels.push(level);
             }
         }
         if levels.is_empty() {
-            levels = vec![Level::Best, Level::Low];
+            levels = Level::ALL.to_vec();
         }
         let auto_view = num("autoView", 0.0);
         let o = Options {
