@@ -6,6 +6,7 @@ pub mod gltf;
 pub mod meshopt;
 pub mod prefix;
 pub mod spz2;
+pub mod table6;
 pub mod tile;
 
 pub use glb::GlbError;

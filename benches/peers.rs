@@ -1,0 +1,396 @@
+//! Fidelity per byte against the peers (issue 16, item 4): our four variants, TileSplat's Table 6
+//! bit allocation, SPZ v2 (our writer), SPZ v3/v4 and PlayCanvas SOG (splat-transform).
+//!
+//! Each scene (the three shared scenes, `../shared/scenes/README.md`, and the plant with generated
+//! SH1-3) is encoded whole by every codec, decoded by that codec's own reader (ours, or
+//! splat-transform back to PLY), and rendered by the CPU reference renderer from the 8 automatic
+//! views at 1280x720 (mid-grey background) around the box holding 99% of the splat centres on each
+//! axis; the score is the mean SSIM against the float32 scene's renders. Bytes: the encoded file,
+//! and that file gzip -9 (what an HTTP server sends; SPZ and SOG are compressed already).
+//!
+//! Run: `npm ci --prefix tests/js` once, then `cargo bench --bench peers` (writes
+//! `target/peers.md` and `docs/peers.svg`; `PEERS_SCENES=plant` runs one scene).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use glam::DVec3;
+use rayon::prelude::*;
+use splat2tiles::encode::spz2::{SpzOptions, encode_spz_v2, gzip};
+use splat2tiles::encode::table6;
+use splat2tiles::encode::tile::IDENTITY;
+use splat2tiles::frame::UpAxis;
+use splat2tiles::io::{read_path, write_ply};
+use splat2tiles::render::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+use splat2tiles::render::{Camera, Image, render_splats, ssim};
+use splat2tiles::splat::Splats;
+use splat2tiles::variants::{ALL, decode_variant, relative, utility::render_options};
+
+/// One encoded scene: which codec, how many bytes, what it looks like.
+struct Point {
+    scene: String,
+    family: &'static str,
+    codec: String,
+    file: usize,
+    gz: usize,
+    /// Mean SSIM at each zoom of [`ZOOMS`].
+    ssim: [f64; 2],
+    splats: usize,
+}
+
+impl Point {
+    /// Bytes sent: the file, or its gzip when that is smaller.
+    fn wire(&self) -> usize {
+        self.file.min(self.gz)
+    }
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The plant with small random SH1-3 coefficients (|c| <= 0.08), as in tests/variants_utility.rs.
+fn plant_sh3(plant: &Splats) -> Splats {
+    let mut s = plant.clone();
+    let mut x = 99u64;
+    let mut f = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    s.sh_degree = 3;
+    s.sh_rest = (0..s.len() * 15)
+        .map(|_| [0, 1, 2].map(|_| (f() * 0.16 - 0.08) as f32))
+        .collect();
+    s
+}
+
+/// The box holding the 0.5%..99.5% quantiles of the centres on each axis (floaters far out
+/// would otherwise shrink the scene to a few pixels of the frame).
+fn core_box(s: &Splats) -> (DVec3, DVec3) {
+    let mut lo = [0.0; 3];
+    let mut hi = [0.0; 3];
+    for a in 0..3 {
+        let mut v: Vec<f64> = s.positions.iter().map(|p| p[a]).collect();
+        v.sort_by(f64::total_cmp);
+        let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+        lo[a] = q(0.005);
+        hi[a] = q(0.995);
+    }
+    (DVec3::from_array(lo), DVec3::from_array(hi))
+}
+
+fn render_all(s: &Splats, cams: &[Camera]) -> Vec<Image> {
+    let opts = render_options();
+    cams.par_iter()
+        .map(|c| render_splats(s, c, &opts))
+        .collect()
+}
+
+/// Focal-length factors of the two view sets: the scene framed (1x) and its centre magnified
+/// 4x (the same eyes; detail a viewer sees close up, where quantisation shows).
+const ZOOMS: [f64; 2] = [1.0, 4.0];
+
+fn zoomed(cams: &[Camera], z: f64) -> Vec<Camera> {
+    cams.iter()
+        .map(|c| Camera {
+            fx: c.fx * z,
+            fy: c.fy * z,
+            ..*c
+        })
+        .collect()
+}
+
+fn mean_ssim(base: &[Image], s: &Splats, cams: &[Camera]) -> f64 {
+    let imgs = render_all(s, cams);
+    let sum: f64 = base
+        .iter()
+        .zip(&imgs)
+        .map(|(a, b)| ssim(a, b).unwrap_or(0.0))
+        .sum();
+    sum / base.len() as f64
+}
+
+/// Runs splat-transform with `args`; panics with its output when it fails.
+fn splat_transform(args: &[&str]) -> Result<(), String> {
+    let cli = root().join("tests/js/node_modules/@playcanvas/splat-transform/bin/cli.mjs");
+    if !cli.exists() {
+        return Err(format!(
+            "{} is missing: run `npm ci --prefix tests/js`",
+            cli.display()
+        ));
+    }
+    let out = Command::new("node")
+        .arg(&cli)
+        .args(["-q", "-w"])
+        .args(args)
+        .output()
+        .map_err(|e| format!("node: {e}"))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(format!(
+            "splat-transform {args:?}: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        ))
+    }
+}
+
+/// A peer format written and read back by splat-transform: (file bytes, decoded splats).
+fn via_splat_transform(
+    ply: &Path,
+    dir: &Path,
+    name: &str,
+    extra: &[&str],
+) -> Result<(Vec<u8>, Splats), String> {
+    let enc = dir.join(name);
+    let back = dir.join(format!("{name}.back.ply"));
+    let mut args: Vec<&str> = extra.to_vec();
+    let (p, e, b) = (
+        ply.to_str().unwrap(),
+        enc.to_str().unwrap(),
+        back.to_str().unwrap(),
+    );
+    args.extend([p, e]);
+    splat_transform(&args)?;
+    splat_transform(&[e, b])?;
+    let bytes = std::fs::read(&enc).map_err(|x| x.to_string())?;
+    let s = read_path(&back).map_err(|x| x.to_string())?.splats;
+    Ok((bytes, s))
+}
+
+fn main() {
+    let dir = root().join("../shared/scenes");
+    let only = std::env::var("PEERS_SCENES").unwrap_or_default();
+    let plant = read_path(&dir.join("plant.splat")).unwrap();
+    let mut scenes: Vec<(String, Splats, UpAxis)> = vec![];
+    for f in ["plant.splat", "donut_fused_sh0.ply", "biker.spz"] {
+        let sc = read_path(&dir.join(f)).unwrap();
+        let up: UpAxis = sc.format.default_up_axis().parse().unwrap();
+        scenes.push((format!("{f} (SH0)"), sc.splats, up));
+    }
+    scenes.push((
+        "plant + generated SH1-3".into(),
+        plant_sh3(&plant.splats),
+        "-y".parse().unwrap(),
+    ));
+    scenes.retain(|(n, ..)| only.is_empty() || n.contains(&only));
+
+    let tmp = tempfile::tempdir().unwrap();
+    let mut points: Vec<Point> = vec![];
+    for (name, splats, up) in &scenes {
+        let t0 = std::time::Instant::now();
+        let (lo, hi) = core_box(splats);
+        let centre = ((lo + hi) * 0.5).to_array();
+        let rel = relative(splats, centre);
+        let n = rel.len();
+        let up_s = up.to_z_up().transpose() * DVec3::Z;
+        let (rlo, rhi) = core_box(&rel);
+        let views = auto_views_with(rlo, rhi, up_s, 1280, 720, DEFAULT_FOV_Y_DEG);
+        let cams: Vec<Vec<Camera>> = ZOOMS.iter().map(|&z| zoomed(&views, z)).collect();
+        let base: Vec<Vec<Image>> = cams.iter().map(|c| render_all(&rel, c)).collect();
+        let mut add = |family: &'static str, codec: String, file: Vec<u8>, dec: &Splats| {
+            assert_eq!(dec.len(), n, "{name} {codec}: splat count");
+            let p = Point {
+                scene: name.clone(),
+                family,
+                codec,
+                gz: gzip(&file).len(),
+                file: file.len(),
+                ssim: [0, 1].map(|k| mean_ssim(&base[k], dec, &cams[k])),
+                splats: n,
+            };
+            eprintln!(
+                "{name}: {} {} {:.2} B/splat, SSIM {:.5} / {:.5}",
+                p.family,
+                p.codec,
+                p.wire() as f64 / n as f64,
+                p.ssim[0],
+                p.ssim[1]
+            );
+            points.push(p);
+        };
+        for v in ALL {
+            let glb = v.encode(&rel, [0.0; 3], IDENTITY).unwrap();
+            let (dec, _) = decode_variant(&glb).unwrap();
+            add("splat2tiles", v.name().to_string(), glb, &dec);
+        }
+        for (lv, bits) in table6::LEVELS {
+            let enc = table6::encode(&rel, &bits);
+            let dec = table6::decode(&enc).unwrap();
+            add("TileSplat Table 6", lv.to_string(), enc, &dec);
+        }
+        let spz = encode_spz_v2(&rel, [0.0; 3], &SpzOptions::default());
+        let dec = splat2tiles::io::read_bytes("v2.spz", &spz).unwrap().splats;
+        add("SPZ", "v2 (ours)".into(), spz, &dec);
+        let ply = tmp.path().join("scene.ply");
+        write_ply(
+            &rel,
+            std::io::BufWriter::new(std::fs::File::create(&ply).unwrap()),
+        )
+        .unwrap();
+        for (family, codec, file, extra) in [
+            (
+                "SPZ",
+                "v3 (splat-transform)",
+                "s3.spz",
+                &["--spz-version", "3"][..],
+            ),
+            (
+                "SPZ",
+                "v4 (splat-transform)",
+                "s4.spz",
+                &["--spz-version", "4"][..],
+            ),
+            ("SOG", "SOG (splat-transform)", "s.sog", &["-g", "cpu"][..]),
+        ] {
+            match via_splat_transform(&ply, tmp.path(), file, extra) {
+                Ok((bytes, dec)) => add(family, codec.into(), bytes, &dec),
+                Err(e) => eprintln!("{name}: {codec} skipped: {e}"),
+            }
+        }
+        eprintln!("{name}: {n} splats, {:.0} s", t0.elapsed().as_secs_f64());
+    }
+    let md = table(&points);
+    println!("{md}");
+    let target =
+        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
+    std::fs::create_dir_all(&target).unwrap();
+    std::fs::write(target.join("peers.md"), &md).unwrap();
+    let svg = plot(&points);
+    std::fs::write(root().join("docs/peers.svg"), svg).unwrap();
+    eprintln!("wrote target/peers.md and docs/peers.svg");
+}
+
+/// Our smallest wire bytes per splat with both SSIMs at least `s`'s on `scene`, if any variant
+/// reaches them.
+fn ours_at(points: &[Point], scene: &str, s: [f64; 2]) -> Option<f64> {
+    points
+        .iter()
+        .filter(|p| {
+            p.scene == scene && p.family == "splat2tiles" && p.ssim[0] >= s[0] && p.ssim[1] >= s[1]
+        })
+        .map(|p| p.wire() as f64 / p.splats as f64)
+        .min_by(f64::total_cmp)
+}
+
+fn table(points: &[Point]) -> String {
+    let mut s = String::from(
+        "| scene | codec | B/splat file | B/splat gzip -9 | mean SSIM, framed | mean SSIM, 4x zoom | our B/splat at >= both SSIMs | ours / theirs |\n|---|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for p in points {
+        let per = |b: usize| b as f64 / p.splats as f64;
+        let (ours, ratio) = if p.family == "splat2tiles" {
+            ("-".to_string(), "-".to_string())
+        } else {
+            match ours_at(points, &p.scene, p.ssim) {
+                Some(b) => (format!("{b:.2}"), format!("{:.2}", b / per(p.wire()))),
+                None => ("(none)".into(), "-".into()),
+            }
+        };
+        writeln!(
+            s,
+            "| {} | {} {} | {:.2} | {:.2} | {:.5} | {:.5} | {ours} | {ratio} |",
+            p.scene,
+            p.family,
+            p.codec,
+            per(p.file),
+            per(p.gz),
+            p.ssim[0],
+            p.ssim[1]
+        )
+        .unwrap();
+    }
+    s
+}
+
+/// One panel per scene: mean SSIM against wire bytes per splat (log x), one colour per family.
+fn plot(points: &[Point]) -> String {
+    let mut scenes: Vec<&str> = points.iter().map(|p| p.scene.as_str()).collect();
+    scenes.dedup();
+    let families = [
+        ("splat2tiles", "#d62728"),
+        ("TileSplat Table 6", "#1f77b4"),
+        ("SPZ", "#2ca02c"),
+        ("SOG", "#9467bd"),
+    ];
+    let (pw, ph, l, t, b) = (460.0, 300.0, 60.0, 40.0, 40.0);
+    let cols = 2usize;
+    let rows = scenes.len().div_ceil(cols);
+    let (w, h) = (pw * cols as f64 + 20.0, ph * rows as f64 + 60.0);
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<text x=\"20\" y=\"20\" font-size=\"14\">1 - mean SSIM (1280x720, 8 views, 4x zoom; log scale, better upwards) against bytes per splat sent (file or gzip, the smaller; log): benches/peers.rs</text>\n"
+    );
+    for (k, (f, c)) in families.iter().enumerate() {
+        let x = 20.0 + k as f64 * 150.0;
+        writeln!(s, "<rect x=\"{x}\" y=\"{}\" width=\"10\" height=\"10\" fill=\"{c}\"/><text x=\"{}\" y=\"{}\">{f}</text>", h - 22.0, x + 14.0, h - 13.0).unwrap();
+    }
+    for (si, scene) in scenes.iter().enumerate() {
+        let (ox, oy) = (
+            10.0 + (si % cols) as f64 * pw,
+            30.0 + (si / cols) as f64 * ph,
+        );
+        let pts: Vec<&Point> = points.iter().filter(|p| p.scene == *scene).collect();
+        let bx = |p: &Point| (p.wire() as f64 / p.splats as f64).log10();
+        let x0 = pts.iter().map(|p| bx(p)).fold(f64::MAX, f64::min).floor();
+        let x1 = pts.iter().map(|p| bx(p)).fold(f64::MIN, f64::max).ceil();
+        // y: log10(1 - SSIM at 4x zoom), lower is better.
+        let dy = |p: &Point| (1.0 - p.ssim[1]).max(1e-6).log10();
+        let y1 = pts.iter().map(|p| dy(p)).fold(f64::MAX, f64::min).floor();
+        let y0 = pts.iter().map(|p| dy(p)).fold(f64::MIN, f64::max).ceil();
+        let (iw, ih) = (pw - l - 20.0, ph - t - b);
+        let px = |v: f64| ox + l + (v - x0) / (x1 - x0).max(1e-9) * iw;
+        let py = |v: f64| oy + t + (y1 - v) / (y1 - y0).max(1e-9) * ih;
+        writeln!(
+            s,
+            "<text x=\"{}\" y=\"{}\" font-size=\"13\">{scene}</text>",
+            ox + l,
+            oy + t - 8.0
+        )
+        .unwrap();
+        let mut d = x0;
+        while d <= x1 + 1e-9 {
+            for m in [1.0, 2.0, 5.0] {
+                let v = 10f64.powf(d) * m;
+                if v.log10() > x1 + 1e-9 {
+                    break;
+                }
+                let x = px(v.log10());
+                writeln!(s, "<line x1=\"{x:.1}\" y1=\"{}\" x2=\"{x:.1}\" y2=\"{}\" stroke=\"#ddd\"/><text x=\"{x:.1}\" y=\"{}\" text-anchor=\"middle\">{v}</text>", oy + t, oy + t + ih, oy + t + ih + 14.0).unwrap();
+            }
+            d += 1.0;
+        }
+        let mut v = y1;
+        while v <= y0 + 1e-9 {
+            let y = py(v);
+            writeln!(s, "<line x1=\"{}\" y1=\"{y:.1}\" x2=\"{}\" y2=\"{y:.1}\" stroke=\"#ddd\"/><text x=\"{}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>", ox + l, ox + l + iw, ox + l - 4.0, y + 4.0, 10f64.powf(v)).unwrap();
+            v += 1.0;
+        }
+        for (f, c) in families {
+            let mut fp: Vec<&&Point> = pts.iter().filter(|p| p.family == f).collect();
+            fp.sort_by(|a, b| a.wire().cmp(&b.wire()));
+            if fp.len() > 1 {
+                let path: Vec<String> = fp
+                    .iter()
+                    .map(|p| format!("{:.1},{:.1}", px(bx(p)), py(dy(p))))
+                    .collect();
+                writeln!(
+                    s,
+                    "<polyline points=\"{}\" fill=\"none\" stroke=\"{c}\" stroke-width=\"1.2\"/>",
+                    path.join(" ")
+                )
+                .unwrap();
+            }
+            for p in fp {
+                let (x, y) = (px(bx(p)), py(dy(p)));
+                let label = p.codec.split(' ').next().unwrap_or("");
+                writeln!(s, "<circle cx=\"{x:.1}\" cy=\"{y:.1}\" r=\"3\" fill=\"{c}\"/><text x=\"{:.1}\" y=\"{:.1}\" font-size=\"9\" fill=\"{c}\">{label}</text>", x + 4.0, y - 4.0).unwrap();
+            }
+        }
+    }
+    s.push_str("</svg>\n");
+    s
+}
