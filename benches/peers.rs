@@ -386,7 +386,7 @@ fn plot(points: &[Point]) -> String {
         }
         for (f, c) in families {
             let mut fp: Vec<&&Point> = pts.iter().filter(|p| p.family == f).collect();
-            fp.sort_by(|a, b| a.wire().cmp(&b.wire()));
+            fp.sort_by_key(|p| p.wire());
             if fp.len() > 1 {
                 let path: Vec<String> = fp
                     .iter()

@@ -309,6 +309,8 @@ pub fn decode(bytes: &[u8]) -> Result<Splats, Table6Error> {
     let rest = sh_rest_count(sh_degree);
     let mut s = Splats::with_capacity(sh_degree, n);
     let mut sh = vec![[0f32; 3]; rest];
+    // Column-major values: splat i is row i of every column.
+    #[allow(clippy::needless_range_loop)]
     for i in 0..n {
         for (k, c) in sh.iter_mut().enumerate() {
             *c = [0, 1, 2].map(|a| cols[13 + 3 * k + a][i]);
