@@ -379,7 +379,7 @@ mod tests {
                     );
                     assert!((d.sh0[i][0] - s.sh0[i][0]).abs() as f64 <= step(b.dc, 1.0) + 1e-6);
                 }
-                let payload = enc.len() - HEADER - (16 + 3 * sh_rest_count(degree)) * 8;
+                let payload = enc.len() - HEADER - (14 + 3 * sh_rest_count(degree)) * 8;
                 assert_eq!(payload as u64, (257 * b.bits_per_splat(degree)).div_ceil(8));
             }
         }
