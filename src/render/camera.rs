@@ -210,6 +210,32 @@ pub fn auto_views_with(
     height: u32,
     fov_y_deg: f64,
 ) -> Vec<Camera> {
+    let c = (bounds_min + bounds_max) * 0.5;
+    let r = box_radius(bounds_min, bounds_max);
+    let fy = fov_y_deg.to_radians();
+    let fx = 2.0 * ((width as f64 / height as f64) * (fy * 0.5).tan()).atan();
+    let dist = r / (fx.min(fy) * 0.5).sin();
+    orbit_views(c, up, dist, width, height, fov_y_deg)
+}
+
+/// Half the diagonal of a box, 1 for a degenerate or non-finite box (the radius
+/// [`auto_views_with`] frames).
+pub fn box_radius(bounds_min: DVec3, bounds_max: DVec3) -> f64 {
+    let r = (bounds_max - bounds_min).length() * 0.5;
+    if r.is_finite() && r > 0.0 { r } else { 1.0 }
+}
+
+/// The 8 viewpoints of [`auto_views_with`] at distance `dist` from `centre`: azimuth `45 k`
+/// degrees from `e1` towards `e2`, elevation 30 degrees, looking at `centre` with image-up
+/// along `up`.
+pub fn orbit_views(
+    centre: DVec3,
+    up: DVec3,
+    dist: f64,
+    width: u32,
+    height: u32,
+    fov_y_deg: f64,
+) -> Vec<Camera> {
     let u = up.normalize_or(DVec3::Z);
     let axes = [DVec3::X, DVec3::Y, DVec3::Z];
     let mut a = axes[0];
@@ -220,21 +246,13 @@ pub fn auto_views_with(
     }
     let e1 = (a - a.dot(u) * u).normalize();
     let e2 = u.cross(e1);
-    let c = (bounds_min + bounds_max) * 0.5;
-    let mut r = (bounds_max - bounds_min).length() * 0.5;
-    if !(r.is_finite() && r > 0.0) {
-        r = 1.0;
-    }
-    let fy = fov_y_deg.to_radians();
-    let fx = 2.0 * ((width as f64 / height as f64) * (fy * 0.5).tan()).atan();
-    let dist = r / (fx.min(fy) * 0.5).sin();
     let el = AUTO_VIEW_ELEVATION_DEG.to_radians();
     (0..AUTO_VIEW_COUNT)
         .map(|k| {
             let az = (k as f64 * 45.0).to_radians();
             let h = az.cos() * e1 + az.sin() * e2;
-            let eye = c + dist * (el.cos() * h + el.sin() * u);
-            Camera::look_at(width, height, fov_y_deg, eye, c, u)
+            let eye = centre + dist * (el.cos() * h + el.sin() * u);
+            Camera::look_at(width, height, fov_y_deg, eye, centre, u)
         })
         .collect()
 }

@@ -4,9 +4,7 @@
 use glam::DVec3;
 
 use crate::lod::eval::{VIEWER_HEIGHT, switching_distance, viewer_focal};
-use crate::render::camera::{
-    AUTO_VIEW_COUNT, AUTO_VIEW_ELEVATION_DEG, DEFAULT_FOV_Y_DEG, DEFAULT_WIDTH,
-};
+use crate::render::camera::{DEFAULT_FOV_Y_DEG, DEFAULT_WIDTH, box_radius, orbit_views};
 use crate::render::metrics::mse;
 use crate::render::{Camera, Image, RenderOptions, render_splats, ssim};
 use crate::splat::Splats;
@@ -48,7 +46,7 @@ pub struct ViewSetup {
 impl ViewSetup {
     /// The setup for a tile whose geometric error is unknown: `VIEW_ERROR_PER_RADIUS * radius`.
     pub fn estimated(lo: DVec3, hi: DVec3, up: DVec3) -> Self {
-        let r = radius(lo, hi);
+        let r = box_radius(lo, hi);
         ViewSetup {
             lo,
             hi,
@@ -60,31 +58,26 @@ impl ViewSetup {
     /// Distance of the eye from the box centre: the switching distance (from the bounding
     /// sphere) plus the sphere's radius, as `lod::eval` measures LOD parents.
     pub fn eye_distance(&self) -> f64 {
-        switching_distance(self.error.max(0.0)) + radius(self.lo, self.hi)
+        switching_distance(self.error.max(0.0)) + box_radius(self.lo, self.hi)
     }
 
     /// The 8 full 1280x720 viewer frames (50 deg vertical field of view): azimuth 45 k degrees,
     /// elevation 30 degrees, looking at the box centre from [`Self::eye_distance`].
     pub fn full_frames(&self) -> Vec<Camera> {
-        let u = self.up.normalize_or(DVec3::Z);
-        let (e1, e2) = horizontal_axes(u);
-        let c = (self.lo + self.hi) * 0.5;
-        let dist = self.eye_distance();
-        let el = AUTO_VIEW_ELEVATION_DEG.to_radians();
-        (0..AUTO_VIEW_COUNT)
-            .map(|k| {
-                let az = (k as f64 * 45.0).to_radians();
-                let h = az.cos() * e1 + az.sin() * e2;
-                let eye = c + dist * (el.cos() * h + el.sin() * u);
-                Camera::look_at(DEFAULT_WIDTH, VIEWER_HEIGHT, DEFAULT_FOV_Y_DEG, eye, c, u)
-            })
-            .collect()
+        orbit_views(
+            (self.lo + self.hi) * 0.5,
+            self.up,
+            self.eye_distance(),
+            DEFAULT_WIDTH,
+            VIEWER_HEIGHT,
+            DEFAULT_FOV_Y_DEG,
+        )
     }
 
     /// Side (pixels) of the square window around the image centre that holds the tile's
     /// bounding sphere, 10% margin, at least [`MIN_WINDOW`], at most the frame.
     pub fn window_side(&self) -> u32 {
-        let r = radius(self.lo, self.hi);
+        let r = box_radius(self.lo, self.hi);
         let d = self.eye_distance();
         let s = (r / d).clamp(0.0, 0.999);
         let rho = viewer_focal() * s / (1.0 - s * s).sqrt();
@@ -106,26 +99,6 @@ impl ViewSetup {
             .map(|c| crop(&c, side, side))
             .collect()
     }
-}
-
-/// Half the diagonal of a box (1 for a degenerate or non-finite box).
-fn radius(lo: DVec3, hi: DVec3) -> f64 {
-    let r = (hi - lo).length() * 0.5;
-    if r.is_finite() && r > 0.0 { r } else { 1.0 }
-}
-
-/// `e1` = the world axis least aligned with `u` made orthogonal to it, `e2 = u x e1` (the
-/// horizontal axes of `render::auto_views_with`).
-fn horizontal_axes(u: DVec3) -> (DVec3, DVec3) {
-    let axes = [DVec3::X, DVec3::Y, DVec3::Z];
-    let mut a = axes[0];
-    for &cand in &axes[1..] {
-        if cand.dot(u).abs() < a.dot(u).abs() - 1e-12 {
-            a = cand;
-        }
-    }
-    let e1 = (a - a.dot(u) * u).normalize();
-    (e1, u.cross(e1))
 }
 
 /// The central `w x h` pixels of `cam`'s image, as a camera of its own.
