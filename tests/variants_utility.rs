@@ -112,47 +112,6 @@ fn damage_costs_biker() {
     check_damage("biker.spz");
 }
 
-/// The plant with small random SH degree 1-3 coefficients (|c| <= 0.08): the generated SH3 scene.
-fn plant_sh3() -> splat2tiles::io::Scene {
-    let mut sc = splat2tiles::io::read_path(&scene("plant.splat")).unwrap();
-    let mut r = Rng(99);
-    sc.splats.sh_degree = 3;
-    sc.splats.sh_rest = (0..sc.splats.len() * 15)
-        .map(|_| [0, 1, 2].map(|_| r.range(-0.08, 0.08) as f32))
-        .collect();
-    sc
-}
-
-/// Ranks (1-based, ties averaged).
-fn ranks(v: &[f64]) -> Vec<f64> {
-    let mut idx: Vec<usize> = (0..v.len()).collect();
-    idx.sort_by(|&a, &b| v[a].total_cmp(&v[b]));
-    let mut out = vec![0.0; v.len()];
-    let mut i = 0;
-    while i < idx.len() {
-        let mut j = i;
-        while j + 1 < idx.len() && v[idx[j + 1]] == v[idx[i]] {
-            j += 1;
-        }
-        for k in i..=j {
-            out[idx[k]] = (i + j) as f64 / 2.0 + 1.0;
-        }
-        i = j + 1;
-    }
-    out
-}
-
-/// Spearman rank correlation (Pearson correlation of the ranks).
-fn spearman(a: &[f64], b: &[f64]) -> f64 {
-    let (ra, rb) = (ranks(a), ranks(b));
-    let n = ra.len() as f64;
-    let (ma, mb) = (ra.iter().sum::<f64>() / n, rb.iter().sum::<f64>() / n);
-    let cov: f64 = ra.iter().zip(&rb).map(|(x, y)| (x - ma) * (y - mb)).sum();
-    let va: f64 = ra.iter().map(|x| (x - ma).powi(2)).sum();
-    let vb: f64 = rb.iter().map(|y| (y - mb).powi(2)).sum();
-    cov / (va * vb).sqrt()
-}
-
 #[test]
 fn spearman_of_known_orders() {
     assert!((spearman(&[1.0, 2.0, 3.0], &[10.0, 20.0, 30.0]) - 1.0).abs() < 1e-12);
