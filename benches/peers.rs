@@ -17,6 +17,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
+mod common;
+use common::plant_sh3;
 use glam::DVec3;
 use rayon::prelude::*;
 use splat2tiles::encode::spz2::{SpzOptions, encode_spz_v2, gzip};
@@ -50,23 +52,6 @@ impl Point {
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The plant with small random SH1-3 coefficients (|c| <= 0.08), as in tests/variants_utility.rs.
-fn plant_sh3(plant: &Splats) -> Splats {
-    let mut s = plant.clone();
-    let mut x = 99u64;
-    let mut f = move || {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        (x >> 11) as f64 / (1u64 << 53) as f64
-    };
-    s.sh_degree = 3;
-    s.sh_rest = (0..s.len() * 15)
-        .map(|_| [0, 1, 2].map(|_| (f() * 0.16 - 0.08) as f32))
-        .collect();
-    s
 }
 
 /// The box holding the 0.5%..99.5% quantiles of the centres on each axis (floaters far out

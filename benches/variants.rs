@@ -4,6 +4,8 @@
 //! Run: `cargo bench --bench variants` (prints a Markdown table, writes
 //! `docs/variants_ssim_bytes.svg`).
 
+mod common;
+use common::plant_sh3;
 use splat2tiles::convert::{ConvertOptions, convert_scene};
 use splat2tiles::encode::spz2::{SpzOptions, encode_spz_v2, encode_spz_v2_raw, gzip};
 use splat2tiles::io::{Scene, read_path};
@@ -19,20 +21,10 @@ struct Point {
     mean: f64,
 }
 
-/// The plant with small random SH1-3 coefficients (|c| <= 0.08), as in tests/variants_quality.rs.
-fn plant_sh3(plant: &Scene) -> Scene {
+/// The plant scene with [`plant_sh3`]'s splats.
+fn plant_sh3_scene(plant: &Scene) -> Scene {
     let mut sc = plant.clone();
-    let mut x = 99u64;
-    let mut f = move || {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        (x >> 11) as f64 / (1u64 << 53) as f64
-    };
-    sc.splats.sh_degree = 3;
-    sc.splats.sh_rest = (0..sc.splats.len() * 15)
-        .map(|_| [0, 1, 2].map(|_| (f() * 0.16 - 0.08) as f32))
-        .collect();
+    sc.splats = plant_sh3(&plant.splats);
     sc
 }
 
@@ -63,7 +55,10 @@ fn main() {
             "biker.spz (SH0)".to_string(),
             read_path(&scenes_dir.join("biker.spz")).unwrap(),
         ),
-        ("plant + synthetic SH1-3".to_string(), plant_sh3(&plant)),
+        (
+            "plant + synthetic SH1-3".to_string(),
+            plant_sh3_scene(&plant),
+        ),
     ];
     let mut table = String::from(
         "| scene | variant | tiles | B/splat (file) | B/splat raw | B/splat gzip -9 | mean SSIM | worst SSIM | encode s |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n",

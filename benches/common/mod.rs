@@ -1,8 +1,11 @@
 //! Helpers shared by the bench binaries that drive the CLI (one process per run, so peak RSS is
-//! that run's alone).
+//! that run's alone), and the generated inputs they share.
+#![allow(dead_code)] // each bench binary uses only some of them
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+use splat2tiles::splat::{Splat, Splats, sh_rest_count};
 
 /// Builds the release `splat2tiles` binary and returns its path (honours `CARGO_TARGET_DIR`).
 pub fn release_binary() -> PathBuf {
@@ -17,4 +20,55 @@ pub fn release_binary() -> PathBuf {
         .map(PathBuf::from)
         .unwrap_or_else(|| root.join("target"));
     target.join("release/splat2tiles")
+}
+
+/// Writes `n` random SH3 splats (fixed seed) as a trainer PLY; all `n` are held in memory
+/// first (about 250 B each).
+pub fn generate_sh3_ply(path: &Path, n: usize) {
+    let mut x = 0x2545_F491_4F6C_DD1Du64;
+    let mut f = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut all = Splats::with_capacity(3, n);
+    for _ in 0..n {
+        let s = Splat {
+            position: [f() * 100.0, f() * 30.0, f() * 100.0],
+            scale: [0.01 + f() as f32 * 0.1; 3],
+            rotation: splat2tiles::splat::normalize_quat([
+                f() as f32 - 0.5,
+                f() as f32 - 0.5,
+                f() as f32 - 0.5,
+                f() as f32 - 0.5,
+            ]),
+            opacity: f() as f32,
+            sh0: [f() as f32 - 0.5; 3],
+        };
+        let rest: Vec<[f32; 3]> = (0..sh_rest_count(3))
+            .map(|_| [(f() - 0.5) as f32 * 0.2; 3])
+            .collect();
+        all.push(s, &rest);
+    }
+    let file = std::fs::File::create(path).unwrap();
+    splat2tiles::io::write_ply(&all, std::io::BufWriter::new(file)).unwrap();
+}
+
+/// The plant with small random SH1-3 coefficients (|c| <= 0.08), the generated SH3
+/// scene of the variant benches (xorshift, seed 99).
+pub fn plant_sh3(plant: &Splats) -> Splats {
+    let mut s = plant.clone();
+    let mut x = 99u64;
+    let mut f = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    s.sh_degree = 3;
+    s.sh_rest = (0..s.len() * 15)
+        .map(|_| [0, 1, 2].map(|_| (f() * 0.16 - 0.08) as f32))
+        .collect();
+    s
 }
