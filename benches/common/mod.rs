@@ -25,13 +25,7 @@ pub fn release_binary() -> PathBuf {
 /// Writes `n` random SH3 splats (fixed seed) as a trainer PLY; all `n` are held in memory
 /// first (about 250 B each).
 pub fn generate_sh3_ply(path: &Path, n: usize) {
-    let mut x = 0x2545_F491_4F6C_DD1Du64;
-    let mut f = move || {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        (x >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut f = uniform(0x2545_F491_4F6C_DD1D);
     let mut all = Splats::with_capacity(3, n);
     for _ in 0..n {
         let s = Splat {
@@ -59,16 +53,21 @@ pub fn generate_sh3_ply(path: &Path, n: usize) {
 /// scene of the variant benches (xorshift, seed 99).
 pub fn plant_sh3(plant: &Splats) -> Splats {
     let mut s = plant.clone();
-    let mut x = 99u64;
-    let mut f = move || {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        (x >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut f = uniform(99);
     s.sh_degree = 3;
     s.sh_rest = (0..s.len() * 15)
         .map(|_| [0, 1, 2].map(|_| (f() * 0.16 - 0.08) as f32))
         .collect();
     s
+}
+
+/// Uniform numbers in [0, 1) from a xorshift64 generator started at `seed` (non-zero).
+pub fn uniform(seed: u64) -> impl FnMut() -> f64 {
+    let mut x = seed;
+    move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    }
 }

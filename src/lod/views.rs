@@ -17,7 +17,7 @@ use crate::render::cli::{content_model, select_tiles};
 use crate::render::{Camera, Image, RenderOptions, render, ssim};
 use crate::splat::Splats;
 use crate::tiling::TileKey;
-use crate::tiling::load::load_tileset;
+use crate::tiling::load::{LoadedTileset, load_tileset};
 use glam::{DMat4, DVec3};
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -171,13 +171,7 @@ pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> anyhow::Result<Vec<
             },
         );
     }
-    let root = ts
-        .tiles
-        .iter()
-        .find(|t| t.key == TileKey::ROOT)
-        .and_then(|t| t.bounding_box)
-        .ok_or_else(|| anyhow::anyhow!("root has no bounding box"))?;
-    let (scene_c, scene_r) = sphere(&ts, &root);
+    let (scene_c, scene_r) = scene_sphere(&ts)?;
     let content: BTreeMap<TileKey, f64> = tiles.iter().map(|(k, t)| (*k, t.error)).collect();
     let leaves: Vec<&Tile> = tiles
         .iter()
@@ -299,13 +293,7 @@ pub fn viewer_bytes(
 ) -> anyhow::Result<Vec<(ViewKind, f64, u64)>> {
     let ts = load_tileset(tileset)?;
     let up = crate::render::cli::tileset_up(&ts);
-    let root = ts
-        .tiles
-        .iter()
-        .find(|t| t.key == TileKey::ROOT)
-        .and_then(|t| t.bounding_box)
-        .ok_or_else(|| anyhow::anyhow!("root has no bounding box"))?;
-    let (scene_c, scene_r) = sphere(&ts, &root);
+    let (scene_c, scene_r) = scene_sphere(&ts)?;
     let east = up.any_orthonormal_vector();
     let north = up.cross(east);
     let mut sizes: HashMap<PathBuf, u64> = HashMap::new();
@@ -345,6 +333,17 @@ pub fn viewer_bytes(
 fn save(img: &Image, path: &Path) -> anyhow::Result<()> {
     img.save_png(path)
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+/// World-space centre and bounding-sphere radius of the root tile's box (the whole scene).
+fn scene_sphere(ts: &LoadedTileset) -> anyhow::Result<(DVec3, f64)> {
+    let root = ts
+        .tiles
+        .iter()
+        .find(|t| t.key == TileKey::ROOT)
+        .and_then(|t| t.bounding_box)
+        .ok_or_else(|| anyhow::anyhow!("root has no bounding box"))?;
+    Ok(sphere(ts, &root))
 }
 
 #[cfg(test)]
