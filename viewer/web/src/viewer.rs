@@ -100,6 +100,9 @@ pub struct WebViewer {
     frame_dt: f64,
     /// Last time a tile was inserted or removed (fades last `fade_s` from then).
     last_change: f64,
+    /// The camera was turned or jumped by script/input and no frame has planned for it yet:
+    /// until one has, idle/settled describe the old view and must not be reported.
+    view_unplanned: bool,
     fade_s: f64,
     frames: u64,
     drawn: usize,
@@ -188,6 +191,7 @@ impl WebViewer {
             last_frame: None,
             frame_dt: 0.0,
             last_change: f64::NEG_INFINITY,
+            view_unplanned: false,
             fade_s: rcfg.fade_s,
             frames: 0,
             drawn: 0,
@@ -236,6 +240,7 @@ impl WebViewer {
         )[k];
         let speed = (hi - lo).length() * 0.15;
         self.controls = Some(FirstPerson::from_camera(&cam, up, self.options.fov, speed));
+        self.view_unplanned = true;
     }
 
     /// Renders one frame at page time `now_s` (seconds): input, streaming, uploads, draw.
@@ -258,6 +263,7 @@ impl WebViewer {
         let cam = self.camera();
         // Streaming: the client decides, the page fetches.
         let actions = self.shared.borrow_mut().client.update(now_s, &cam);
+        self.view_unplanned = false;
         for a in actions {
             match a {
                 Action::Fetch(req) => fetch::start(&self.shared, req),
@@ -346,6 +352,7 @@ impl WebViewer {
     pub fn look(&mut self, dyaw_deg: f64, dpitch_deg: f64) {
         if let Some(c) = self.controls.as_mut() {
             c.look(dyaw_deg, dpitch_deg);
+            self.view_unplanned = true;
         }
     }
 
@@ -384,8 +391,8 @@ impl WebViewer {
             "errors": c.errors,
             "lastErrors": c.last_errors,
             "sortMs": self.sort_ms,
-            "idle": s.client.is_idle() && s.in_flight() == 0,
-            "settled": now - self.last_change > self.fade_s + 0.05,
+            "idle": !self.view_unplanned && s.client.is_idle() && s.in_flight() == 0,
+            "settled": !self.view_unplanned && now - self.last_change > self.fade_s + 0.05,
         })
     }
 
