@@ -57,14 +57,37 @@ pub(super) struct RegionLeaves {
 #[derive(Debug)]
 pub(super) struct GroupLeaves {
     pub(super) regions: Vec<RegionLeaves>,
-    /// The group's splats in leaf order (regions in order, leaves in order, importance order).
-    pub(super) data: GroupData,
+    /// The group's splats and their leaf order (regions in order, leaves in order, importance
+    /// order).
+    pub(super) data: LeafOrder,
     /// The written leaves.
     pub(super) tiles: Vec<(TileKey, TreeTile)>,
     /// Nearest-neighbour spacing samples.
     pub(super) spacing: Vec<f64>,
     /// Per leaf, the input indices of its splats (only when the report keeps the index map).
     pub(super) index_map: Vec<(TileKey, Vec<usize>)>,
+}
+
+/// A group's splats after pass 1: as they were stored (input order), with the positions in
+/// them in leaf order. Pass 2 gathers each leaf through the order, so the group is never
+/// copied whole into leaf order.
+#[derive(Debug)]
+pub(super) enum LeafOrder {
+    /// In memory.
+    Memory {
+        /// The splats, input order.
+        splats: Splats,
+        /// Positions in `splats`, leaf order.
+        order: Vec<usize>,
+    },
+    /// The group's spill file (input order) and an order file (u32 or u64 positions in it,
+    /// leaf order).
+    Files {
+        /// The spill file.
+        file: PathBuf,
+        /// The order file.
+        order: PathBuf,
+    },
 }
 
 /// Writes one tile's contents centred on its splats; returns the box around their visible
@@ -110,8 +133,8 @@ fn three_sigma(tile: &Splats, layout: &Layout) -> Vec<DVec3> {
         .collect()
 }
 
-/// The group's splats and input indices, loaded (or taken from memory), in the order the data
-/// gives (input order, or leaf order after pass 1), and the spill file they came from.
+/// The group's splats and input indices, loaded (or taken from memory), in input order, and
+/// the spill file they came from.
 fn load(
     data: GroupData,
     count: u64,
@@ -123,12 +146,23 @@ fn load(
             let (s, idx) = format.load(&p, count)?;
             Ok((s, idx, Some(p)))
         }
-        GroupData::Ordered { file, order } => {
-            let (s, idx) = format.load(&file, count)?;
+    }
+}
+
+/// A group after pass 1: its splats as stored, the positions in them in leaf order, and the
+/// spill file they came from.
+fn load_ordered(
+    data: LeafOrder,
+    count: u64,
+    format: &SpillFormat,
+) -> Result<(Splats, Vec<usize>, Option<PathBuf>), ConvertError> {
+    match data {
+        LeafOrder::Memory { splats, order } => Ok((splats, order, None)),
+        LeafOrder::Files { file, order } => {
             let perm = read_order(&order, count)?;
             std::fs::remove_file(&order).map_err(super::io_err(&order, "removing spill file"))?;
-            let sorted_idx = perm.iter().map(|&i| idx[i]).collect();
-            Ok((s.select(&perm), sorted_idx, Some(file)))
+            let (s, _idx) = format.load(&file, count)?;
+            Ok((s, perm, Some(file)))
         }
     }
 }
@@ -222,7 +256,10 @@ pub(super) fn build_leaves(group: Group, cx: &RegionCtx<'_>) -> Result<GroupLeav
     };
     let mut out = GroupLeaves {
         regions: Vec::with_capacity(specs.len()),
-        data: GroupData::Memory(Splats::new(splats.sh_degree), Vec::new()),
+        data: LeafOrder::Memory {
+            splats: Splats::new(splats.sh_degree),
+            order: Vec::new(),
+        },
         tiles: Vec::new(),
         spacing: Vec::new(),
         index_map: Vec::new(),
@@ -280,18 +317,13 @@ pub(super) fn build_leaves(group: Group, cx: &RegionCtx<'_>) -> Result<GroupLeav
         }
     }
     out.data = match file {
-        None => {
-            let sorted = splats.select(&order);
-            drop(splats);
-            let sorted_idx: Vec<u64> = order.iter().map(|&i| idx[i]).collect();
-            GroupData::Memory(sorted, sorted_idx)
-        }
+        None => LeafOrder::Memory { splats, order },
         Some(p) => {
             // The spill file stays; pass 2 reads it again in leaf order (4 bytes per splat
             // written here instead of the whole group again).
             let q = p.with_extension("order");
             write_order(&q, &order)?;
-            GroupData::Ordered { file: p, order: q }
+            LeafOrder::Files { file: p, order: q }
         }
     };
     Ok(out)
@@ -372,7 +404,7 @@ pub(super) fn build_parents(
     cx: &RegionCtx<'_>,
 ) -> Result<(BTreeMap<TileKey, WrittenParent>, Vec<RootContent>), ConvertError> {
     let count: u64 = group.regions.iter().map(|g| g.spec.count).sum();
-    let (splats, _idx, file) = load(group.data, count, cx.format)?;
+    let (splats, order, file) = load_ordered(group.data, count, cx.format)?;
     if let Some(p) = file {
         std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
     }
@@ -394,7 +426,7 @@ pub(super) fn build_parents(
             .unwrap_or(region.spec.key.level);
         let range_of = |k: TileKey| -> Vec<usize> {
             let (a, n) = ranges[&k];
-            (a..a + n).collect()
+            order[a..a + n].to_vec()
         };
         let root_key = region.spec.key;
         if keys.len() == 1 && keys[0] == root_key {

@@ -321,14 +321,6 @@ pub(super) enum GroupData {
     File(PathBuf),
     /// In memory (the whole scene fits the budget).
     Memory(Splats, Vec<u64>),
-    /// A spill file in input order and an order file (u32 or u64 positions in it, leaf order):
-    /// a group after the leaves were written.
-    Ordered {
-        /// The spill file.
-        file: PathBuf,
-        /// The order file.
-        order: PathBuf,
-    },
 }
 
 /// Consecutive regions (Morton order) stored together; their total fits the cap unless one
