@@ -27,6 +27,7 @@ use region::{GroupLeaves, RegionCtx};
 use source::Input;
 use spill::{Codec, SpillFormat, Spiller};
 use std::collections::HashMap;
+use std::panic::resume_unwind;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tileset::{TreeTile, build_tree, finish_tree, tileset_json, write_subtrees};
@@ -505,7 +506,6 @@ fn run(
         layout: &layout,
         opts,
         dir: &dir,
-        format: &format,
         nn_step: counts.finite.div_ceil(SPACING_SAMPLES).max(1) as usize,
     };
     let leaf_bar = bar(opts.progress, groups.len() as u64, "writing leaves");
@@ -513,8 +513,21 @@ fn run(
     let mut leaves: HashMap<TileKey, TreeTile> = HashMap::new();
     let mut spacing = Vec::new();
     let mut index_map = Vec::new();
-    for g in groups {
-        let mut gl = region::build_leaves(g, &cx).map_err(relocate)?;
+    // As in pass 2, the next group is read while this one is built.
+    let mut groups = groups.into_iter();
+    let mut next = groups.next().map(|g| region::load_group_input(g, &format));
+    while let Some(loaded) = next.take() {
+        let loaded = loaded.map_err(relocate)?;
+        let (gl, prefetched) = std::thread::scope(|s| {
+            let ahead = groups
+                .next()
+                .map(|g| s.spawn(|| region::load_group_input(g, &format)));
+            let gl = region::build_leaves(loaded, &cx);
+            let prefetched = ahead.map(|h| h.join().unwrap_or_else(|e| resume_unwind(e)));
+            (gl, prefetched)
+        });
+        next = prefetched;
+        let mut gl = gl.map_err(relocate)?;
         leaves.extend(std::mem::take(&mut gl.tiles));
         spacing.append(&mut gl.spacing);
         index_map.append(&mut gl.index_map);
@@ -559,9 +572,23 @@ fn run(
             .map_err(relocate)?;
         let store =
             store::ContentStore::create(spill.join("contents.bin"), codec).map_err(relocate)?;
-        for gl in built {
-            let (p, rc) =
-                region::build_parents(gl, r, &diagonals, &store, &cx).map_err(relocate)?;
+        // The next group is read while this one is built (reading and decoding leave a core
+        // idle at the end of every level; two loaded groups fit the region budget, see
+        // limits::region_bytes_per_splat).
+        let mut groups = built.into_iter();
+        let mut next = groups.next().map(|g| region::load_group(g, &format));
+        while let Some(loaded) = next.take() {
+            let loaded = loaded.map_err(relocate)?;
+            let (built, prefetched) = std::thread::scope(|s| {
+                let ahead = groups
+                    .next()
+                    .map(|g| s.spawn(|| region::load_group(g, &format)));
+                let built = region::build_parents(loaded, r, &diagonals, &store, &cx);
+                let prefetched = ahead.map(|h| h.join().unwrap_or_else(|e| resume_unwind(e)));
+                (built, prefetched)
+            });
+            next = prefetched;
+            let (p, rc) = built.map_err(relocate)?;
             parents.extend(p);
             roots.extend(rc);
             lod_bar.inc(1);

@@ -40,8 +40,6 @@ pub(super) struct RegionCtx<'a> {
     pub(super) opts: &'a ConvertOptions,
     /// The staging folder (contents go under it).
     pub(super) dir: &'a Path,
-    /// How the spill files hold splats.
-    pub(super) format: &'a SpillFormat,
     /// Every `nn_step`-th splat of a leaf (importance order) is a spacing sample.
     pub(super) nn_step: usize,
 }
@@ -133,20 +131,35 @@ fn three_sigma(tile: &Splats, layout: &Layout) -> Vec<DVec3> {
         .collect()
 }
 
-/// The group's splats and input indices, loaded (or taken from memory), in input order, and
-/// the spill file they came from.
-fn load(
-    data: GroupData,
-    count: u64,
+/// A group ready for pass 1: its regions, its splats and input indices in input order, and the
+/// spill file they came from.
+pub(super) struct InputGroup {
+    regions: Vec<RegionSpec>,
+    splats: Splats,
+    idx: Vec<u64>,
+    file: Option<PathBuf>,
+}
+
+/// Loads a group for pass 1 (or takes it from memory). Independent of the pass 1 of other
+/// groups, so it can run while the previous group is being built.
+pub(super) fn load_group_input(
+    group: Group,
     format: &SpillFormat,
-) -> Result<(Splats, Vec<u64>, Option<PathBuf>), ConvertError> {
-    match data {
-        GroupData::Memory(s, idx) => Ok((s, idx, None)),
+) -> Result<InputGroup, ConvertError> {
+    let count = group.count();
+    let (splats, idx, file) = match group.data {
+        GroupData::Memory(s, idx) => (s, idx, None),
         GroupData::File(p) => {
             let (s, idx) = format.load(&p, count)?;
-            Ok((s, idx, Some(p)))
+            (s, idx, Some(p))
         }
-    }
+    };
+    Ok(InputGroup {
+        regions: group.regions,
+        splats,
+        idx,
+        file,
+    })
 }
 
 /// A group after pass 1: its splats as stored, the positions in them in leaf order, and the
@@ -229,10 +242,16 @@ fn first_code(layout: &Layout, key: TileKey) -> u64 {
 
 /// Pass 1 of a group: per region, partition into leaves, importance order, write the leaves;
 /// sample the nearest-neighbour spacing; keep the splats in leaf order for pass 2.
-pub(super) fn build_leaves(group: Group, cx: &RegionCtx<'_>) -> Result<GroupLeaves, ConvertError> {
-    let specs = group.regions.clone();
-    let count = group.count();
-    let (splats, idx, file) = load(group.data, count, cx.format)?;
+pub(super) fn build_leaves(
+    group: InputGroup,
+    cx: &RegionCtx<'_>,
+) -> Result<GroupLeaves, ConvertError> {
+    let InputGroup {
+        regions: specs,
+        splats,
+        idx,
+        file,
+    } = group;
     let layout = cx.layout;
     // Which region each splat belongs to (regions are consecutive Morton ranges).
     let members: Vec<Vec<usize>> = if specs.len() == 1 {
@@ -393,25 +412,50 @@ pub(super) fn write_parent(
     })
 }
 
+/// A group ready for pass 2: its regions, its splats as stored and their leaf order.
+pub(super) struct LoadedGroup {
+    regions: Vec<RegionLeaves>,
+    splats: Splats,
+    order: Vec<usize>,
+}
+
+/// Loads a group for pass 2 (its spill and order files are read, then removed). Independent of
+/// the pass 2 of other groups, so it can run while the previous group is being built.
+pub(super) fn load_group(
+    group: GroupLeaves,
+    format: &SpillFormat,
+) -> Result<LoadedGroup, ConvertError> {
+    let count: u64 = group.regions.iter().map(|g| g.spec.count).sum();
+    let (splats, order, file) = load_ordered(group.data, count, format)?;
+    if let Some(p) = file {
+        std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
+    }
+    Ok(LoadedGroup {
+        regions: group.regions,
+        splats,
+        order,
+    })
+}
+
 /// Pass 2 of a group: the LOD parents of every region up to its root (through
 /// [`crate::lod::build_parents`], children in Morton order), written as they are built.
 /// Returns them and each region's root (its content put into `store`).
 pub(super) fn build_parents(
-    group: GroupLeaves,
+    group: LoadedGroup,
     r: f64,
     diagonals: &HashMap<TileKey, f64>,
     store: &ContentStore,
     cx: &RegionCtx<'_>,
 ) -> Result<(BTreeMap<TileKey, WrittenParent>, Vec<RootContent>), ConvertError> {
-    let count: u64 = group.regions.iter().map(|g| g.spec.count).sum();
-    let (splats, order, file) = load_ordered(group.data, count, cx.format)?;
-    if let Some(p) = file {
-        std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
-    }
+    let LoadedGroup {
+        regions,
+        splats,
+        order,
+    } = group;
     let mut parents = BTreeMap::new();
-    let mut roots = Vec::with_capacity(group.regions.len());
+    let mut roots = Vec::with_capacity(regions.len());
     let mut start = 0usize;
-    for region in &group.regions {
+    for region in &regions {
         check_interrupt()?;
         let mut ranges: HashMap<TileKey, (usize, usize)> = HashMap::new();
         for &(k, n) in &region.leaves {
