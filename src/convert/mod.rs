@@ -337,6 +337,32 @@ impl Budget {
     }
 }
 
+/// Builds each group in order while the next one is read on a second thread: `load` (reading
+/// and decoding a group) leaves a core idle at the end of every level of the build, and two
+/// loaded groups fit the region budget (`limits::region_bytes_per_splat`). Errors and panics
+/// of a read surface when that group's turn comes; `take` gets each build's result in order.
+fn read_ahead<G: Send, L: Send, T>(
+    groups: Vec<G>,
+    load: impl Fn(G) -> Result<L, ConvertError> + Sync,
+    mut build: impl FnMut(L) -> Result<T, ConvertError>,
+    mut take: impl FnMut(T),
+) -> Result<(), ConvertError> {
+    let mut groups = groups.into_iter();
+    let mut next = groups.next().map(&load);
+    while let Some(loaded) = next.take() {
+        let loaded = loaded?;
+        let (built, ahead) = std::thread::scope(|s| {
+            let ahead = groups.next().map(|g| s.spawn(|| load(g)));
+            let built = build(loaded);
+            let ahead = ahead.map(|h| h.join().unwrap_or_else(|e| resume_unwind(e)));
+            (built, ahead)
+        });
+        next = ahead;
+        take(built?);
+    }
+    Ok(())
+}
+
 /// What the frame pass counted.
 #[derive(Debug, Default)]
 struct Counts {
@@ -513,27 +539,19 @@ fn run(
     let mut leaves: HashMap<TileKey, TreeTile> = HashMap::new();
     let mut spacing = Vec::new();
     let mut index_map = Vec::new();
-    // As in pass 2, the next group is read while this one is built.
-    let mut groups = groups.into_iter();
-    let mut next = groups.next().map(|g| region::load_group_input(g, &format));
-    while let Some(loaded) = next.take() {
-        let loaded = loaded.map_err(relocate)?;
-        let (gl, prefetched) = std::thread::scope(|s| {
-            let ahead = groups
-                .next()
-                .map(|g| s.spawn(|| region::load_group_input(g, &format)));
-            let gl = region::build_leaves(loaded, &cx);
-            let prefetched = ahead.map(|h| h.join().unwrap_or_else(|e| resume_unwind(e)));
-            (gl, prefetched)
-        });
-        next = prefetched;
-        let mut gl = gl.map_err(relocate)?;
-        leaves.extend(std::mem::take(&mut gl.tiles));
-        spacing.append(&mut gl.spacing);
-        index_map.append(&mut gl.index_map);
-        built.push(gl);
-        leaf_bar.inc(1);
-    }
+    read_ahead(
+        groups,
+        |g| region::load_group_input(g, &format),
+        |loaded| region::build_leaves(loaded, &cx),
+        |mut gl| {
+            leaves.extend(std::mem::take(&mut gl.tiles));
+            spacing.append(&mut gl.spacing);
+            index_map.append(&mut gl.index_map);
+            built.push(gl);
+            leaf_bar.inc(1);
+        },
+    )
+    .map_err(relocate)?;
     leaf_bar.finish_and_clear();
     report
         .stage_seconds
@@ -572,27 +590,17 @@ fn run(
             .map_err(relocate)?;
         let store =
             store::ContentStore::create(spill.join("contents.bin"), codec).map_err(relocate)?;
-        // The next group is read while this one is built (reading and decoding leave a core
-        // idle at the end of every level; two loaded groups fit the region budget, see
-        // limits::region_bytes_per_splat).
-        let mut groups = built.into_iter();
-        let mut next = groups.next().map(|g| region::load_group(g, &format));
-        while let Some(loaded) = next.take() {
-            let loaded = loaded.map_err(relocate)?;
-            let (built, prefetched) = std::thread::scope(|s| {
-                let ahead = groups
-                    .next()
-                    .map(|g| s.spawn(|| region::load_group(g, &format)));
-                let built = region::build_parents(loaded, r, &diagonals, &store, &cx);
-                let prefetched = ahead.map(|h| h.join().unwrap_or_else(|e| resume_unwind(e)));
-                (built, prefetched)
-            });
-            next = prefetched;
-            let (p, rc) = built.map_err(relocate)?;
-            parents.extend(p);
-            roots.extend(rc);
-            lod_bar.inc(1);
-        }
+        read_ahead(
+            built,
+            |g| region::load_group(g, &format),
+            |loaded| region::build_parents(loaded, r, &diagonals, &store, &cx),
+            |(p, rc)| {
+                parents.extend(p);
+                roots.extend(rc);
+                lod_bar.inc(1);
+            },
+        )
+        .map_err(relocate)?;
         lod_bar.finish_and_clear();
         report
             .stage_seconds
