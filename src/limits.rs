@@ -84,8 +84,9 @@ pub fn in_memory_estimate(count: u64, degree: u8, held: u64) -> u64 {
     count.saturating_mul(per).saturating_add(held)
 }
 
-/// Bytes the converter's working set takes per splat of a region in memory: the splats, their
-/// copy in leaf order, input indices, unit coordinates, Morton codes and sort orders.
+/// Bytes the converter's working set takes per splat of a region in memory: in pass 1 the
+/// splats, input indices, unit coordinates, Morton codes and sort orders; in pass 2 the group
+/// being built (splats, leaf order, the LOD's copies) and the next group, read ahead.
 pub fn region_bytes_per_splat(degree: u8) -> u64 {
     2 * splat_bytes(degree) + 112
 }

@@ -27,6 +27,7 @@ use region::{GroupLeaves, RegionCtx};
 use source::Input;
 use spill::{Codec, SpillFormat, Spiller};
 use std::collections::HashMap;
+use std::panic::resume_unwind;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tileset::{TreeTile, build_tree, finish_tree, tileset_json, write_subtrees};
@@ -336,6 +337,32 @@ impl Budget {
     }
 }
 
+/// Builds each group in order while the next one is read on a second thread: `load` (reading
+/// and decoding a group) leaves a core idle at the end of every level of the build, and two
+/// loaded groups fit the region budget (`limits::region_bytes_per_splat`). Errors and panics
+/// of a read surface when that group's turn comes; `take` gets each build's result in order.
+fn read_ahead<G: Send, L: Send, T>(
+    groups: Vec<G>,
+    load: impl Fn(G) -> Result<L, ConvertError> + Sync,
+    mut build: impl FnMut(L) -> Result<T, ConvertError>,
+    mut take: impl FnMut(T),
+) -> Result<(), ConvertError> {
+    let mut groups = groups.into_iter();
+    let mut next = groups.next().map(&load);
+    while let Some(loaded) = next.take() {
+        let loaded = loaded?;
+        let (built, ahead) = std::thread::scope(|s| {
+            let ahead = groups.next().map(|g| s.spawn(|| load(g)));
+            let built = build(loaded);
+            let ahead = ahead.map(|h| h.join().unwrap_or_else(|e| resume_unwind(e)));
+            (built, ahead)
+        });
+        next = ahead;
+        take(built?);
+    }
+    Ok(())
+}
+
 /// What the frame pass counted.
 #[derive(Debug, Default)]
 struct Counts {
@@ -505,7 +532,6 @@ fn run(
         layout: &layout,
         opts,
         dir: &dir,
-        format: &format,
         nn_step: counts.finite.div_ceil(SPACING_SAMPLES).max(1) as usize,
     };
     let leaf_bar = bar(opts.progress, groups.len() as u64, "writing leaves");
@@ -513,14 +539,19 @@ fn run(
     let mut leaves: HashMap<TileKey, TreeTile> = HashMap::new();
     let mut spacing = Vec::new();
     let mut index_map = Vec::new();
-    for g in groups {
-        let mut gl = region::build_leaves(g, &cx).map_err(relocate)?;
-        leaves.extend(std::mem::take(&mut gl.tiles));
-        spacing.append(&mut gl.spacing);
-        index_map.append(&mut gl.index_map);
-        built.push(gl);
-        leaf_bar.inc(1);
-    }
+    read_ahead(
+        groups,
+        |g| region::load_group_input(g, &format),
+        |loaded| region::build_leaves(loaded, &cx),
+        |mut gl| {
+            leaves.extend(std::mem::take(&mut gl.tiles));
+            spacing.append(&mut gl.spacing);
+            index_map.append(&mut gl.index_map);
+            built.push(gl);
+            leaf_bar.inc(1);
+        },
+    )
+    .map_err(relocate)?;
     leaf_bar.finish_and_clear();
     report
         .stage_seconds
@@ -559,13 +590,17 @@ fn run(
             .map_err(relocate)?;
         let store =
             store::ContentStore::create(spill.join("contents.bin"), codec).map_err(relocate)?;
-        for gl in built {
-            let (p, rc) =
-                region::build_parents(gl, r, &diagonals, &store, &cx).map_err(relocate)?;
-            parents.extend(p);
-            roots.extend(rc);
-            lod_bar.inc(1);
-        }
+        read_ahead(
+            built,
+            |g| region::load_group(g, &format),
+            |loaded| region::build_parents(loaded, r, &diagonals, &store, &cx),
+            |(p, rc)| {
+                parents.extend(p);
+                roots.extend(rc);
+                lod_bar.inc(1);
+            },
+        )
+        .map_err(relocate)?;
         lod_bar.finish_and_clear();
         report
             .stage_seconds

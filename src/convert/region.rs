@@ -40,8 +40,6 @@ pub(super) struct RegionCtx<'a> {
     pub(super) opts: &'a ConvertOptions,
     /// The staging folder (contents go under it).
     pub(super) dir: &'a Path,
-    /// How the spill files hold splats.
-    pub(super) format: &'a SpillFormat,
     /// Every `nn_step`-th splat of a leaf (importance order) is a spacing sample.
     pub(super) nn_step: usize,
 }
@@ -57,14 +55,37 @@ pub(super) struct RegionLeaves {
 #[derive(Debug)]
 pub(super) struct GroupLeaves {
     pub(super) regions: Vec<RegionLeaves>,
-    /// The group's splats in leaf order (regions in order, leaves in order, importance order).
-    pub(super) data: GroupData,
+    /// The group's splats and their leaf order (regions in order, leaves in order, importance
+    /// order).
+    pub(super) data: LeafOrder,
     /// The written leaves.
     pub(super) tiles: Vec<(TileKey, TreeTile)>,
     /// Nearest-neighbour spacing samples.
     pub(super) spacing: Vec<f64>,
     /// Per leaf, the input indices of its splats (only when the report keeps the index map).
     pub(super) index_map: Vec<(TileKey, Vec<usize>)>,
+}
+
+/// A group's splats after pass 1: as they were stored (input order), with the positions in
+/// them in leaf order. Pass 2 gathers each leaf through the order, so the group is never
+/// copied whole into leaf order.
+#[derive(Debug)]
+pub(super) enum LeafOrder {
+    /// In memory.
+    Memory {
+        /// The splats, input order.
+        splats: Splats,
+        /// Positions in `splats`, leaf order.
+        order: Vec<usize>,
+    },
+    /// The group's spill file (input order) and an order file (u32 or u64 positions in it,
+    /// leaf order).
+    Files {
+        /// The spill file.
+        file: PathBuf,
+        /// The order file.
+        order: PathBuf,
+    },
 }
 
 /// Writes one tile's contents centred on its splats; returns the box around their visible
@@ -110,25 +131,51 @@ fn three_sigma(tile: &Splats, layout: &Layout) -> Vec<DVec3> {
         .collect()
 }
 
-/// The group's splats and input indices, loaded (or taken from memory), in the order the data
-/// gives (input order, or leaf order after pass 1), and the spill file they came from.
-fn load(
-    data: GroupData,
-    count: u64,
+/// A group ready for pass 1: its regions, its splats and input indices in input order, and the
+/// spill file they came from.
+pub(super) struct InputGroup {
+    regions: Vec<RegionSpec>,
+    splats: Splats,
+    idx: Vec<u64>,
+    file: Option<PathBuf>,
+}
+
+/// Loads a group for pass 1 (or takes it from memory). Independent of the pass 1 of other
+/// groups, so it can run while the previous group is being built.
+pub(super) fn load_group_input(
+    group: Group,
     format: &SpillFormat,
-) -> Result<(Splats, Vec<u64>, Option<PathBuf>), ConvertError> {
-    match data {
-        GroupData::Memory(s, idx) => Ok((s, idx, None)),
+) -> Result<InputGroup, ConvertError> {
+    let count = group.count();
+    let (splats, idx, file) = match group.data {
+        GroupData::Memory(s, idx) => (s, idx, None),
         GroupData::File(p) => {
             let (s, idx) = format.load(&p, count)?;
-            Ok((s, idx, Some(p)))
+            (s, idx, Some(p))
         }
-        GroupData::Ordered { file, order } => {
-            let (s, idx) = format.load(&file, count)?;
+    };
+    Ok(InputGroup {
+        regions: group.regions,
+        splats,
+        idx,
+        file,
+    })
+}
+
+/// A group after pass 1: its splats as stored, the positions in them in leaf order, and the
+/// spill file they came from.
+fn load_ordered(
+    data: LeafOrder,
+    count: u64,
+    format: &SpillFormat,
+) -> Result<(Splats, Vec<usize>, Option<PathBuf>), ConvertError> {
+    match data {
+        LeafOrder::Memory { splats, order } => Ok((splats, order, None)),
+        LeafOrder::Files { file, order } => {
             let perm = read_order(&order, count)?;
             std::fs::remove_file(&order).map_err(super::io_err(&order, "removing spill file"))?;
-            let sorted_idx = perm.iter().map(|&i| idx[i]).collect();
-            Ok((s.select(&perm), sorted_idx, Some(file)))
+            let (s, _idx) = format.load(&file, count)?;
+            Ok((s, perm, Some(file)))
         }
     }
 }
@@ -195,10 +242,16 @@ fn first_code(layout: &Layout, key: TileKey) -> u64 {
 
 /// Pass 1 of a group: per region, partition into leaves, importance order, write the leaves;
 /// sample the nearest-neighbour spacing; keep the splats in leaf order for pass 2.
-pub(super) fn build_leaves(group: Group, cx: &RegionCtx<'_>) -> Result<GroupLeaves, ConvertError> {
-    let specs = group.regions.clone();
-    let count = group.count();
-    let (splats, idx, file) = load(group.data, count, cx.format)?;
+pub(super) fn build_leaves(
+    group: InputGroup,
+    cx: &RegionCtx<'_>,
+) -> Result<GroupLeaves, ConvertError> {
+    let InputGroup {
+        regions: specs,
+        splats,
+        idx,
+        file,
+    } = group;
     let layout = cx.layout;
     // Which region each splat belongs to (regions are consecutive Morton ranges).
     let members: Vec<Vec<usize>> = if specs.len() == 1 {
@@ -222,7 +275,10 @@ pub(super) fn build_leaves(group: Group, cx: &RegionCtx<'_>) -> Result<GroupLeav
     };
     let mut out = GroupLeaves {
         regions: Vec::with_capacity(specs.len()),
-        data: GroupData::Memory(Splats::new(splats.sh_degree), Vec::new()),
+        data: LeafOrder::Memory {
+            splats: Splats::new(splats.sh_degree),
+            order: Vec::new(),
+        },
         tiles: Vec::new(),
         spacing: Vec::new(),
         index_map: Vec::new(),
@@ -280,18 +336,13 @@ pub(super) fn build_leaves(group: Group, cx: &RegionCtx<'_>) -> Result<GroupLeav
         }
     }
     out.data = match file {
-        None => {
-            let sorted = splats.select(&order);
-            drop(splats);
-            let sorted_idx: Vec<u64> = order.iter().map(|&i| idx[i]).collect();
-            GroupData::Memory(sorted, sorted_idx)
-        }
+        None => LeafOrder::Memory { splats, order },
         Some(p) => {
             // The spill file stays; pass 2 reads it again in leaf order (4 bytes per splat
             // written here instead of the whole group again).
             let q = p.with_extension("order");
             write_order(&q, &order)?;
-            GroupData::Ordered { file: p, order: q }
+            LeafOrder::Files { file: p, order: q }
         }
     };
     Ok(out)
@@ -361,25 +412,50 @@ pub(super) fn write_parent(
     })
 }
 
+/// A group ready for pass 2: its regions, its splats as stored and their leaf order.
+pub(super) struct LoadedGroup {
+    regions: Vec<RegionLeaves>,
+    splats: Splats,
+    order: Vec<usize>,
+}
+
+/// Loads a group for pass 2 (its spill and order files are read, then removed). Independent of
+/// the pass 2 of other groups, so it can run while the previous group is being built.
+pub(super) fn load_group(
+    group: GroupLeaves,
+    format: &SpillFormat,
+) -> Result<LoadedGroup, ConvertError> {
+    let count: u64 = group.regions.iter().map(|g| g.spec.count).sum();
+    let (splats, order, file) = load_ordered(group.data, count, format)?;
+    if let Some(p) = file {
+        std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
+    }
+    Ok(LoadedGroup {
+        regions: group.regions,
+        splats,
+        order,
+    })
+}
+
 /// Pass 2 of a group: the LOD parents of every region up to its root (through
 /// [`crate::lod::build_parents`], children in Morton order), written as they are built.
 /// Returns them and each region's root (its content put into `store`).
 pub(super) fn build_parents(
-    group: GroupLeaves,
+    group: LoadedGroup,
     r: f64,
     diagonals: &HashMap<TileKey, f64>,
     store: &ContentStore,
     cx: &RegionCtx<'_>,
 ) -> Result<(BTreeMap<TileKey, WrittenParent>, Vec<RootContent>), ConvertError> {
-    let count: u64 = group.regions.iter().map(|g| g.spec.count).sum();
-    let (splats, _idx, file) = load(group.data, count, cx.format)?;
-    if let Some(p) = file {
-        std::fs::remove_file(&p).map_err(super::io_err(&p, "removing spill file"))?;
-    }
+    let LoadedGroup {
+        regions,
+        splats,
+        order,
+    } = group;
     let mut parents = BTreeMap::new();
-    let mut roots = Vec::with_capacity(group.regions.len());
+    let mut roots = Vec::with_capacity(regions.len());
     let mut start = 0usize;
-    for region in &group.regions {
+    for region in &regions {
         check_interrupt()?;
         let mut ranges: HashMap<TileKey, (usize, usize)> = HashMap::new();
         for &(k, n) in &region.leaves {
@@ -394,7 +470,7 @@ pub(super) fn build_parents(
             .unwrap_or(region.spec.key.level);
         let range_of = |k: TileKey| -> Vec<usize> {
             let (a, n) = ranges[&k];
-            (a..a + n).collect()
+            order[a..a + n].to_vec()
         };
         let root_key = region.spec.key;
         if keys.len() == 1 && keys[0] == root_key {

@@ -248,16 +248,25 @@ impl SpillFormat {
             SpillFormat::Raw(c) => {
                 let stride = c.record_bytes() as usize;
                 let step = stride + 8;
-                let mut packed = Vec::with_capacity(records.max(1) * stride);
-                let mut idx = Vec::with_capacity(records);
+                // Each chunk is decoded in one piece per thread (decoding is most of a reread).
+                let per = records.div_ceil(rayon::current_num_threads()).max(1);
                 read_records(path, step, records, |bytes| {
-                    packed.clear();
-                    idx.clear();
-                    for r in bytes.chunks_exact(step) {
-                        packed.extend_from_slice(&r[..stride]);
-                        idx.push(u64_at(r, stride));
+                    let pieces: Vec<(Splats, Vec<u64>)> = bytes
+                        .par_chunks(per * step)
+                        .map(|b| {
+                            let mut packed = Vec::with_capacity(b.len() / step * stride);
+                            let mut idx = Vec::with_capacity(b.len() / step);
+                            for r in b.chunks_exact(step) {
+                                packed.extend_from_slice(&r[..stride]);
+                                idx.push(u64_at(r, stride));
+                            }
+                            (c.decode(&packed), idx)
+                        })
+                        .collect();
+                    for (s, idx) in &pieces {
+                        f(s, idx)?;
                     }
-                    f(&c.decode(&packed), &idx)
+                    Ok(())
                 })
             }
         }
@@ -321,14 +330,6 @@ pub(super) enum GroupData {
     File(PathBuf),
     /// In memory (the whole scene fits the budget).
     Memory(Splats, Vec<u64>),
-    /// A spill file in input order and an order file (u32 or u64 positions in it, leaf order):
-    /// a group after the leaves were written.
-    Ordered {
-        /// The spill file.
-        file: PathBuf,
-        /// The order file.
-        order: PathBuf,
-    },
 }
 
 /// Consecutive regions (Morton order) stored together; their total fits the cap unless one

@@ -1,6 +1,7 @@
 //! Chunked input for the out-of-core converter: binary PLY and `.splat` files decoded a bounded
 //! number of records at a time, so a pass over a scene holds one chunk, never the whole file.
 
+use rayon::prelude::*;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -139,20 +140,31 @@ impl ChunkedInput {
     }
 
     /// One pass over the file: `f` gets consecutive chunks of at most `records` splats, in
-    /// file order. Stops at the first error `f` returns.
+    /// file order (each block read is decoded in one piece per thread). Stops at the first
+    /// error `f` returns.
     pub fn for_each_chunk<E: From<ReadError>>(
         &self,
         records: usize,
         mut f: impl FnMut(Chunk) -> Result<(), E>,
     ) -> Result<(), E> {
+        let stride = self.stride as usize;
+        let per = records.div_ceil(rayon::current_num_threads()).max(1) * stride;
         self.for_each_block(records, |first, bytes| {
-            let (splats, repaired, overflowed) = self.decode_counted(bytes);
-            f(Chunk {
-                first,
-                splats,
-                repaired_rotations: repaired,
-                overflowed_scales: overflowed,
-            })
+            let pieces: Vec<(Splats, usize, usize)> = bytes
+                .par_chunks(per)
+                .map(|b| self.decode_counted(b))
+                .collect();
+            let mut at = first;
+            for (b, (splats, repaired, overflowed)) in bytes.chunks(per).zip(pieces) {
+                f(Chunk {
+                    first: at,
+                    splats,
+                    repaired_rotations: repaired,
+                    overflowed_scales: overflowed,
+                })?;
+                at += (b.len() / stride) as u64;
+            }
+            Ok(())
         })
     }
 
