@@ -129,7 +129,8 @@ impl ViewSpec {
                 let eye = g.to_ecef();
                 let enu = g.enu_axes();
                 let (h, p) = (heading.to_radians(), pitch.to_radians());
-                let fwd = (enu.x_axis * h.sin() + enu.y_axis * h.cos()) * p.cos() + enu.z_axis * p.sin();
+                let fwd =
+                    (enu.x_axis * h.sin() + enu.y_axis * h.cos()) * p.cos() + enu.z_axis * p.sin();
                 look_at_pose(eye, eye + fwd, enu.z_axis)
             }
         }

@@ -1181,7 +1181,10 @@ mod tests {
         assert_eq!(gl_array_layers(12), 13);
         for n in 0..2048 {
             let l = gl_array_layers(n);
-            assert!(l >= n.max(2) && l % 6 != 0 && l <= n.max(2) + 1, "{n} -> {l}");
+            assert!(
+                l >= n.max(2) && l % 6 != 0 && l <= n.max(2) + 1,
+                "{n} -> {l}"
+            );
         }
     }
 

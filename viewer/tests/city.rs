@@ -35,8 +35,13 @@ fn city(dir: &Path, name: &str, n: usize, origin: Option<Geodetic>) -> PathBuf {
         origin,
         ..ConvertOptions::default()
     };
-    convert_scene(city_scene(generate_city(&sources, &layout)), name, &out, &opts)
-        .expect("convert city");
+    convert_scene(
+        city_scene(generate_city(&sources, &layout)),
+        name,
+        &out,
+        &opts,
+    )
+    .expect("convert city");
     out.join("tileset.json")
 }
 
@@ -86,9 +91,14 @@ fn scratch_stream_frame() {
         let inst = load_instances(&lt, &picked).unwrap();
         let cpu = reference(&inst, &cam, &Default::default());
         let (img, n) = streamed_frame(url, &cam, 16.0);
-        img.save_png(&base.join(format!("{name}_stream.png"))).unwrap();
+        img.save_png(&base.join(format!("{name}_stream.png")))
+            .unwrap();
         println!("{name}: {n} splats SSIM {}", ssim(&cpu, &img).unwrap());
         println!("cam {:?}", cam);
     }
-    let _ = (DMat4::IDENTITY, DVec3::ZERO, city as fn(&Path, &str, usize, Option<Geodetic>) -> PathBuf);
+    let _ = (
+        DMat4::IDENTITY,
+        DVec3::ZERO,
+        city as fn(&Path, &str, usize, Option<Geodetic>) -> PathBuf,
+    );
 }

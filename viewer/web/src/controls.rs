@@ -95,7 +95,12 @@ impl FirstPerson {
     /// the ground, at least [`MIN_SPEED_HEIGHT`]'s.
     pub fn speed(&self) -> f64 {
         let h = self.height_above_ground();
-        SPEED_PER_HEIGHT * if h.is_finite() { h.max(MIN_SPEED_HEIGHT) } else { MIN_SPEED_HEIGHT }
+        SPEED_PER_HEIGHT
+            * if h.is_finite() {
+                h.max(MIN_SPEED_HEIGHT)
+            } else {
+                MIN_SPEED_HEIGHT
+            }
     }
 
     /// Switches between walking and flying.
@@ -300,7 +305,10 @@ mod tests {
             let e = fp.eye;
             assert!(fp.advance(0.25));
             assert!((fp.eye - e).length() > 0.1, "pitch {pitch}: walking moved");
-            assert!((fp.eye.z - z0).abs() < 1e-12, "pitch {pitch}: height changed");
+            assert!(
+                (fp.eye.z - z0).abs() < 1e-12,
+                "pitch {pitch}: height changed"
+            );
         }
         // Flying along a pitched view changes the height.
         let mut fp = start();
@@ -314,7 +322,14 @@ mod tests {
     #[test]
     fn speed_scales_with_the_height_above_the_content() {
         let at = |h: f64| {
-            let cam = Camera::look_at(64, 48, 50.0, DVec3::new(0.0, 0.0, h), DVec3::new(1.0, 0.0, h), DVec3::Z);
+            let cam = Camera::look_at(
+                64,
+                48,
+                50.0,
+                DVec3::new(0.0, 0.0, h),
+                DVec3::new(1.0, 0.0, h),
+                DVec3::Z,
+            );
             let mut fp = FirstPerson::from_camera(&cam, DVec3::Z, 50.0, 0.0);
             fp.toggle_mode();
             fp.key("KeyW", true, false);

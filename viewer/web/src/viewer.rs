@@ -311,8 +311,12 @@ impl WebViewer {
             match self.options.camera {
                 Some(view) => {
                     if let Some(((lo, hi), up)) = self.scene_frame() {
-                        let cam =
-                            view.camera(self.config.width, self.config.height, self.options.fov, up);
+                        let cam = view.camera(
+                            self.config.width,
+                            self.config.height,
+                            self.options.fov,
+                            up,
+                        );
                         self.start_at(&cam, up, lo, hi);
                     }
                 }
