@@ -7,19 +7,7 @@ use std::collections::HashSet;
 
 /// Pitch stays this far from straight up/down so the view basis never degenerates.
 const MAX_PITCH_DEG: f64 = 89.0;
-/// Movement speed per metre of height above the content's ground, 1/s (Shift: x4).
-pub const SPEED_PER_HEIGHT: f64 = 1.0;
-/// Heights below this (metres) move at this height's speed: a walk at street level.
-pub const MIN_SPEED_HEIGHT: f64 = 2.0;
-
-/// How W/S/A/D move the eye.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Mode {
-    /// Horizontally whatever the pitch: the eye height stays (Q/E do nothing).
-    Walk,
-    /// Along the view direction; Q/E down and up.
-    Fly,
-}
+pub use splat2tiles_viewer::nav::{MIN_SPEED_HEIGHT, Mode, SPEED_PER_HEIGHT};
 
 /// A first-person camera: eye, yaw/pitch about `up`, held keys, image size and field of view.
 #[derive(Debug, Clone)]
@@ -94,21 +82,12 @@ impl FirstPerson {
     /// Movement speed in world units per second without Shift: proportional to the height above
     /// the ground, at least [`MIN_SPEED_HEIGHT`]'s.
     pub fn speed(&self) -> f64 {
-        let h = self.height_above_ground();
-        SPEED_PER_HEIGHT
-            * if h.is_finite() {
-                h.max(MIN_SPEED_HEIGHT)
-            } else {
-                MIN_SPEED_HEIGHT
-            }
+        splat2tiles_viewer::nav::speed_at(self.height_above_ground())
     }
 
     /// Switches between walking and flying.
     pub fn toggle_mode(&mut self) {
-        self.mode = match self.mode {
-            Mode::Walk => Mode::Fly,
-            Mode::Fly => Mode::Walk,
-        };
+        self.mode = self.mode.toggled();
     }
 
     /// Records a key press or release (`KeyboardEvent.code` names: "KeyW", "KeyQ", ...).

@@ -465,10 +465,7 @@ impl WebViewer {
             "lastErrors": c.last_errors,
             "sortMs": self.sort_ms,
             "camera": self.camera_spec(),
-            "mode": match self.controls.as_ref().map(|c| c.mode) {
-                Some(Mode::Walk) => "walk",
-                _ => "fly",
-            },
+            "mode": self.controls.as_ref().map(|c| c.mode).unwrap_or(Mode::Fly).as_str(),
             "speed": self.controls.as_ref().map(|c| c.speed()).unwrap_or(0.0),
             "idle": !self.view_unplanned && s.client.is_idle() && s.in_flight() == 0,
             "settled": !self.view_unplanned && now - self.last_change > self.fade_s + 0.05,
