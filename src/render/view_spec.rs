@@ -131,7 +131,10 @@ impl ViewSpec {
                 let (h, p) = (heading.to_radians(), pitch.to_radians());
                 let fwd =
                     (enu.x_axis * h.sin() + enu.y_axis * h.cos()) * p.cos() + enu.z_axis * p.sin();
-                look_at_pose(eye, eye + fwd, enu.z_axis)
+                // Axes from the direction itself (eye + fwd would round at ECEF magnitudes).
+                let mut pose = look_at_pose(DVec3::ZERO, fwd, enu.z_axis);
+                pose.w_axis = eye.extend(1.0);
+                pose
             }
         }
     }
@@ -265,7 +268,10 @@ mod tests {
         let ViewSpec::Geo { heading, pitch, .. } = again else {
             panic!("not geo")
         };
-        assert!((heading - 300.0).abs() < 1e-9 && (pitch + 35.0).abs() < 1e-9);
+        assert!(
+            (heading - 300.0).abs() < 1e-9 && (pitch + 35.0).abs() < 1e-9,
+            "{heading} {pitch} {again}"
+        );
     }
 
     #[test]
