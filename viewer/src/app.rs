@@ -398,8 +398,15 @@ mod tests {
             f.step(1.0, 0.0, 0.0, false, 0.5);
             f.step(0.0, 1.0, 1.0, true, 0.5);
             f.step(-1.0, -1.0, -1.0, false, 0.2);
-            assert!((f.pose.pos.z - 1.7).abs() < 1e-12, "pitch {pitch}: {:?}", f.pose.pos);
-            assert!(f.pose.pos.truncate().length() > 1.0, "pitch {pitch}: did not move");
+            assert!(
+                (f.pose.pos.z - 1.7).abs() < 1e-12,
+                "pitch {pitch}: {:?}",
+                f.pose.pos
+            );
+            assert!(
+                f.pose.pos.truncate().length() > 1.0,
+                "pitch {pitch}: did not move"
+            );
         }
         // Flying along a pitched view changes the height; F toggles the mode.
         let mut f = at(10.0, -0.5, Mode::Walk);
@@ -428,7 +435,13 @@ mod tests {
         assert!(cam.world_from_camera.is_finite());
         // The status line's camera reproduces the view.
         let spec = camera_spec(&cam, glam::DMat4::IDENTITY);
-        let back = ViewSpec::parse(&spec).unwrap().camera(64, 32, 50.0, DVec3::Z);
-        assert!(back.world_from_camera.abs_diff_eq(cam.world_from_camera, 1e-9), "{spec}");
+        let back = ViewSpec::parse(&spec)
+            .unwrap()
+            .camera(64, 32, 50.0, DVec3::Z);
+        assert!(
+            back.world_from_camera
+                .abs_diff_eq(cam.world_from_camera, 1e-9),
+            "{spec}"
+        );
     }
 }

@@ -1182,7 +1182,7 @@ mod tests {
         for n in 0..2048 {
             let l = gl_array_layers(n);
             assert!(
-                l >= n.max(2) && l % 6 != 0 && l <= n.max(2) + 1,
+                l >= n.max(2) && !l.is_multiple_of(6) && l <= n.max(2) + 1,
                 "{n} -> {l}"
             );
         }

@@ -43,8 +43,13 @@ fn city(dir: &Path, name: &str, geo: bool) -> PathBuf {
         max_splats_per_tile: 16_384,
         ..ConvertOptions::default()
     };
-    convert_scene(city_scene(generate_city(&sources, &layout)), name, &out, &opts)
-        .expect("convert city");
+    convert_scene(
+        city_scene(generate_city(&sources, &layout)),
+        name,
+        &out,
+        &opts,
+    )
+    .expect("convert city");
     out.join("tileset.json")
 }
 
@@ -122,7 +127,10 @@ fn city_overview_and_street_match_the_reference_from_selection_and_stream() {
         println!(
             "{name}: SSIM from selection {selected:.4}, from stream {streamed:.4} ({resident} of {splats} splats)"
         );
-        assert!(resident > 0 && resident <= splats, "{name}: {resident} resident");
+        assert!(
+            resident > 0 && resident <= splats,
+            "{name}: {resident} resident"
+        );
         assert!(selected >= 0.95, "{name}: selection SSIM {selected}");
         assert!(streamed >= 0.95, "{name}: streamed SSIM {streamed}");
     }
