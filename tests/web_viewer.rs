@@ -444,6 +444,17 @@ fn web_viewer_draws_generated_cities_like_the_reference() {
             name.starts_with("geo"),
             "{name}: {reported}"
         );
+        // Speed follows the height above the content: walking pace at street level (the
+        // ground from an ECEF root's world-aligned bounds had made it 38 m/s), fast above.
+        let speed = fin["speed"].as_f64().unwrap_or(f64::NAN);
+        if name.ends_with("street") {
+            assert!(
+                speed > 0.0 && speed < 10.0,
+                "{name}: {speed} m/s at street level"
+            );
+        } else {
+            assert!(speed > 10.0, "{name}: {speed} m/s over the city");
+        }
         if how[0] == "--camera" {
             let want = ViewSpec::parse(how[1]).unwrap().pose(glam::DVec3::Z);
             let got = spec.pose(glam::DVec3::Z);

@@ -252,16 +252,26 @@ impl WebViewer {
             self.config.height,
             self.options.fov,
         )[k];
-        self.start_at(&cam, up, lo, hi);
+        self.start_at(&cam, up);
     }
 
-    /// Controls at `cam`; the content's ground is the lowest corner of the bounds along `up`.
-    fn start_at(&mut self, cam: &Camera, up: DVec3, lo: DVec3, hi: DVec3) {
-        let ground = [lo.x, hi.x]
+    /// The content's ground along `up`: the lowest corner of the root tile's box (in world; not
+    /// of its world-axis-aligned bounds, which sit tens of metres lower for an ECEF root).
+    fn ground(&self, up: DVec3) -> f64 {
+        let s = self.shared.borrow();
+        let root_transform = s.client.root_transform();
+        let cat = s.client.catalog();
+        cat.roots
             .iter()
-            .flat_map(|&x| [lo.y, hi.y].map(move |y| (x, y)))
-            .flat_map(|(x, y)| [lo.z, hi.z].map(move |z| DVec3::new(x, y, z).dot(up)))
-            .fold(f64::INFINITY, f64::min);
+            .filter_map(|&i| cat.tiles.get(i))
+            .flat_map(|t| t.bbox.corners())
+            .map(|c| root_transform.transform_point3(c).dot(up))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Controls at `cam`; the content's ground is the root box's lowest corner along `up`.
+    fn start_at(&mut self, cam: &Camera, up: DVec3) {
+        let ground = self.ground(up);
         let mut c = FirstPerson::from_camera(cam, up, self.options.fov, ground);
         if self.options.walk {
             c.mode = Mode::Walk;
@@ -273,12 +283,12 @@ impl WebViewer {
     /// Jumps to a view given as text (`look-at:...` or `geo:...`, as the stats' `camera`).
     pub fn set_camera(&mut self, spec: &str) -> Result<(), JsValue> {
         let view = ViewSpec::parse(spec).map_err(js)?;
-        let Some(((lo, hi), up)) = self.scene_frame() else {
+        let Some((_, up)) = self.scene_frame() else {
             self.options.camera = Some(view);
             return Ok(());
         };
         let cam = view.camera(self.config.width, self.config.height, self.options.fov, up);
-        self.start_at(&cam, up, lo, hi);
+        self.start_at(&cam, up);
         Ok(())
     }
 
@@ -310,14 +320,14 @@ impl WebViewer {
         if self.controls.is_none() {
             match self.options.camera {
                 Some(view) => {
-                    if let Some(((lo, hi), up)) = self.scene_frame() {
+                    if let Some((_, up)) = self.scene_frame() {
                         let cam = view.camera(
                             self.config.width,
                             self.config.height,
                             self.options.fov,
                             up,
                         );
-                        self.start_at(&cam, up, lo, hi);
+                        self.start_at(&cam, up);
                     }
                 }
                 None => self.auto_view(self.options.auto_view),
