@@ -52,6 +52,25 @@ fn camera_specs_resolve() {
     assert_eq!(cam.center(), DVec3::new(0.0, 0.0, -5.0));
     a.camera = Some("look-at:0,0:0,0,0".into());
     assert!(resolve_camera(&a, -DVec3::Y, bounds).is_err());
+    // An explicit up wins over the scene's; geo: places the eye in ECEF (issue 18).
+    a.camera = Some("look-at:0,0,-5:0,0,0:1,0,0".into());
+    let cam = resolve_camera(&a, -DVec3::Y, bounds).unwrap();
+    assert!(
+        (cam.rotation().y_axis + DVec3::X).length() < 1e-12,
+        "image down is -up"
+    );
+    a.camera = Some("geo:0,0,10:90,0".into());
+    let cam = resolve_camera(&a, -DVec3::Y, bounds).unwrap();
+    assert!((cam.center() - DVec3::new(6_378_147.0, 0.0, 0.0)).length() < 1e-6);
+    assert!(
+        (cam.rotation().z_axis - DVec3::Y).length() < 1e-12,
+        "heading 90: east"
+    );
+    for bad in ["geo:0,91,0:0,0", "look-at:0,0,0:1,1,1:0,0,0", "geo:0,0,0"] {
+        a.camera = Some(bad.into());
+        let e = resolve_camera(&a, -DVec3::Y, bounds).unwrap_err();
+        assert!(format!("{e:#}").contains(bad), "{bad}: {e:#}");
+    }
     // cameras.json with an id, resized to the requested width/height.
     let json = dir.path().join("cameras.json");
     std::fs::write(

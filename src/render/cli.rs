@@ -19,7 +19,9 @@ pub struct RenderArgs {
     /// Scene file (.ply, .splat, .spz) or a tileset (`tileset.json`).
     pub input: PathBuf,
     /// Camera: `PATH/cameras.json[#ID]` (trainer format; first entry without `#ID`) or
-    /// `look-at:EX,EY,EZ:TX,TY,TZ` (world coordinates; image up along --up-axis).
+    /// `look-at:EX,EY,EZ:TX,TY,TZ[:UX,UY,UZ]` (world coordinates; image up along UX,UY,UZ, else
+    /// --up-axis) or `geo:LON,LAT,HEIGHT:HEADING,PITCH` (degrees, metres; georeferenced tilesets,
+    /// heading clockwise from north, pitch above the horizontal): the viewers' stats report these.
     #[arg(
         long,
         conflicts_with = "auto_view",
@@ -120,18 +122,9 @@ pub fn resolve_camera(
         .camera
         .as_deref()
         .context("give --camera or --auto-view")?;
-    if let Some(rest) = spec.strip_prefix("look-at:") {
-        let (eye, target) = rest
-            .split_once(':')
-            .context("look-at: expected look-at:EX,EY,EZ:TX,TY,TZ")?;
-        return Ok(Camera::look_at(
-            w,
-            h,
-            args.fov,
-            parse_vec3(eye)?,
-            parse_vec3(target)?,
-            up,
-        ));
+    if spec.starts_with("look-at:") || spec.starts_with("geo:") {
+        let view = super::view_spec::ViewSpec::parse(spec).map_err(|e| anyhow::anyhow!(e))?;
+        return Ok(view.camera(w, h, args.fov, up));
     }
     let (path, id) = match spec.rsplit_once('#') {
         Some((p, id)) => (

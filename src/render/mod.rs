@@ -9,6 +9,7 @@ pub mod cli;
 pub mod image;
 pub mod metrics;
 pub mod raster;
+pub mod view_spec;
 
 pub use camera::{Camera, auto_views, auto_views_with};
 pub use image::{Image, ImageError};

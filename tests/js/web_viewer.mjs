@@ -6,6 +6,8 @@
 //
 // usage: node web_viewer.mjs BASE_URL --shot out.png [--width 480] [--height 360]
 //          [--auto-view 0] [--levels best] [--throttle BYTES_PER_S] [--timeout SECONDS]
+//          [--camera SPEC] [--max-sse PX] [--still]
+// --still: no turning away and back, only wait until the view is settled (city parity checks).
 // Exit 0 when the run finished (the caller judges what it measured), 1 when it did not.
 import fs from 'node:fs';
 import { launch, problems, parseArgs } from './interop_harness.mjs';
@@ -66,6 +68,8 @@ try {
     levels: String(opt.levels ?? 'best'),
     clean: '1',
   });
+  if (opt.camera) qs.set('camera', String(opt.camera));
+  if (opt['max-sse']) qs.set('maxSse', String(opt['max-sse']));
   await page.goto(`${base}viewer/index.html?${qs}`);
   await page.waitForFunction(() => window.splat2tiles || document.title.startsWith('error'), null, {
     timeout: 60000,
@@ -73,6 +77,7 @@ try {
   const title = await page.title();
   if (title.startsWith('error')) throw new Error(title);
 
+  if (!opt.still) {
   // 1. Some splats arrive while tile bodies are still in flight.
   await waitFor('first splats, tiles in flight', (s) => s.residentSplats > 0 && s.pending > 0, timeoutMs);
   // 2. Look the other way: the tiles that left the view are paused (their fetches aborted).
@@ -81,6 +86,7 @@ try {
   // 3. Turn back (the throttle stays: Chromium stalls requests issued across a change of the
   //    emulated conditions): paused tiles resume with Range requests, all tiles complete.
   await page.evaluate(() => window.splat2tiles.turn(-180, 0));
+  }
   out.final = await waitFor('settled', (s) => s.idle && s.settled && s.residentSplats > 0, timeoutMs);
   // Two more frames so the last fade has been drawn at full opacity.
   await page.waitForTimeout(300);

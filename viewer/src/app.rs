@@ -1,5 +1,5 @@
-//! The native window (winit 0.30): first-person controls (WASD, Q/E, drag to look, shift faster),
-//! tiles streamed by splat2tiles' client for the moving camera, a status line every second.
+//! The native window (winit 0.30): first-person controls (WASD, Q/E, F walk/fly, drag to look,
+//! shift faster), tiles streamed for the moving camera, a status line (with the camera) per second.
 
 use std::collections::HashSet;
 use std::sync::Arc;
@@ -16,12 +16,15 @@ use winit::window::{Window, WindowId};
 
 use splat2tiles::client::native::Driver;
 use splat2tiles::render::cli::{RenderArgs, resolve_camera};
+use splat2tiles::render::view_spec::{ViewSpec, is_georeferenced};
 
 use crate::headless::ViewArgs;
 use crate::renderer::{RendererConfig, SplatRenderer};
 
-/// Walking speed, metres per second (times 5 with shift).
-pub const WALK_SPEED: f64 = 2.0;
+use crate::nav::{Mode, speed_at};
+
+/// Speed factor while Shift is held.
+pub const FAST: f64 = 5.0;
 /// Mouse look, radians per pixel dragged.
 pub const LOOK_RAD_PER_PX: f64 = 0.004;
 
@@ -32,15 +35,31 @@ pub struct FlyCamera {
     pub pose: ViewPose,
     /// Vertical field of view, degrees.
     pub fov_y_deg: f64,
+    /// Height of the content's ground (lowest z of the root boxes, tileset frame).
+    pub ground_z: f64,
+    /// Walk (horizontal, height kept) or fly (along the view, Q/E vertical).
+    pub mode: Mode,
 }
 
 impl FlyCamera {
+    /// Speed in metres per second without Shift: proportional to the height above the ground.
+    pub fn speed(&self) -> f64 {
+        speed_at(self.pose.pos.z - self.ground_z)
+    }
+
     /// Moves by the keys held for `dt` seconds: `fwd`/`right`/`up` in {-1, 0, 1}.
     pub fn step(&mut self, fwd: f64, right: f64, up: f64, fast: bool, dt: f64) {
-        let speed = WALK_SPEED * if fast { 5.0 } else { 1.0 } * dt;
+        if !(dt.is_finite() && dt > 0.0) {
+            return;
+        }
+        let speed = self.speed() * if fast { FAST } else { 1.0 } * dt;
         let [x, _, z] = self.pose.basis();
         let flat = DVec3::new(z.x, z.y, 0.0).normalize_or(DVec3::X);
-        let dir = flat * fwd + x * right + DVec3::Z * up;
+        let side = DVec3::new(x.x, x.y, 0.0).normalize_or(DVec3::Y);
+        let dir = match self.mode {
+            Mode::Walk => flat * fwd + side * right,
+            Mode::Fly => z * fwd + side * right + DVec3::Z * up,
+        };
         self.pose.pos += dir * speed;
     }
 
@@ -170,7 +189,7 @@ impl App {
             let span = now - self.log_at;
             let cs = self.driver.stats();
             eprintln!(
-                "{:.1} fps | {} resident splats in {} tiles | cache {:.1} MiB (GPU {:.1} MiB) | bandwidth {:.2} MB/s est., {:.2} MB/s received | {} pending fetches | sort {:.1} ms | {}",
+                "{:.1} fps | {} resident splats in {} tiles | cache {:.1} MiB (GPU {:.1} MiB) | bandwidth {:.2} MB/s est., {:.2} MB/s received | {} pending fetches | sort {:.1} ms | {} | {} {:.1} m/s --camera {}",
                 self.frames as f64 / span,
                 stats.resident,
                 stats.tiles,
@@ -180,7 +199,10 @@ impl App {
                 cs.bytes_received.saturating_sub(self.bytes_at_log) as f64 / span / 1e6,
                 cs.pending_fetches,
                 stats.sort_ms,
-                g.adapter
+                g.adapter,
+                self.fly.mode.as_str(),
+                self.fly.speed(),
+                camera_spec(&cam, self.root),
             );
             for e in &cs.last_errors {
                 eprintln!("stream error: {e}");
@@ -226,6 +248,10 @@ impl ApplicationHandler for App {
                 if let PhysicalKey::Code(code) = event.physical_key {
                     if code == KeyCode::Escape {
                         el.exit();
+                    } else if code == KeyCode::KeyF {
+                        if event.state == ElementState::Pressed && !event.repeat {
+                            self.fly.mode = self.fly.mode.toggled();
+                        }
                     } else if event.state == ElementState::Pressed {
                         self.keys.insert(code);
                     } else {
@@ -255,6 +281,17 @@ impl ApplicationHandler for App {
             }
             _ => {}
         }
+    }
+}
+
+/// `cam` as a `--camera` spec: `geo:` for a georeferenced tileset (ECEF root), else `look-at:`
+/// with the tileset's up.
+pub fn camera_spec(cam: &Camera, root: glam::DMat4) -> String {
+    if is_georeferenced(root) {
+        ViewSpec::geo_of(cam).to_string()
+    } else {
+        let up = root.transform_vector3(DVec3::Z).normalize_or(DVec3::Z);
+        ViewSpec::look_at_of(cam, up).to_string()
     }
 }
 
@@ -290,9 +327,19 @@ pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
     let local = root.inverse() * start.world_from_camera;
     let pos = local.w_axis.truncate();
     let fwd = local.z_axis.truncate();
+    let cat = driver.client().catalog();
+    let ground_z = cat
+        .roots
+        .iter()
+        .filter_map(|&i| cat.tiles.get(i))
+        .flat_map(|t| t.bbox.corners())
+        .map(|c| c.z)
+        .fold(f64::INFINITY, f64::min);
     let fly = FlyCamera {
         pose: ViewPose::looking_at(0.0, pos, pos + fwd),
         fov_y_deg: v.fov,
+        ground_z: if ground_z.is_finite() { ground_z } else { 0.0 },
+        mode: Mode::Fly,
     };
     let cfg = RendererConfig {
         background: v.background_rgb()?,
@@ -330,25 +377,71 @@ pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
 mod tests {
     use super::*;
 
-    #[test]
-    fn fly_camera_moves_and_turns_in_the_ground_plane() {
-        let mut f = FlyCamera {
+    fn at(z: f64, pitch: f64, mode: Mode) -> FlyCamera {
+        FlyCamera {
             pose: ViewPose {
                 t: 0.0,
-                pos: DVec3::ZERO,
+                pos: DVec3::new(0.0, 0.0, z),
                 yaw: 0.0,
-                pitch: 0.3,
+                pitch,
             },
             fov_y_deg: 50.0,
+            ground_z: 0.0,
+            mode,
+        }
+    }
+
+    #[test]
+    fn walk_keeps_the_eye_height_under_any_pitch() {
+        for pitch in [-1.5, -0.8, -0.1, 0.0, 0.4, 1.5] {
+            let mut f = at(1.7, pitch, Mode::Walk);
+            f.step(1.0, 0.0, 0.0, false, 0.5);
+            f.step(0.0, 1.0, 1.0, true, 0.5);
+            f.step(-1.0, -1.0, -1.0, false, 0.2);
+            assert!(
+                (f.pose.pos.z - 1.7).abs() < 1e-12,
+                "pitch {pitch}: {:?}",
+                f.pose.pos
+            );
+            assert!(
+                f.pose.pos.truncate().length() > 1.0,
+                "pitch {pitch}: did not move"
+            );
+        }
+        // Flying along a pitched view changes the height; F toggles the mode.
+        let mut f = at(10.0, -0.5, Mode::Walk);
+        f.mode = f.mode.toggled();
+        f.step(1.0, 0.0, 0.0, false, 0.1);
+        assert!(f.pose.pos.z < 10.0);
+    }
+
+    #[test]
+    fn speed_scales_with_height_and_the_camera_is_finite() {
+        let moved = |z: f64| {
+            let mut f = at(z, 0.3, Mode::Walk);
+            f.step(1.0, 0.0, 0.0, false, 0.1);
+            f.pose.pos.truncate().length() / 0.1
         };
-        f.step(1.0, 0.0, 0.0, false, 1.0);
-        assert!((f.pose.pos - DVec3::new(WALK_SPEED, 0.0, 0.0)).length() < 1e-9);
+        assert!((moved(400.0) / moved(40.0) - 10.0).abs() < 1e-9);
+        assert!((moved(1.7) - speed_at(0.0)).abs() < 1e-9);
+        let mut f = at(1.7, 0.3, Mode::Fly);
         f.step(0.0, 0.0, 1.0, true, 0.5);
-        assert!((f.pose.pos.z - WALK_SPEED * 2.5).abs() < 1e-9);
+        assert!((f.pose.pos.z - (1.7 + speed_at(1.7) * FAST * 0.5)).abs() < 1e-9);
+        f.step(1.0, 0.0, 0.0, false, f64::NAN);
         f.look(100.0, -1e6);
         assert!(f.pose.pitch <= 1.5 && f.pose.yaw < 0.0);
         let cam = f.camera(64, 32, glam::DMat4::IDENTITY);
         assert_eq!((cam.width, cam.height), (64, 32));
         assert!(cam.world_from_camera.is_finite());
+        // The status line's camera reproduces the view.
+        let spec = camera_spec(&cam, glam::DMat4::IDENTITY);
+        let back = ViewSpec::parse(&spec)
+            .unwrap()
+            .camera(64, 32, 50.0, DVec3::Z);
+        assert!(
+            back.world_from_camera
+                .abs_diff_eq(cam.world_from_camera, 1e-9),
+            "{spec}"
+        );
     }
 }

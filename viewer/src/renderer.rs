@@ -29,6 +29,19 @@ pub const TILE_TEXELS: u32 = 5;
 /// f32 projection cannot overflow.
 pub const MAX_FOOTPRINT_PX: f32 = 1.0e6;
 
+/// A layer count for the attribute texture arrays that WebGL2 binds as `TEXTURE_2D_ARRAY`:
+/// wgpu's GL backend picks the GL target from the layer count (1 layer: `TEXTURE_2D`, a multiple
+/// of 6 on a square texture: a cube map), and an array view of any other target reads nothing
+/// (a scene held in one page drew every splat at its tile's centre, grey). At least 2, never a
+/// multiple of 6.
+pub const fn gl_array_layers(n: u32) -> u32 {
+    let mut n = if n < 2 { 2 } else { n };
+    while n % 6 == 0 {
+        n += 1;
+    }
+    n
+}
+
 /// Texels of SH data per splat for a degree: `ceil(3 (d+1)^2 / 4)`.
 pub const fn sh_texels(degree: u8) -> u32 {
     let d = degree as u32 + 1;
@@ -572,14 +585,21 @@ impl SplatRenderer {
             ..cfg
         };
         let f32x4 = wgpu::TextureFormat::Rgba32Float;
+        let layers0 = gl_array_layers(1).min(device.limits().max_texture_array_layers.max(1));
         SplatRenderer {
             cfg,
             pipeline,
             bgl,
             uniform,
-            pos: AttrTex::new(device, "splat centres", f32x4, 1, 1),
-            shape: AttrTex::new(device, "splat shapes", f32x4, 2, 1),
-            sh: AttrTex::new(device, "splat SH", wgpu::TextureFormat::Rgba16Float, 1, 1),
+            pos: AttrTex::new(device, "splat centres", f32x4, 1, layers0),
+            shape: AttrTex::new(device, "splat shapes", f32x4, 2, layers0),
+            sh: AttrTex::new(
+                device,
+                "splat SH",
+                wgpu::TextureFormat::Rgba16Float,
+                1,
+                layers0,
+            ),
             sh_capacity_degree: 0,
             table: table_texture(device, 1),
             table_rows: 1,
@@ -755,10 +775,13 @@ impl SplatRenderer {
     ) {
         let layers = self.pos.layers;
         if pages > layers {
-            let want = pages
-                .max(layers.saturating_mul(2))
-                .min(self.cfg.max_pages)
-                .max(pages);
+            let want = gl_array_layers(
+                pages
+                    .max(layers.saturating_mul(2))
+                    .min(self.cfg.max_pages)
+                    .max(pages),
+            )
+            .min(device.limits().max_texture_array_layers.max(pages));
             self.pos = self.pos.grown(device, queue, "splat centres", 1, want);
             self.shape = self.shape.grown(device, queue, "splat shapes", 2, want);
             let b = self.sh.blocks;
@@ -1147,6 +1170,23 @@ impl SplatRenderer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn array_layer_counts_stay_arrays_on_webgl() {
+        assert_eq!(gl_array_layers(0), 2);
+        assert_eq!(gl_array_layers(1), 2);
+        assert_eq!(gl_array_layers(2), 2);
+        assert_eq!(gl_array_layers(5), 5);
+        assert_eq!(gl_array_layers(6), 7);
+        assert_eq!(gl_array_layers(12), 13);
+        for n in 0..2048 {
+            let l = gl_array_layers(n);
+            assert!(
+                l >= n.max(2) && !l.is_multiple_of(6) && l <= n.max(2) + 1,
+                "{n} -> {l}"
+            );
+        }
+    }
 
     #[test]
     fn sh_texel_counts() {

@@ -1,5 +1,5 @@
-//! First-person camera controls of the web viewer: WASD/QE movement and yaw/pitch looking around
-//! the scene's up axis, turned into the reference renderer's `Camera` (OpenCV convention).
+//! First-person camera controls of the web viewer: WASD/QE movement (walk or fly, speed relative
+//! to the height above the content) and yaw/pitch looking around the scene's up axis.
 
 use glam::DVec3;
 use splat2tiles::render::camera::Camera;
@@ -7,6 +7,7 @@ use std::collections::HashSet;
 
 /// Pitch stays this far from straight up/down so the view basis never degenerates.
 const MAX_PITCH_DEG: f64 = 89.0;
+pub use splat2tiles_viewer::nav::{MIN_SPEED_HEIGHT, Mode, SPEED_PER_HEIGHT};
 
 /// A first-person camera: eye, yaw/pitch about `up`, held keys, image size and field of view.
 #[derive(Debug, Clone)]
@@ -21,8 +22,10 @@ pub struct FirstPerson {
     pub up: DVec3,
     east: DVec3,
     north: DVec3,
-    /// Movement speed in world units per second (Shift: x4).
-    pub speed: f64,
+    /// Height of the content's ground along `up` (`up . p` of its lowest point).
+    pub ground: f64,
+    /// Walk or fly.
+    pub mode: Mode,
     /// Image size.
     pub width: u32,
     /// Image height.
@@ -36,8 +39,9 @@ pub struct FirstPerson {
 }
 
 impl FirstPerson {
-    /// Controls starting at `camera` (its eye and viewing direction) with `up` as the world up.
-    pub fn from_camera(camera: &Camera, up: DVec3, fov_y_deg: f64, speed: f64) -> Self {
+    /// Controls starting at `camera` (its eye and viewing direction) with `up` as the world up and
+    /// the content's ground at `up . p == ground`; flying.
+    pub fn from_camera(camera: &Camera, up: DVec3, fov_y_deg: f64, ground: f64) -> Self {
         let up = up.try_normalize().unwrap_or(DVec3::Z);
         let helper = if up.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
         let east = (helper - up * helper.dot(up)).normalize();
@@ -53,11 +57,8 @@ impl FirstPerson {
             up,
             east,
             north,
-            speed: if speed.is_finite() && speed > 0.0 {
-                speed
-            } else {
-                1.0
-            },
+            ground: if ground.is_finite() { ground } else { 0.0 },
+            mode: Mode::Fly,
             width: camera.width,
             height: camera.height,
             fov_y_deg,
@@ -71,6 +72,22 @@ impl FirstPerson {
     pub fn forward(&self) -> DVec3 {
         let (y, p) = (self.yaw_deg.to_radians(), self.pitch_deg.to_radians());
         (self.east * y.cos() + self.north * y.sin()) * p.cos() + self.up * p.sin()
+    }
+
+    /// Height of the eye above the content's ground, metres.
+    pub fn height_above_ground(&self) -> f64 {
+        self.eye.dot(self.up) - self.ground
+    }
+
+    /// Movement speed in world units per second without Shift: proportional to the height above
+    /// the ground, at least [`MIN_SPEED_HEIGHT`]'s.
+    pub fn speed(&self) -> f64 {
+        splat2tiles_viewer::nav::speed_at(self.height_above_ground())
+    }
+
+    /// Switches between walking and flying.
+    pub fn toggle_mode(&mut self) {
+        self.mode = self.mode.toggled();
     }
 
     /// Records a key press or release (`KeyboardEvent.code` names: "KeyW", "KeyQ", ...).
@@ -106,16 +123,21 @@ impl FirstPerson {
         if !(dt.is_finite() && dt > 0.0) {
             return false;
         }
-        let f = self.forward();
-        let right = f.cross(self.up).try_normalize().unwrap_or(self.east);
+        let y = self.yaw_deg.to_radians();
+        let level = self.east * y.cos() + self.north * y.sin();
+        let (f, vertical) = match self.mode {
+            Mode::Walk => (level, DVec3::ZERO),
+            Mode::Fly => (self.forward(), self.up),
+        };
+        let right = level.cross(self.up).try_normalize().unwrap_or(self.east);
         let mut dir = DVec3::ZERO;
         for (code, d) in [
             ("KeyW", f),
             ("KeyS", -f),
             ("KeyD", right),
             ("KeyA", -right),
-            ("KeyE", self.up),
-            ("KeyQ", -self.up),
+            ("KeyE", vertical),
+            ("KeyQ", -vertical),
         ] {
             if self.keys.contains(code) {
                 dir += d;
@@ -124,7 +146,7 @@ impl FirstPerson {
         let Some(dir) = dir.try_normalize() else {
             return false;
         };
-        let speed = self.speed * if self.fast { 4.0 } else { 1.0 };
+        let speed = self.speed() * if self.fast { 4.0 } else { 1.0 };
         self.eye += dir * speed * dt.min(0.25);
         self.exact = None;
         true
@@ -166,7 +188,8 @@ mod tests {
             DVec3::ZERO,
             DVec3::Z,
         );
-        FirstPerson::from_camera(&cam, DVec3::Z, 50.0, 2.0)
+        // Eye 1 m up, ground at z = -1: 2 m above the ground, speed 2 m/s.
+        FirstPerson::from_camera(&cam, DVec3::Z, 50.0, -1.0)
     }
 
     #[test]
@@ -209,8 +232,9 @@ mod tests {
         fp.key("KeyW", false, false);
         fp.key("KeyE", true, true);
         let e1 = fp.eye;
+        let speed = fp.speed();
         assert!(fp.advance(0.1));
-        assert!(((fp.eye - e1).dot(DVec3::Z) - 0.8).abs() < 1e-9);
+        assert!(((fp.eye - e1).dot(DVec3::Z) - 0.4 * speed).abs() < 1e-9);
         fp.release_keys();
         assert!(!fp.advance(0.1));
     }
@@ -232,6 +256,7 @@ mod tests {
                 .all(|v| v.is_finite())
         );
         let mut deg = FirstPerson::from_camera(&c, DVec3::ZERO, 50.0, f64::NAN);
+        assert!(deg.speed().is_finite() && deg.speed() > 0.0);
         deg.look(1.0, 1.0);
         assert!(
             deg.camera()
@@ -240,5 +265,62 @@ mod tests {
                 .iter()
                 .all(|v| v.is_finite())
         );
+    }
+
+    #[test]
+    fn walk_keeps_the_eye_height_under_any_pitch() {
+        for pitch in [-89.0, -60.0, -10.0, 0.0, 30.0, 89.0] {
+            let mut fp = start();
+            fp.toggle_mode();
+            assert_eq!(fp.mode, Mode::Walk);
+            fp.look(37.0, pitch - fp.pitch_deg);
+            let z0 = fp.eye.z;
+            for key in ["KeyW", "KeyS", "KeyA", "KeyD", "KeyE", "KeyQ"] {
+                fp.key(key, true, false);
+                fp.advance(0.2);
+                fp.key(key, false, false);
+            }
+            fp.key("KeyW", true, true);
+            let e = fp.eye;
+            assert!(fp.advance(0.25));
+            assert!((fp.eye - e).length() > 0.1, "pitch {pitch}: walking moved");
+            assert!(
+                (fp.eye.z - z0).abs() < 1e-12,
+                "pitch {pitch}: height changed"
+            );
+        }
+        // Flying along a pitched view changes the height.
+        let mut fp = start();
+        fp.look(0.0, -30.0 - fp.pitch_deg);
+        let z0 = fp.eye.z;
+        fp.key("KeyW", true, false);
+        fp.advance(0.2);
+        assert!(fp.eye.z < z0 - 0.1);
+    }
+
+    #[test]
+    fn speed_scales_with_the_height_above_the_content() {
+        let at = |h: f64| {
+            let cam = Camera::look_at(
+                64,
+                48,
+                50.0,
+                DVec3::new(0.0, 0.0, h),
+                DVec3::new(1.0, 0.0, h),
+                DVec3::Z,
+            );
+            let mut fp = FirstPerson::from_camera(&cam, DVec3::Z, 50.0, 0.0);
+            fp.toggle_mode();
+            fp.key("KeyW", true, false);
+            let e = fp.eye;
+            fp.advance(0.1);
+            (fp.eye - e).length() / 0.1
+        };
+        assert!((at(500.0) - 500.0 * SPEED_PER_HEIGHT).abs() < 1e-6);
+        assert!((at(50.0) - 50.0 * SPEED_PER_HEIGHT).abs() < 1e-6);
+        assert!((at(500.0) / at(50.0) - 10.0).abs() < 1e-9);
+        // At street level (and below the ground) the walking speed floor holds.
+        assert!((at(1.7) - MIN_SPEED_HEIGHT * SPEED_PER_HEIGHT).abs() < 1e-9);
+        assert!((at(-5.0) - MIN_SPEED_HEIGHT * SPEED_PER_HEIGHT).abs() < 1e-9);
     }
 }

@@ -8,12 +8,13 @@ use glam::DVec3;
 use serde_json::json;
 use splat2tiles::client::{Action, ClientConfig, SceneUpdate, StreamClient};
 use splat2tiles::render::camera::{self, Camera};
+use splat2tiles::render::view_spec::{ViewSpec, is_georeferenced};
 use splat2tiles::stream::Level;
 use splat2tiles_viewer::{RendererConfig, SplatRenderer};
 use wasm_bindgen::prelude::*;
 use web_sys::HtmlCanvasElement;
 
-use crate::controls::FirstPerson;
+use crate::controls::{FirstPerson, Mode};
 use crate::fetch::{self, Shared};
 
 /// Page options (the JSON the page passes to `create`).
@@ -23,6 +24,10 @@ struct Options {
     budget_mb: f64,
     max_sse: f64,
     fov: f64,
+    /// Starting view (`camera=`), instead of the automatic viewpoint.
+    camera: Option<ViewSpec>,
+    /// Start walking instead of flying (`mode=walk`).
+    walk: bool,
 }
 
 impl Options {
@@ -69,6 +74,15 @@ impl Options {
             budget_mb: num("budgetMB", 512.0),
             max_sse: num("maxSse", 16.0),
             fov: num("fov", camera::DEFAULT_FOV_Y_DEG),
+            camera: match v.get("camera").and_then(|c| c.as_str()) {
+                Some(c) if !c.trim().is_empty() => Some(ViewSpec::parse(c)?),
+                _ => None,
+            },
+            walk: match v.get("mode").and_then(|m| m.as_str()).unwrap_or("fly") {
+                "walk" => true,
+                "fly" => false,
+                other => return Err(format!("unknown mode '{other}' (walk, fly)")),
+            },
         };
         if !(o.budget_mb.is_finite() && o.budget_mb > 0.0) {
             return Err(format!("budgetMB must be positive, got {}", o.budget_mb));
@@ -238,9 +252,58 @@ impl WebViewer {
             self.config.height,
             self.options.fov,
         )[k];
-        let speed = (hi - lo).length() * 0.15;
-        self.controls = Some(FirstPerson::from_camera(&cam, up, self.options.fov, speed));
+        self.start_at(&cam, up);
+    }
+
+    /// The content's ground along `up`: the lowest corner of the root tile's box (in world; not
+    /// of its world-axis-aligned bounds, which sit tens of metres lower for an ECEF root).
+    fn ground(&self, up: DVec3) -> f64 {
+        let s = self.shared.borrow();
+        let root_transform = s.client.root_transform();
+        let cat = s.client.catalog();
+        cat.roots
+            .iter()
+            .filter_map(|&i| cat.tiles.get(i))
+            .flat_map(|t| t.bbox.corners())
+            .map(|c| root_transform.transform_point3(c).dot(up))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Controls at `cam`; the content's ground is the root box's lowest corner along `up`.
+    fn start_at(&mut self, cam: &Camera, up: DVec3) {
+        let ground = self.ground(up);
+        let mut c = FirstPerson::from_camera(cam, up, self.options.fov, ground);
+        if self.options.walk {
+            c.mode = Mode::Walk;
+        }
+        self.controls = Some(c);
         self.view_unplanned = true;
+    }
+
+    /// Jumps to a view given as text (`look-at:...` or `geo:...`, as the stats' `camera`).
+    pub fn set_camera(&mut self, spec: &str) -> Result<(), JsValue> {
+        let view = ViewSpec::parse(spec).map_err(js)?;
+        let Some((_, up)) = self.scene_frame() else {
+            self.options.camera = Some(view);
+            return Ok(());
+        };
+        let cam = view.camera(self.config.width, self.config.height, self.options.fov, up);
+        self.start_at(&cam, up);
+        Ok(())
+    }
+
+    /// The current view as text (`geo:` for georeferenced tilesets, else `look-at:`).
+    pub fn camera_spec(&self) -> String {
+        let Some(c) = &self.controls else {
+            return String::new();
+        };
+        let cam = c.camera();
+        let geo = is_georeferenced(self.shared.borrow().client.root_transform());
+        if geo {
+            ViewSpec::geo_of(&cam).to_string()
+        } else {
+            ViewSpec::look_at_of(&cam, c.up).to_string()
+        }
     }
 
     /// Renders one frame at page time `now_s` (seconds): input, streaming, uploads, draw.
@@ -255,7 +318,20 @@ impl WebViewer {
             };
         }
         if self.controls.is_none() {
-            self.auto_view(self.options.auto_view);
+            match self.options.camera {
+                Some(view) => {
+                    if let Some((_, up)) = self.scene_frame() {
+                        let cam = view.camera(
+                            self.config.width,
+                            self.config.height,
+                            self.options.fov,
+                            up,
+                        );
+                        self.start_at(&cam, up);
+                    }
+                }
+                None => self.auto_view(self.options.auto_view),
+            }
         }
         if let Some(c) = self.controls.as_mut() {
             c.advance(dt);
@@ -335,8 +411,15 @@ impl WebViewer {
     }
 
     /// A key went down or up (`KeyboardEvent.code`).
+    /// F switches between walking and flying.
     pub fn key(&mut self, code: &str, down: bool, shift: bool) {
         if let Some(c) = self.controls.as_mut() {
+            if code == "KeyF" {
+                if down {
+                    c.toggle_mode();
+                }
+                return;
+            }
             c.key(code, down, shift);
         }
     }
@@ -391,6 +474,9 @@ impl WebViewer {
             "errors": c.errors,
             "lastErrors": c.last_errors,
             "sortMs": self.sort_ms,
+            "camera": self.camera_spec(),
+            "mode": self.controls.as_ref().map(|c| c.mode).unwrap_or(Mode::Fly).as_str(),
+            "speed": self.controls.as_ref().map(|c| c.speed()).unwrap_or(0.0),
             "idle": !self.view_unplanned && s.client.is_idle() && s.in_flight() == 0,
             "settled": !self.view_unplanned && now - self.last_change > self.fade_s + 0.05,
         })
@@ -401,12 +487,13 @@ impl WebViewer {
         self.stats_value().to_string()
     }
 
-    /// The overlay's text: FPS, resident splats, cache bytes, bandwidth, pending fetches.
+    /// The overlay's text: FPS, resident splats, cache bytes, bandwidth, pending fetches, the
+    /// navigation mode and speed, and the camera (what `camera=` takes).
     pub fn overlay(&self) -> String {
         let v = self.stats_value();
         let f = |k: &str| v[k].as_f64().unwrap_or(0.0);
         format!(
-            "{:5.1} fps   {:>9} splats   sort {:.1} ms\ncache {:.1} MB   {:.2} MB/s   {} pending   {} paused{}",
+            "{:5.1} fps   {:>9} splats   sort {:.1} ms\ncache {:.1} MB   {:.2} MB/s   {} pending   {} paused{}\n{} {:.1} m/s   camera={}",
             f("fps"),
             v["residentSplats"],
             f("sortMs"),
@@ -417,7 +504,10 @@ impl WebViewer {
             match v["errors"].as_u64() {
                 Some(0) | None => String::new(),
                 Some(n) => format!("   {n} errors"),
-            }
+            },
+            v["mode"].as_str().unwrap_or_default(),
+            f("speed"),
+            v["camera"].as_str().unwrap_or_default(),
         )
     }
 
