@@ -78,9 +78,9 @@ fn check_damage(name: &str) {
     let damaged = [half(&tile), jittered(&tile), colours_3bit(&tile)];
     let mut cands: Vec<&Splats> = vec![&tile];
     cands.extend(damaged.iter());
-    let u = splat2tiles::variants::utilities(&tile, &cands, up);
     let (lo, hi) = tile.bounds().unwrap();
     let setup = ViewSetup::estimated(DVec3::from_array(lo), DVec3::from_array(hi), up);
+    let u = splat2tiles::variants::utilities(&tile, &cands, &setup);
     let sc = scores(&tile, &cands, &setup.windows());
     eprintln!("{name}: window {} px, scores {sc:?}", setup.window_side());
     eprintln!(
@@ -294,7 +294,7 @@ fn correlation_table() {
             ratios.push(error / radius);
             let cands: Vec<&Splats> = decoded[1..].iter().map(|d| &d.0).collect();
             let full = full_frame_ssim(best, &cands, &setup.full_frames());
-            let est = estimated_utilities(best, &cands, setup.up);
+            let est = estimated_utilities(best, &cands, &setup);
             es.extend(&est);
             in_order_e += est.windows(2).all(|w| w[0] >= w[1]) as usize;
             let win = scores(best, &cands, &setup.windows());
