@@ -147,13 +147,19 @@ fn nnls(a: &[[f64; 5]], b: &[f64]) -> [f64; 5] {
     best.0
 }
 
-/// The fit's design matrix: the features (as `predicted_loss` uses them).
+/// The fit's design matrix: the features (as `predicted_loss` uses them), each row divided by
+/// its loss, so the fit minimises the relative error: losses span three orders of magnitude
+/// (High about 1e-3, Low up to 1), and plain least squares fitted the largest ones only
+/// (pooled Spearman 0.892 against the rendered utility).
 fn design(rows: &[&Row]) -> (Vec<[f64; 5]>, Vec<f64>) {
     let a = rows
         .iter()
-        .map(|r| r.features.map(|f| f.max(0.0)))
+        .map(|r| {
+            let y = loss(r).max(1e-9);
+            r.features.map(|f| f.max(0.0) / y)
+        })
         .collect();
-    let b = rows.iter().map(|r| loss(r)).collect();
+    let b = rows.iter().map(|_| 1.0).collect();
     (a, b)
 }
 

@@ -47,11 +47,11 @@ pub const METHOD: &str = "frame-v4-estimate: no renders; exp(-sum_k w_k F_k), wi
 /// Names of the features, in [`WEIGHTS`] order.
 pub const FEATURE_NAMES: [&str; 5] = ["colour", "opacity", "position", "scale", "rotation"];
 
-/// Loss (`-ln utility`) per unit of each feature: fitted by non-negative least squares to the
-/// rendered utility ([`super::utility::utilities`]) over every content tile and variant of the
+/// Loss (`-ln utility`) per unit of each feature: fitted by non-negative least squares (on the
+/// relative error) to the rendered utility ([`super::utility::utilities`]) over every content tile and variant of the
 /// shared scenes and the generated SH3 scene (`tests/variants_estimate.rs`, `calibrate`; its
 /// measured error is in BENCHMARKS.md, "Quality variants").
-pub const WEIGHTS: [f64; 5] = [3.380, 2.872, 0.0, 0.0, 1.028];
+pub const WEIGHTS: [f64; 5] = [1190.98, 20203.7, 847.29, 0.0, 306.82];
 
 /// The coverage-weighted features of `candidate` against `reference` (same splats in the same
 /// order, tile-relative), seen as [`ViewSetup`] sees them. `None` when the counts differ.

@@ -14,8 +14,9 @@ pub const BACKGROUND: [f32; 3] = [0.5; 3];
 
 /// Geometric error a tile is viewed at, per unit of its bounding-sphere radius (half the
 /// diagonal of its splat-centre box), when its real one is unknown (a tileset of one leaf).
-/// The median of (the tile's own geometric error, or its parent's for a leaf) / radius over
-/// the content tiles of the shared scenes (`tests/variants_utility.rs`, `correlation_table`).
+/// About the median of (the tile's own geometric error, or its parent's for a leaf) / radius
+/// over the content tiles of the shared scenes, rounded down (`tests/variants_utility.rs`,
+/// `correlation_table`, prints it).
 pub const VIEW_ERROR_PER_RADIUS: f64 = 0.1;
 
 /// What `utilityMethod` in the tileset metadata says when utilities are rendered.
