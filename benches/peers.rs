@@ -2,7 +2,7 @@
 //! bit allocation, SPZ v2 (our writer), SPZ v3/v4 and PlayCanvas SOG (splat-transform).
 //!
 //! Each scene (the three shared scenes, `../shared/scenes/README.md`, and the plant with generated
-//! SH1-3) is encoded whole by every codec, decoded by that codec's own reader (ours, or
+//! SH1-3, every 4th splat) is encoded whole by every codec, decoded by that codec's own reader (ours, or
 //! splat-transform back to PLY), and rendered by the CPU reference renderer from the 8 automatic
 //! views at 1280x720 (mid-grey background) around the box holding 99% of the splat centres on each
 //! axis; the score is the mean SSIM against the float32 scene's renders. Bytes: the encoded file,
@@ -10,7 +10,8 @@
 //!
 //! Run: `npm ci --prefix tests/js` once, then `cargo bench --bench peers` (writes
 //! `target/peers.md` and `docs/peers.svg`; `PEERS_SCENES=plant` runs one scene; `PEERS_TIMEOUT_S`
-//! bounds each splat-transform run, default 900 s).
+//! bounds each splat-transform run, default 900 s; `PEERS_REPLOT=target/peers.md` only redraws
+//! the plot from a saved table).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -28,6 +29,7 @@ use splat2tiles::frame::UpAxis;
 use splat2tiles::io::{read_path, write_ply};
 use splat2tiles::render::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
 use splat2tiles::render::{Camera, Image, render_splats, ssim};
+use splat2tiles::sim::svg::{Series, marked_chart, panels};
 use splat2tiles::splat::Splats;
 use splat2tiles::variants::{ALL, decode_variant, relative, utility::render_options};
 
@@ -162,7 +164,24 @@ fn via_splat_transform(
     Ok((bytes, s))
 }
 
+/// The generated SH3 scene keeps every `SH3_STEP`-th splat of the plant (see `main`).
+const SH3_STEP: usize = 4;
+
 fn main() {
+    // Re-plot a saved table without encoding anything again.
+    if let Some(md) = std::env::var_os("PEERS_REPLOT") {
+        let len = std::fs::metadata(&md).map(|m| m.len()).unwrap_or(u64::MAX);
+        assert!(
+            len <= 1 << 20,
+            "{}: not a peers table",
+            md.to_string_lossy()
+        );
+        let points = points_from_table(&std::fs::read_to_string(&md).unwrap());
+        assert!(!points.is_empty(), "{}: no rows", md.to_string_lossy());
+        std::fs::write(root().join("docs/peers.svg"), plot(&points)).unwrap();
+        eprintln!("wrote docs/peers.svg from {} rows", points.len());
+        return;
+    }
     let dir = root().join("../shared/scenes");
     let only = std::env::var("PEERS_SCENES").unwrap_or_default();
     let plant = read_path(&dir.join("plant.splat")).unwrap();
@@ -172,9 +191,14 @@ fn main() {
         let up: UpAxis = sc.format.default_up_axis().parse().unwrap();
         scenes.push((format!("{f} (SH0)"), sc.splats, up));
     }
+    // Every 4th splat: splat-transform's SOG writer clusters the SH into a palette of
+    // min(64, 2^floor(log2(n / 1024))) x 1024 entries on the CPU here, which had not finished
+    // the whole plant (114k splats, 64k entries) in 50 minutes; at 28k splats it is 16k entries.
+    let sh3 = plant_sh3(&plant.splats);
+    let quarter: Vec<usize> = (0..sh3.len()).step_by(SH3_STEP).collect();
     scenes.push((
-        "plant + generated SH1-3".into(),
-        plant_sh3(&plant.splats),
+        format!("plant + generated SH1-3, every {SH3_STEP}th splat"),
+        sh3.select(&quarter),
         "-y".parse().unwrap(),
     ));
     scenes.retain(|(n, ..)| only.is_empty() || n.contains(&only));
@@ -307,90 +331,73 @@ fn table(points: &[Point]) -> String {
     s
 }
 
-/// One panel per scene: mean SSIM against wire bytes per splat (log x), one colour per family.
+/// Families in the plot's order.
+const FAMILIES: [&str; 4] = ["splat2tiles", "TileSplat Table 6", "SPZ", "SOG"];
+
+/// One panel per scene (`sim::svg`): log10 (1 - SSIM at 4x zoom) against log10 wire bytes per
+/// splat, one line with dots per codec family.
 fn plot(points: &[Point]) -> String {
     let mut scenes: Vec<&str> = points.iter().map(|p| p.scene.as_str()).collect();
     scenes.dedup();
-    let families = [
-        ("splat2tiles", "#d62728"),
-        ("TileSplat Table 6", "#1f77b4"),
-        ("SPZ", "#2ca02c"),
-        ("SOG", "#9467bd"),
-    ];
-    let (pw, ph, l, t, b) = (460.0, 300.0, 60.0, 40.0, 40.0);
-    let cols = 2usize;
-    let rows = scenes.len().div_ceil(cols);
-    let (w, h) = (pw * cols as f64 + 20.0, ph * rows as f64 + 60.0);
-    let mut s = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<text x=\"20\" y=\"20\" font-size=\"14\">1 - mean SSIM (1280x720, 8 views, 4x zoom; log scale, better upwards) against bytes per splat sent (file or gzip, the smaller; log): benches/peers.rs</text>\n"
-    );
-    for (k, (f, c)) in families.iter().enumerate() {
-        let x = 20.0 + k as f64 * 150.0;
-        writeln!(s, "<rect x=\"{x}\" y=\"{}\" width=\"10\" height=\"10\" fill=\"{c}\"/><text x=\"{}\" y=\"{}\">{f}</text>", h - 22.0, x + 14.0, h - 13.0).unwrap();
-    }
-    for (si, scene) in scenes.iter().enumerate() {
-        let (ox, oy) = (
-            10.0 + (si % cols) as f64 * pw,
-            30.0 + (si / cols) as f64 * ph,
-        );
-        let pts: Vec<&Point> = points.iter().filter(|p| p.scene == *scene).collect();
-        let bx = |p: &Point| (p.wire() as f64 / p.splats as f64).log10();
-        let x0 = pts.iter().map(|p| bx(p)).fold(f64::MAX, f64::min).floor();
-        let x1 = pts.iter().map(|p| bx(p)).fold(f64::MIN, f64::max).ceil();
-        // y: log10(1 - SSIM at 4x zoom), lower is better.
-        let dy = |p: &Point| (1.0 - p.ssim[1]).max(1e-6).log10();
-        let y1 = pts.iter().map(|p| dy(p)).fold(f64::MAX, f64::min).floor();
-        let y0 = pts.iter().map(|p| dy(p)).fold(f64::MIN, f64::max).ceil();
-        let (iw, ih) = (pw - l - 20.0, ph - t - b);
-        let px = |v: f64| ox + l + (v - x0) / (x1 - x0).max(1e-9) * iw;
-        let py = |v: f64| oy + t + (y1 - v) / (y1 - y0).max(1e-9) * ih;
-        writeln!(
-            s,
-            "<text x=\"{}\" y=\"{}\" font-size=\"13\">{scene}</text>",
-            ox + l,
-            oy + t - 8.0
-        )
-        .unwrap();
-        let mut d = x0;
-        while d <= x1 + 1e-9 {
-            for m in [1.0, 2.0, 5.0] {
-                let v = 10f64.powf(d) * m;
-                if v.log10() > x1 + 1e-9 {
-                    break;
-                }
-                let x = px(v.log10());
-                writeln!(s, "<line x1=\"{x:.1}\" y1=\"{}\" x2=\"{x:.1}\" y2=\"{}\" stroke=\"#ddd\"/><text x=\"{x:.1}\" y=\"{}\" text-anchor=\"middle\">{v}</text>", oy + t, oy + t + ih, oy + t + ih + 14.0).unwrap();
+    let charts: Vec<String> = scenes
+        .iter()
+        .map(|scene| {
+            let series: Vec<Series> = FAMILIES
+                .iter()
+                .map(|f| {
+                    let mut xy: Vec<(f64, f64)> = points
+                        .iter()
+                        .filter(|p| p.scene == *scene && p.family == *f)
+                        .map(|p| {
+                            (
+                                (p.wire() as f64 / p.splats as f64).log10(),
+                                (1.0 - p.ssim[1]).max(1e-6).log10(),
+                            )
+                        })
+                        .collect();
+                    xy.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    (f.to_string(), xy)
+                })
+                .filter(|(_, xy)| !xy.is_empty())
+                .collect();
+            marked_chart(
+                scene,
+                "log10 B/splat sent (file or gzip -9, the smaller)",
+                "log10 (1 - SSIM), 4x zoom (lower is better)",
+                &series,
+            )
+        })
+        .collect();
+    panels(&charts, 2)
+}
+
+/// The points of a table that [`table`] wrote (B/splat to 2 decimals: bytes per 100 splats).
+fn points_from_table(md: &str) -> Vec<Point> {
+    md.lines()
+        .filter_map(|l| {
+            let c: Vec<&str> = l
+                .trim()
+                .trim_matches('|')
+                .split('|')
+                .map(str::trim)
+                .collect();
+            if c.len() < 6 {
+                return None;
             }
-            d += 1.0;
-        }
-        let mut v = y1;
-        while v <= y0 + 1e-9 {
-            let y = py(v);
-            writeln!(s, "<line x1=\"{}\" y1=\"{y:.1}\" x2=\"{}\" y2=\"{y:.1}\" stroke=\"#ddd\"/><text x=\"{}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>", ox + l, ox + l + iw, ox + l - 4.0, y + 4.0, 10f64.powf(v)).unwrap();
-            v += 1.0;
-        }
-        for (f, c) in families {
-            let mut fp: Vec<&&Point> = pts.iter().filter(|p| p.family == f).collect();
-            fp.sort_by_key(|p| p.wire());
-            if fp.len() > 1 {
-                let path: Vec<String> = fp
-                    .iter()
-                    .map(|p| format!("{:.1},{:.1}", px(bx(p)), py(dy(p))))
-                    .collect();
-                writeln!(
-                    s,
-                    "<polyline points=\"{}\" fill=\"none\" stroke=\"{c}\" stroke-width=\"1.2\"/>",
-                    path.join(" ")
-                )
-                .unwrap();
-            }
-            for p in fp {
-                let (x, y) = (px(bx(p)), py(dy(p)));
-                let label = p.codec.split(' ').next().unwrap_or("");
-                writeln!(s, "<circle cx=\"{x:.1}\" cy=\"{y:.1}\" r=\"3\" fill=\"{c}\"/><text x=\"{:.1}\" y=\"{:.1}\" font-size=\"9\" fill=\"{c}\">{label}</text>", x + 4.0, y - 4.0).unwrap();
-            }
-        }
-    }
-    s.push_str("</svg>\n");
-    s
+            let family: &'static str = FAMILIES
+                .iter()
+                .copied()
+                .find(|f| c[1].starts_with(&format!("{f} ")))?;
+            let num = |k: usize| c[k].parse::<f64>().ok();
+            Some(Point {
+                scene: c[0].to_string(),
+                family,
+                codec: c[1][family.len() + 1..].to_string(),
+                file: (num(2)? * 100.0).round() as usize,
+                gz: (num(3)? * 100.0).round() as usize,
+                ssim: [num(4)?, num(5)?],
+                splats: 100,
+            })
+        })
+        .collect()
 }

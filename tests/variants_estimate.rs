@@ -5,7 +5,6 @@
 mod common;
 
 use common::*;
-use glam::DVec3;
 use splat2tiles::convert::{ConvertOptions, convert_scene};
 use splat2tiles::splat::Splats;
 use splat2tiles::tiling::load::load_tileset;
@@ -40,6 +39,11 @@ fn rows(name: &str, sc: splat2tiles::io::Scene, max_splats: usize) -> Vec<Row> {
     };
     convert_scene(sc, name, &out, &opts).unwrap();
     let ts = load_tileset(&out.join("tileset.json")).unwrap();
+    let errors: std::collections::HashMap<_, _> = ts
+        .tiles
+        .iter()
+        .map(|t| (t.key, t.geometric_error))
+        .collect();
     let mut rows = vec![];
     for t in ts.tiles.iter().filter(|t| t.content.is_some()) {
         let decoded: Vec<(Splats, [f64; 16])> = ALL
@@ -50,11 +54,19 @@ fn rows(name: &str, sc: splat2tiles::io::Scene, max_splats: usize) -> Vec<Row> {
             })
             .collect();
         let best = &decoded[0].0;
-        let Some((lo, hi)) = best.bounds() else {
-            continue;
+        // Viewed where the converter views it: at its own error, a leaf at its parent's.
+        let error = if t.geometric_error > 0.0 {
+            t.geometric_error
+        } else {
+            t.key
+                .parent()
+                .and_then(|p| errors.get(&p).copied())
+                .unwrap_or(0.0)
         };
         let up = up_in_source(decoded[0].1);
-        let setup = ViewSetup::estimated(DVec3::from_array(lo), DVec3::from_array(hi), up);
+        let Some(setup) = ViewSetup::around(best, up, error) else {
+            continue;
+        };
         let cands: Vec<&Splats> = decoded[1..].iter().map(|d| &d.0).collect();
         let sc = scores(best, &cands, &setup.windows());
         for (i, c) in cands.iter().enumerate() {
@@ -71,10 +83,9 @@ fn rows(name: &str, sc: splat2tiles::io::Scene, max_splats: usize) -> Vec<Row> {
     rows
 }
 
-/// Loss (1 - utility) the way the fit sees it: the clamp at 0 undone where it bites is not
-/// possible, so rows at utility 0 only say "at least 1".
+/// Loss (`-ln utility`, as [`predicted_loss`] predicts it; a utility below 1e-9 counts as 1e-9).
 fn loss(r: &Row) -> f64 {
-    1.0 - r.rendered
+    -r.rendered.max(1e-9).ln()
 }
 
 /// Least squares `x` of `a x = b` over the columns in `cols` (normal equations, Gaussian
@@ -136,13 +147,19 @@ fn nnls(a: &[[f64; 5]], b: &[f64]) -> [f64; 5] {
     best.0
 }
 
-/// The fit's design matrix: the square root of each feature (as `predicted_loss` uses them).
+/// The fit's design matrix: the features (as `predicted_loss` uses them), each row divided by
+/// its loss, so the fit minimises the relative error: losses span three orders of magnitude
+/// (High about 1e-3, Low up to 1), and plain least squares fitted the largest ones only
+/// (pooled Spearman 0.892 against the rendered utility).
 fn design(rows: &[&Row]) -> (Vec<[f64; 5]>, Vec<f64>) {
     let a = rows
         .iter()
-        .map(|r| r.features.map(|f| f.max(0.0).sqrt()))
+        .map(|r| {
+            let y = loss(r).max(1e-9);
+            r.features.map(|f| f.max(0.0) / y)
+        })
         .collect();
-    let b = rows.iter().map(|r| loss(r)).collect();
+    let b = rows.iter().map(|_| 1.0).collect();
     (a, b)
 }
 
@@ -155,7 +172,7 @@ fn estimate(r: &Row, w: &[f64; 5]) -> f64 {
         scale: r.features[3],
         rotation: r.features[4],
     };
-    (1.0 - predicted_loss(&f, w)).clamp(0.0, 1.0)
+    (-predicted_loss(&f, w)).exp().clamp(0.0, 1.0)
 }
 
 /// (Spearman, mean absolute error, share of tiles in order High >= Medium >= Low) of the

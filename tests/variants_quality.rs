@@ -16,18 +16,6 @@ use splat2tiles::variants::{
     decode_variant, variant_table,
 };
 
-/// The plant scene with small random SH degree 1-3 coefficients (|c| <= 0.08).
-pub fn plant_sh3() -> Splats {
-    let mut s = common::splat_file::read_splat("plant.splat");
-    let mut r = Rng(99);
-    s.sh_degree = 3;
-    s.sh_rest = (0..s.len() * 15)
-        .map(|_| [0, 1, 2].map(|_| r.range(-0.08, 0.08) as f32))
-        .collect();
-    s.check_lengths();
-    s
-}
-
 /// The plant scene's reader result with its splats replaced (keeps format and up axis).
 fn scene_of(splats: Splats) -> Scene {
     let mut sc = splat2tiles::io::read_path(&scene("plant.splat")).unwrap();
@@ -134,14 +122,15 @@ fn biker_variants() {
 
 #[test]
 fn plant_sh3_variants_and_spz_bounds() {
-    let s = plant_sh3();
+    let sc = plant_sh3();
+    let s = &sc.splats;
     let n = s.len() as f64;
     // Low before entropy coding: the SPZ v2 arrays (plus its 16-byte header).
-    let raw = encode_spz_v2_raw(&s, [0.0; 3], &LOW_SPZ);
+    let raw = encode_spz_v2_raw(s, [0.0; 3], &LOW_SPZ);
     assert!(raw.len() as f64 / n <= 37.0, "{}", raw.len() as f64 / n);
     // After entropy coding: smaller than upstream-default SPZ v2 of the same splats.
-    let low = encode_spz_v2(&s, [0.0; 3], &LOW_SPZ).len() as f64;
-    let spz = encode_spz_v2(&s, [0.0; 3], &SpzOptions::default()).len() as f64;
+    let low = encode_spz_v2(s, [0.0; 3], &LOW_SPZ).len() as f64;
+    let spz = encode_spz_v2(s, [0.0; 3], &SpzOptions::default()).len() as f64;
     eprintln!(
         "SH3 plant: Low {:.2} B/splat raw, {:.2} gzip; SPZ v2 SH3 {:.2} gzip",
         raw.len() as f64 / n,
@@ -149,7 +138,7 @@ fn plant_sh3_variants_and_spz_bounds() {
         spz / n
     );
     assert!(low < spz);
-    check("plant_sh3", scene_of(s));
+    check("plant_sh3", sc);
 }
 
 #[test]

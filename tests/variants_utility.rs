@@ -78,9 +78,9 @@ fn check_damage(name: &str) {
     let damaged = [half(&tile), jittered(&tile), colours_3bit(&tile)];
     let mut cands: Vec<&Splats> = vec![&tile];
     cands.extend(damaged.iter());
-    let u = splat2tiles::variants::utilities(&tile, &cands, up);
     let (lo, hi) = tile.bounds().unwrap();
     let setup = ViewSetup::estimated(DVec3::from_array(lo), DVec3::from_array(hi), up);
+    let u = splat2tiles::variants::utilities(&tile, &cands, &setup);
     let sc = scores(&tile, &cands, &setup.windows());
     eprintln!("{name}: window {} px, scores {sc:?}", setup.window_side());
     eprintln!(
@@ -238,6 +238,7 @@ fn correlation_table() {
     let (mut all_u, mut all_s, mut all_e) = (vec![], vec![], vec![]);
     let mut failures: Vec<String> = vec![];
     let (mut all_tiles, mut all_in_order) = (0, 0);
+    let mut all_ratios: Vec<f64> = vec![];
     for (name, sc) in inputs {
         let tmp = tempfile::tempdir().unwrap();
         let out = tmp.path().join("ts");
@@ -294,7 +295,7 @@ fn correlation_table() {
             ratios.push(error / radius);
             let cands: Vec<&Splats> = decoded[1..].iter().map(|d| &d.0).collect();
             let full = full_frame_ssim(best, &cands, &setup.full_frames());
-            let est = estimated_utilities(best, &cands, setup.up);
+            let est = estimated_utilities(best, &cands, &setup);
             es.extend(&est);
             in_order_e += est.windows(2).all(|w| w[0] >= w[1]) as usize;
             let win = scores(best, &cands, &setup.windows());
@@ -332,6 +333,7 @@ fn correlation_table() {
                 steps[k].1 += (util[k] - util[k + 1]) as f64;
             }
         }
+        all_ratios.extend(&ratios);
         ratios.sort_by(f64::total_cmp);
         let rho = spearman(&us, &ss);
         let rho_e = spearman(&es, &ss);
@@ -362,9 +364,11 @@ fn correlation_table() {
     }
     let rho = spearman(&all_u, &all_s);
     let rho_e = spearman(&all_e, &all_s);
+    all_ratios.sort_by(f64::total_cmp);
     writeln!(
         table,
-        "| all | {all_tiles} | {rho:.3} | {all_in_order} / {all_tiles} | | {rho_e:.3} | | | |"
+        "| all | {all_tiles} | {rho:.3} | {all_in_order} / {all_tiles} | | {rho_e:.3} | | {:.3} | |",
+        all_ratios.get(all_ratios.len() / 2).copied().unwrap_or(f64::NAN),
     )
     .unwrap();
     failures.extend((rho < 0.9).then(|| format!("pooled Spearman {rho:.3} < 0.9")));

@@ -643,6 +643,13 @@ fn run(
     }
     finish_tree(&mut tree);
     report.tiles = tree.len();
+    if opts.variants.deferred_utility() {
+        tileset::measure_utilities(&mut tree, layout.scheme, &dir, &opts.variants, &mut report)
+            .map_err(relocate)?;
+        report
+            .stage_seconds
+            .push(("utilities", start.elapsed().as_secs_f64()));
+    }
 
     // Tileset stage.
     let subtree_levels = opts

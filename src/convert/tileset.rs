@@ -93,6 +93,52 @@ pub(super) fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
     }
 }
 
+/// The geometric error a content tile is viewed at: its own, or for a leaf (error 0) its
+/// parent's, from whose switching distance on it is drawn (0 for a lone root leaf).
+fn view_error(tree: &BTreeMap<TileKey, TreeTile>, k: TileKey) -> f64 {
+    let own = tree[&k].error;
+    if own > 0.0 {
+        return own;
+    }
+    k.parent()
+        .and_then(|p| tree.get(&p))
+        .map_or(0.0, |p| p.error)
+}
+
+/// Measures the variant utilities of every content tile at its real switching distance, once
+/// [`finish_tree`] has set the errors (`variants::measure`), when the options defer them; the
+/// tree's facts and the report's contents get them.
+pub(super) fn measure_utilities(
+    tree: &mut BTreeMap<TileKey, TreeTile>,
+    scheme: Scheme,
+    dir: &Path,
+    opts: &VariantOptions,
+    report: &mut ConvertReport,
+) -> Result<(), ConvertError> {
+    if !opts.deferred_utility() {
+        return Ok(());
+    }
+    check_interrupt()?;
+    let tiles: Vec<(TileKey, f64)> = tree
+        .iter()
+        .filter(|(_, t)| t.facts.is_some())
+        .map(|(k, _)| (*k, view_error(tree, *k)))
+        .collect();
+    let us = variants::measure::measure_utilities(dir, scheme, &tiles, opts)?;
+    let by_key: HashMap<TileKey, [f32; 4]> = tiles.iter().map(|t| t.0).zip(us).collect();
+    for (k, t) in tree.iter_mut() {
+        if let (Some(f), Some(u)) = (t.facts.as_mut(), by_key.get(k)) {
+            f.variant_utility = *u;
+        }
+    }
+    for (k, f) in report.contents.iter_mut() {
+        if let Some(u) = by_key.get(k) {
+            f.variant_utility = *u;
+        }
+    }
+    Ok(())
+}
+
 /// Path of the subtree file rooted at `k`, relative to the output folder.
 fn subtree_path(scheme: Scheme, k: TileKey) -> String {
     match scheme {

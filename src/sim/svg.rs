@@ -1,4 +1,5 @@
-//! Minimal SVG line plots for the experiment figures (no plotting crate).
+//! Minimal SVG line plots for the experiment and benchmark figures (no plotting crate): line
+//! charts, optionally with a dot per point, and several charts side by side in one document.
 
 use std::fmt::Write as _;
 
@@ -16,6 +17,44 @@ pub fn line_chart(
     y_label: &str,
     series: &[Series],
     y_range: Option<(f64, f64)>,
+) -> String {
+    chart(title, x_label, y_label, series, y_range, false)
+}
+
+/// [`line_chart`] with a dot on every point (a series of one point shows).
+pub fn marked_chart(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> String {
+    chart(title, x_label, y_label, series, None, true)
+}
+
+/// Charts (each a whole `<svg>` of [`line_chart`]'s size) side by side, `cols` per row, in
+/// one SVG document.
+pub fn panels(charts: &[String], cols: usize) -> String {
+    let (w, h) = (640.0, 360.0);
+    let cols = cols.max(1);
+    let rows = charts.len().div_ceil(cols).max(1);
+    let mut s = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}"><rect width="100%" height="100%" fill="white"/>"#,
+        w * cols.min(charts.len().max(1)) as f64,
+        h * rows as f64
+    );
+    for (i, c) in charts.iter().enumerate() {
+        let (x, y) = ((i % cols) as f64 * w, (i / cols) as f64 * h);
+        let inner = c
+            .trim_end()
+            .replacen("<svg ", &format!(r#"<svg x="{x}" y="{y}" "#), 1);
+        s.push_str(&inner);
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn chart(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    y_range: Option<(f64, f64)>,
+    markers: bool,
 ) -> String {
     let (w, h, ml, mr, mt, mb) = (640.0, 360.0, 60.0, 150.0, 30.0, 45.0);
     let pts = series.iter().flat_map(|s| s.1.iter());
@@ -86,6 +125,16 @@ pub fn line_chart(
             w - mr + 8.0,
             mt + 16.0 * (k as f64 + 1.0)
         );
+        if markers {
+            for &(x, y) in p {
+                let _ = write!(
+                    s,
+                    r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{c}"/>"#,
+                    sx(x),
+                    sy(y.clamp(y0, y1))
+                );
+            }
+        }
     }
     s.push_str("</svg>\n");
     s
@@ -98,5 +147,29 @@ fn fmt_num(v: f64) -> String {
         format!("{v:.1}")
     } else {
         format!("{v:.2}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn markers_and_panels() {
+        let series: Vec<Series> = vec![
+            ("a".into(), vec![(1.0, 2.0), (2.0, 3.0)]),
+            ("b".into(), vec![(1.5, 2.5)]),
+        ];
+        let plain = line_chart("t", "x", "y", &series, None);
+        let marked = marked_chart("t", "x", "y", &series);
+        assert_eq!(plain.matches("<circle").count(), 0);
+        assert_eq!(marked.matches("<circle").count(), 3);
+        let doc = panels(&[plain, marked], 2);
+        assert!(doc.starts_with(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"1280\" height=\"360\""
+        ));
+        assert_eq!(doc.matches("<svg ").count(), 3);
+        assert!(doc.contains(r#"<svg x="640" y="0" xmlns"#));
+        assert!(doc.trim_end().ends_with("</svg></svg>"));
     }
 }

@@ -1,14 +1,16 @@
 //! Calibrated estimate of a variant's utility without rendering: per-splat differences from Best
-//! (colour, opacity, position, scale, rotation), weighted by what each splat covers of the view.
+//! (colour, opacity, position, scale, rotation), weighted by what each splat covers of the frame.
 
 use glam::{DQuat, DVec3};
 
 use super::utility::ViewSetup;
-use crate::lod::eval::viewer_focal;
+use crate::lod::eval::{VIEWER_HEIGHT, viewer_focal};
+use crate::render::camera::DEFAULT_WIDTH;
 use crate::render::raster::LOW_PASS;
 use crate::splat::Splats;
 
-/// Coverage-weighted mean squared differences of a candidate from the reference, per kind.
+/// Coverage-weighted squared differences of a candidate from the reference, per kind, as a mean
+/// over the viewer's 1280x720 frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Features {
     /// View-averaged colour (DC and higher SH over all directions), per channel.
@@ -37,19 +39,19 @@ impl Features {
 }
 
 /// What `utilityMethod` in the tileset metadata says when utilities are estimated.
-pub const METHOD: &str = "footprint-v3-estimate: no renders; 1 - sum_k w_k sqrt(F_k), at least 0, with F_k the \
-    coverage-weighted mean squared per-splat difference from Best in view-averaged colour, opacity, \
-    position, scale and rotation as seen from the footprint-v3 views, and w_k fitted to footprint-v3 on \
-    the shared scenes (spec/quality-variants.md)";
+pub const METHOD: &str = "frame-v4-estimate: no renders; exp(-sum_k w_k F_k), with F_k the coverage-weighted \
+    squared per-splat difference from Best in view-averaged colour, opacity, position, scale and rotation \
+    as a mean over the 1280x720 frame of the frame-v4 views, and w_k fitted to frame-v4 on the shared \
+    scenes (spec/quality-variants.md)";
 
 /// Names of the features, in [`WEIGHTS`] order.
 pub const FEATURE_NAMES: [&str; 5] = ["colour", "opacity", "position", "scale", "rotation"];
 
-/// Loss (1 - utility) per unit of the square root of each feature: fitted by non-negative least
-/// squares to the rendered utility ([`super::utility::utilities`]) over every content tile and
-/// variant of the shared scenes and the generated SH3 scene (`tests/variants_estimate.rs`,
-/// `calibrate`; its measured error is in BENCHMARKS.md, "Quality variants").
-pub const WEIGHTS: [f64; 5] = [3.380, 2.872, 0.0, 0.0, 1.028];
+/// Loss (`-ln utility`) per unit of each feature: fitted by non-negative least squares (on the
+/// relative error) to the rendered utility ([`super::utility::utilities`]) over every content tile and variant of the
+/// shared scenes and the generated SH3 scene (`tests/variants_estimate.rs`, `calibrate`; its
+/// measured error is in BENCHMARKS.md, "Quality variants").
+pub const WEIGHTS: [f64; 5] = [1190.98, 20203.7, 847.29, 0.0, 306.82];
 
 /// The coverage-weighted features of `candidate` against `reference` (same splats in the same
 /// order, tile-relative), seen as [`ViewSetup`] sees them. `None` when the counts differ.
@@ -127,8 +129,9 @@ pub fn features(reference: &Splats, candidate: &Splats, setup: &ViewSetup) -> Op
         let aniso = (sorted[2].sqrt() - sorted[0].sqrt()) / sorted[2].sqrt();
         acc[4] += w * (angle * aniso).powi(2);
     }
-    // Mean over the window: splats stacked deeper than the window hide each other.
-    let norm = coverage.max(window);
+    // Mean over the window (splats stacked deeper than the window hide each other), then over
+    // the frame (the rest of it is background in both renders).
+    let norm = coverage.max(window) * (DEFAULT_WIDTH as f64 * VIEWER_HEIGHT as f64) / window;
     let f = acc.map(|v| v / norm);
     Some(Features {
         colour: f[0],
@@ -154,26 +157,27 @@ fn quat(q: [f32; 4]) -> DQuat {
     }
 }
 
-/// The predicted loss (1 - utility, before the clamp at 0) of features `f` under `weights`.
+/// The predicted loss (`-ln utility`) of features `f` under `weights`.
 pub fn predicted_loss(f: &Features, weights: &[f64; 5]) -> f64 {
     f.to_array()
         .iter()
         .zip(weights)
-        .map(|(v, w)| w * v.max(0.0).sqrt())
+        .map(|(v, w)| w * v.max(0.0))
         .sum()
 }
 
 /// The estimated utility of each candidate against `reference` (tile-relative Best), seen from
-/// [`ViewSetup::estimated`]: `max(0, 1 - predicted loss)`; 1 for a candidate equal to Best.
-pub fn estimated_utilities(reference: &Splats, candidates: &[&Splats], up: DVec3) -> Vec<f64> {
-    let Some((lo, hi)) = reference.bounds() else {
-        return vec![1.0; candidates.len()];
-    };
-    let setup = ViewSetup::estimated(DVec3::from_array(lo), DVec3::from_array(hi), up);
+/// `setup`: `exp(-predicted loss)`; 1 for a candidate equal to Best, 0 for one that does not
+/// hold the same splats.
+pub fn estimated_utilities(
+    reference: &Splats,
+    candidates: &[&Splats],
+    setup: &ViewSetup,
+) -> Vec<f64> {
     candidates
         .iter()
-        .map(|c| match features(reference, c, &setup) {
-            Some(f) => (1.0 - predicted_loss(&f, &WEIGHTS)).clamp(0.0, 1.0),
+        .map(|c| match features(reference, c, setup) {
+            Some(f) => (-predicted_loss(&f, &WEIGHTS)).exp().clamp(0.0, 1.0),
             // Not the same splats: nothing to compare splat by splat.
             None => 0.0,
         })

@@ -8,6 +8,7 @@ use std::time::Instant;
 use glam::{DMat3, DMat4, DVec3};
 
 pub mod estimate;
+pub mod measure;
 pub mod utility;
 use serde_json::{Value, json};
 pub use utility::utilities;
@@ -144,6 +145,14 @@ impl VariantOptions {
             .filter(|v| *v == d || self.variants.contains(v))
             .collect()
     }
+    /// Whether utilities are measured after the tree is built, from the written files at each
+    /// tile's real switching distance ([`measure::measure_utilities`]): when they are measured,
+    /// Best (the reference) is written and some other variant is. Otherwise the writer measures
+    /// them at once, viewed at [`utility::VIEW_ERROR_PER_RADIUS`] times the tile's radius.
+    pub fn deferred_utility(&self) -> bool {
+        let w = self.written();
+        self.measure_utility && w.contains(&Variant::Best) && w.len() > 1
+    }
 }
 
 /// What the per-tile writer reports for the subtree metadata and the conversion report.
@@ -241,7 +250,7 @@ pub fn write_tile_contents(
         })?;
         facts.variant_bytes[v.index()] = glb.len() as u32;
         facts.bytes += glb.len() as u64;
-        if opts.measure_utility && v != Variant::Best {
+        if opts.measure_utility && !opts.deferred_utility() && v != Variant::Best {
             let s = decode_variant(&glb)
                 .map_err(|source| ContentError::Encode {
                     key,
@@ -258,10 +267,10 @@ pub fn write_tile_contents(
             let reference = relative(splats, centre_s);
             let up = up_in_source(node_matrix);
             let refs: Vec<&Splats> = decoded.iter().map(|(_, s)| s).collect();
-            let u = if opts.utility_renders {
-                utilities(&reference, &refs, up)
-            } else {
-                estimate::estimated_utilities(&reference, &refs, up)
+            let u = match utility::ViewSetup::around(&reference, up, 0.0) {
+                None => vec![1.0; refs.len()],
+                Some(setup) if opts.utility_renders => utilities(&reference, &refs, &setup),
+                Some(setup) => estimate::estimated_utilities(&reference, &refs, &setup),
             };
             for ((v, _), u) in decoded.iter().zip(u) {
                 facts.variant_utility[v.index()] = u as f32;

@@ -13,17 +13,18 @@ use crate::splat::Splats;
 pub const BACKGROUND: [f32; 3] = [0.5; 3];
 
 /// Geometric error a tile is viewed at, per unit of its bounding-sphere radius (half the
-/// diagonal of its splat-centre box) when the writer does not know the tile's real one.
-/// Calibrated on the shared scenes: the median of (the tile's own geometric error, or its
-/// parent's for a leaf) / radius over their content tiles (`tests/variants_utility.rs`).
-pub const VIEW_ERROR_PER_RADIUS: f64 = 0.22;
+/// diagonal of its splat-centre box), when its real one is unknown (a tileset of one leaf).
+/// About the median of (the tile's own geometric error, or its parent's for a leaf) / radius
+/// over the content tiles of the shared scenes, rounded down (`tests/variants_utility.rs`,
+/// `correlation_table`, prints it).
+pub const VIEW_ERROR_PER_RADIUS: f64 = 0.1;
 
 /// What `utilityMethod` in the tileset metadata says when utilities are rendered.
-pub const METHOD: &str = "footprint-v3: 1 - 10 x (1 - SSIM) - 10 x RMSE, at least 0, SSIM and RMSE vs Best over the \
-    tile's footprint (the pixels either render draws, for SSIM those within its 11-px window), mean of 8 \
-    views (30 deg elevation, 45 deg azimuth steps) of a 1280x720 viewer with 50 deg vertical fov at the \
-    tile's switching distance (geometric error 0.22 x the radius of its splat-centre box, 16 px \
-    screen-space error), cropped to the square window around the tile's bounding sphere, mid-grey \
+pub const METHOD: &str = "frame-v4: exp(-(1000 x (1 - SSIM) + 10000 x MSE)), SSIM and MSE vs Best of the whole \
+    1280x720 frame, mean of 8 views (30 deg elevation, 45 deg azimuth steps) of a 1280x720 viewer with 50 \
+    deg vertical fov at the tile's switching distance (its geometric error, a leaf's parent's; 0.1 x the \
+    radius of its splat-centre box when it has none; 16 px screen-space error), rendered in the square \
+    window around the tile's bounding sphere (the rest of the frame is background in both), mid-grey \
     background, reference CPU renderer (spec/quality-variants.md)";
 
 /// Smallest window side, pixels (SSIM needs at least its 11-pixel Gaussian window).
@@ -53,6 +54,19 @@ impl ViewSetup {
             up,
             error: VIEW_ERROR_PER_RADIUS * r,
         }
+    }
+
+    /// The setup around `reference`'s splat-centre box viewed at geometric error `error`, or at
+    /// [`VIEW_ERROR_PER_RADIUS`] times its radius when that is not positive; `None` when the
+    /// reference has no splats.
+    pub fn around(reference: &Splats, up: DVec3, error: f64) -> Option<Self> {
+        let (lo, hi) = reference.bounds()?;
+        let s = ViewSetup::estimated(DVec3::from_array(lo), DVec3::from_array(hi), up);
+        Some(if error > 0.0 && error.is_finite() {
+            ViewSetup { error, ..s }
+        } else {
+            s
+        })
     }
 
     /// Distance of the eye from the box centre: the switching distance (from the bounding
@@ -135,14 +149,45 @@ pub struct Score {
     pub ssim_footprint: f64,
     /// Root-mean-square error over the pixels either render draws.
     pub rmse_footprint: f64,
+    /// Mean SSIM of the whole 1280x720 frame the window was cut from (outside the window both
+    /// renders show plain background, where SSIM is 1).
+    pub ssim_frame: f64,
+    /// Mean squared error of the whole 1280x720 frame.
+    pub mse_frame: f64,
 }
 
 /// Radius of SSIM's Gaussian window (`render::metrics`: sigma 1.5, truncated at 3.5 sigma).
 const SSIM_RADIUS: usize = 5;
 
+/// Share of the full frame's valid SSIM pixels (those whose whole 11-px window lies inside the
+/// image) that a `w x h` window holds, and share of the frame's pixels.
+fn frame_shares(w: usize, h: usize) -> (f64, f64) {
+    let valid = |n: usize| n.saturating_sub(2 * SSIM_RADIUS) as f64;
+    let (fw, fh) = (DEFAULT_WIDTH as usize, VIEWER_HEIGHT as usize);
+    (
+        (valid(w) * valid(h) / (valid(fw) * valid(fh))).min(1.0),
+        ((w * h) as f64 / (fw * fh) as f64).min(1.0),
+    )
+}
+
+/// Window, footprint and frame statistics of one view: (SSIM, MSE) over the window, over the
+/// footprint and over the full frame (see [`Score`]).
+fn view_score(a: &Image, b: &Image) -> [f64; 6] {
+    let [s, m, s_fp, m_fp] = window_score(a, b);
+    let (ssim_share, pixel_share) = frame_shares(a.width as usize, a.height as usize);
+    [
+        s,
+        m,
+        s_fp,
+        m_fp,
+        1.0 - (1.0 - s) * ssim_share,
+        m * pixel_share,
+    ]
+}
+
 /// Window and footprint statistics of one view: (SSIM, MSE) over the window and over the
-/// footprint (see [`Score`]).
-fn view_score(a: &Image, b: &Image) -> [f64; 4] {
+/// footprint.
+fn window_score(a: &Image, b: &Image) -> [f64; 4] {
     let s = ssim(a, b).unwrap_or(0.0);
     let m = mse(a, b).unwrap_or(1.0);
     let (w, h) = (a.width as usize, a.height as usize);
@@ -194,19 +239,23 @@ pub fn scores(reference: &Splats, candidates: &[&Splats], cams: &[Camera]) -> Ve
     candidates
         .iter()
         .map(|s| {
-            let mut acc = [0.0; 4];
+            let mut acc = [0.0; 6];
             for (c, b) in cams.iter().zip(&base) {
                 let v = view_score(b, &render_splats(s, c, &opts));
                 acc[0] += v[0];
                 acc[1] += v[1].sqrt();
                 acc[2] += v[2];
                 acc[3] += v[3].sqrt();
+                acc[4] += v[4];
+                acc[5] += v[5];
             }
             Score {
                 ssim: acc[0] / n,
                 rmse: acc[1] / n,
                 ssim_footprint: acc[2] / n,
                 rmse_footprint: acc[3] / n,
+                ssim_frame: acc[4] / n,
+                mse_frame: acc[5] / n,
             }
         })
         .collect()
@@ -220,29 +269,27 @@ pub fn mean_ssim(reference: &Splats, candidates: &[&Splats], cams: &[Camera]) ->
         .collect()
 }
 
-/// Utility lost per unit of footprint SSIM lost (see [`utility_of`]).
-pub const SSIM_SCALE: f64 = 10.0;
+/// Utility exponent per unit of frame SSIM lost (see [`utility_of`]).
+pub const SSIM_SCALE: f64 = 1000.0;
 
-/// Utility lost per unit of footprint RMSE (see [`utility_of`]).
-pub const RMSE_SCALE: f64 = 10.0;
+/// Utility exponent per unit of frame MSE (see [`utility_of`]).
+pub const MSE_SCALE: f64 = 10000.0;
 
-/// The utility of a score: `1 - SSIM_SCALE (1 - footprint SSIM) - RMSE_SCALE footprint RMSE`,
-/// at least 0 (1 for a candidate identical to Best). Over the tile's footprint, so a tile that
-/// fills little of its window is not diluted by background; the RMSE term sees the colour
-/// shifts SSIM hardly sees (its luminance term is relative to the squared mean: quantising a
-/// tile's colours to 3 bits can cost SSIM less than 0.002). Damage a viewer sees costs at least
-/// 0.05 (`tests/variants_utility.rs`).
+/// The utility of a score: `exp(-(SSIM_SCALE (1 - frame SSIM) + MSE_SCALE frame MSE))`, in
+/// (0, 1], 1 for a candidate identical to Best. Over the whole viewer frame at the switching
+/// distance, so a tile loses in proportion to the pixels its losses cover there (what the
+/// frame's SSIM sees); the MSE term sees the colour shifts SSIM hardly sees (its luminance term
+/// is relative to the squared mean). Damage a viewer sees costs at least 0.05
+/// (`tests/variants_utility.rs`).
 pub fn utility_of(s: Score) -> f64 {
-    (1.0 - SSIM_SCALE * (1.0 - s.ssim_footprint) - RMSE_SCALE * s.rmse_footprint).clamp(0.0, 1.0)
+    (-(SSIM_SCALE * (1.0 - s.ssim_frame).max(0.0) + MSE_SCALE * s.mse_frame.max(0.0)))
+        .exp()
+        .clamp(0.0, 1.0)
 }
 
-/// The utility of each candidate against `reference` (tile-relative splats, Best): mean SSIM
-/// over the windows of [`ViewSetup::estimated`] around the reference's splat-centre box.
-pub fn utilities(reference: &Splats, candidates: &[&Splats], up: DVec3) -> Vec<f64> {
-    let Some((lo, hi)) = reference.bounds() else {
-        return vec![1.0; candidates.len()];
-    };
-    let setup = ViewSetup::estimated(DVec3::from_array(lo), DVec3::from_array(hi), up);
+/// The utility of each candidate against `reference` (tile-relative splats, Best), seen from
+/// `setup`'s windows.
+pub fn utilities(reference: &Splats, candidates: &[&Splats], setup: &ViewSetup) -> Vec<f64> {
     scores(reference, candidates, &setup.windows())
         .into_iter()
         .map(utility_of)
@@ -284,9 +331,9 @@ mod tests {
             }
         }
         assert!(METHOD.contains(&format!(
-            "1 - {SSIM_SCALE} x (1 - SSIM) - {RMSE_SCALE} x RMSE"
+            "exp(-({SSIM_SCALE} x (1 - SSIM) + {MSE_SCALE} x MSE))"
         )));
-        assert!(METHOD.contains(&format!("{VIEW_ERROR_PER_RADIUS} x the radius")));
+        assert!(METHOD.contains(&format!("{VIEW_ERROR_PER_RADIUS} x the")));
         // Further away (larger error): a smaller window.
         let far = ViewSetup { error: 2.0, ..s };
         assert!(far.window_side() < side);
@@ -303,7 +350,7 @@ mod tests {
                 drawn.data[i..i + 3].copy_from_slice(&[0.6, 0.5, 0.5]);
             }
         }
-        let [s, m, s_fp, m_fp] = view_score(&bg, &drawn);
+        let [s, m, s_fp, m_fp, s_frame, m_frame] = view_score(&bg, &drawn);
         // RMSE over the 16 drawn pixels: one channel off by 0.1 -> MSE 0.01 / 3 there.
         assert!((m_fp - 0.01 / 3.0).abs() < 1e-6, "{m_fp}");
         assert!((m - 0.01 / 3.0 * 16.0 / 1600.0).abs() < 1e-8, "{m}");
@@ -311,14 +358,25 @@ mod tests {
         // patch (its 4x4 dilated by the 5-px window radius).
         assert!(s < 1.0 && s_fp < s);
         assert!(((1.0 - s_fp) - (1.0 - s) * 900.0 / 196.0).abs() < 1e-9);
+        // The full 1280x720 frame: 900 of its 1270 x 710 valid SSIM pixels are the window's,
+        // 1600 of its 921600 pixels.
+        assert!(((1.0 - s_frame) - (1.0 - s) * 900.0 / (1270.0 * 710.0)).abs() < 1e-12);
+        assert!((m_frame - m * 1600.0 / 921600.0).abs() < 1e-15);
         // Identical images: a perfect score.
-        assert_eq!(view_score(&drawn, &drawn), [1.0, 0.0, 1.0, 0.0]);
+        assert_eq!(view_score(&drawn, &drawn), [1.0, 0.0, 1.0, 0.0, 1.0, 0.0]);
         let perfect = Score {
             ssim: 1.0,
             rmse: 0.0,
             ssim_footprint: 1.0,
             rmse_footprint: 0.0,
+            ssim_frame: 1.0,
+            mse_frame: 0.0,
         };
         assert_eq!(utility_of(perfect), 1.0);
+        let worse = Score {
+            ssim_frame: 0.9999,
+            ..perfect
+        };
+        assert!((utility_of(worse) - (-SSIM_SCALE * 1e-4).exp()).abs() < 1e-9);
     }
 }

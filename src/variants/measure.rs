@@ -1,0 +1,77 @@
+//! Utilities measured once the tree is built: every content tile's written variants decoded and
+//! compared with its Best at the tile's real switching distance (spec/quality-variants.md).
+
+use std::path::Path;
+
+use rayon::prelude::*;
+
+use super::utility::{ViewSetup, utilities};
+use super::{ALL, ContentError, Variant, VariantOptions, content_uri, decode_variant, estimate};
+use crate::splat::Splats;
+use crate::tiling::{Scheme, TileKey};
+
+/// Reads and decodes one written variant of a tile under `dir`.
+fn read_variant(
+    dir: &Path,
+    scheme: Scheme,
+    key: TileKey,
+    v: Variant,
+) -> Result<(Splats, [f64; 16]), ContentError> {
+    let path = dir.join(content_uri(scheme, key, v));
+    let glb = std::fs::read(&path).map_err(|source| ContentError::Io { path, source })?;
+    decode_variant(&glb).map_err(|source| ContentError::Encode {
+        key,
+        variant: v.name(),
+        source,
+    })
+}
+
+/// The utility of each variant of one tile (in [`ALL`] order; 1 for Best, -1 for a variant not
+/// written), its variants read from `dir` and viewed at geometric error `error` (the tile's own,
+/// a leaf's parent's; not positive: unknown).
+pub fn tile_utilities(
+    dir: &Path,
+    scheme: Scheme,
+    key: TileKey,
+    error: f64,
+    opts: &VariantOptions,
+) -> Result<[f32; 4], ContentError> {
+    let mut out = [-1.0f32; 4];
+    out[Variant::Best.index()] = 1.0;
+    let written = opts.written();
+    let others: Vec<Variant> = ALL
+        .into_iter()
+        .filter(|v| *v != Variant::Best && written.contains(v))
+        .collect();
+    if others.is_empty() {
+        return Ok(out);
+    }
+    let (best, node) = read_variant(dir, scheme, key, Variant::Best)?;
+    let decoded = others
+        .iter()
+        .map(|&v| read_variant(dir, scheme, key, v).map(|d| d.0))
+        .collect::<Result<Vec<_>, _>>()?;
+    let refs: Vec<&Splats> = decoded.iter().collect();
+    let u = match ViewSetup::around(&best, super::up_in_source(node), error) {
+        None => vec![1.0; refs.len()],
+        Some(setup) if opts.utility_renders => utilities(&best, &refs, &setup),
+        Some(setup) => estimate::estimated_utilities(&best, &refs, &setup),
+    };
+    for (v, u) in others.iter().zip(u) {
+        out[v.index()] = u as f32;
+    }
+    Ok(out)
+}
+
+/// [`tile_utilities`] of every `(key, error)` in `tiles` (in parallel), in that order.
+pub fn measure_utilities(
+    dir: &Path,
+    scheme: Scheme,
+    tiles: &[(TileKey, f64)],
+    opts: &VariantOptions,
+) -> Result<Vec<[f32; 4]>, ContentError> {
+    tiles
+        .par_iter()
+        .map(|&(key, error)| tile_utilities(dir, scheme, key, error, opts))
+        .collect()
+}
