@@ -12,7 +12,7 @@ use splat2tiles::render::{Camera, Image, render_splats, ssim};
 use splat2tiles::splat::Splats;
 use splat2tiles::splat::sh::SH_C0;
 use splat2tiles::tiling::load::load_tileset;
-use splat2tiles::variants::estimate::estimated_utilities;
+use splat2tiles::variants::estimate::{estimated_utilities, features};
 use splat2tiles::variants::utility::{BACKGROUND, ViewSetup, render_options, scores};
 use splat2tiles::variants::{Variant, VariantOptions, content_uri, decode_variant, up_in_source};
 
@@ -230,7 +230,7 @@ fn correlation_table() {
         ("plant + SH1-3 (generated)", plant_sh3()),
     ];
     let mut csv = String::from(
-        "scene,level,key,splats,error,radius,variant,bytes,utility,full_ssim,win_ssim_true,win_rmse_true\n",
+        "scene,level,key,splats,error,radius,variant,bytes,utility,full_ssim,win_ssim_true,win_rmse_true,estimate,f_colour,f_opacity,f_position,f_scale,f_rotation\n",
     );
     let mut table = String::from(
         "| scene | tiles | Spearman (utility vs 1280x720 SSIM) | tiles in order (utility) | tiles in order (1280x720 SSIM) | Spearman (estimate vs 1280x720 SSIM) | tiles in order (estimate) | median error / radius | B/splat per 0.01 utility: High->Best, Medium->High, Low->Medium |\n|---|---:|---:|---:|---:|---:|---:|---:|---|\n",
@@ -296,6 +296,11 @@ fn correlation_table() {
             let cands: Vec<&Splats> = decoded[1..].iter().map(|d| &d.0).collect();
             let full = full_frame_ssim(best, &cands, &setup.full_frames());
             let est = estimated_utilities(best, &cands, &setup);
+            // The estimate's features per variant (for refitting its weights from this CSV).
+            let feats: Vec<[f64; 5]> = cands
+                .iter()
+                .map(|c| features(best, c, &setup).map_or([f64::NAN; 5], |f| f.to_array()))
+                .collect();
             es.extend(&est);
             in_order_e += est.windows(2).all(|w| w[0] >= w[1]) as usize;
             let win = scores(best, &cands, &setup.windows());
@@ -303,21 +308,27 @@ fn correlation_table() {
             let mut full4 = vec![1.0];
             full4.extend(&full);
             for (i, v) in ALL.iter().enumerate() {
-                let (fs, ws, wr) = if i == 0 {
-                    (1.0, 1.0, 0.0)
+                let (fs, ws, wr, e, f) = if i == 0 {
+                    (1.0, 1.0, 0.0, 1.0, [0.0; 5])
                 } else {
-                    (full[i - 1], win[i - 1].ssim, win[i - 1].rmse)
+                    let k = i - 1;
+                    (full[k], win[k].ssim, win[k].rmse, est[k], feats[k])
                 };
                 writeln!(
                     csv,
-                    "{name},{},{}/{}/{},{count},{error},{radius},{},{},{},{fs},{ws},{wr}",
+                    "{name},{},{}/{}/{},{count},{error},{radius},{},{},{},{fs},{ws},{wr},{e},{},{},{},{},{}",
                     t.key.level,
                     t.key.x,
                     t.key.y,
                     t.key.z,
                     v.name(),
                     bytes[i],
-                    util[i]
+                    util[i],
+                    f[0],
+                    f[1],
+                    f[2],
+                    f[3],
+                    f[4]
                 )
                 .unwrap();
                 if i > 0 {
