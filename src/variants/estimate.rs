@@ -41,17 +41,19 @@ impl Features {
 /// What `utilityMethod` in the tileset metadata says when utilities are estimated.
 pub const METHOD: &str = "frame-v4-estimate: no renders; exp(-sum_k w_k F_k), with F_k the coverage-weighted \
     squared per-splat difference from Best in view-averaged colour, opacity, position, scale and rotation \
-    as a mean over the 1280x720 frame of the frame-v4 views, and w_k fitted to frame-v4 on the shared \
-    scenes (spec/quality-variants.md)";
+    as a mean over the 1280x720 frame of the frame-v4 views, w_k ranking like the 1280x720 frames and \
+    scaled to frame-v4 on the shared scenes (spec/quality-variants.md)";
 
 /// Names of the features, in [`WEIGHTS`] order.
 pub const FEATURE_NAMES: [&str; 5] = ["colour", "opacity", "position", "scale", "rotation"];
 
-/// Loss (`-ln utility`) per unit of each feature: fitted by non-negative least squares (on the
-/// relative error) to the rendered utility ([`super::utility::utilities`]) over every content tile and variant of the
-/// shared scenes and the generated SH3 scene (`tests/variants_estimate.rs`, `calibrate`; its
-/// measured error is in BENCHMARKS.md, "Quality variants").
-pub const WEIGHTS: [f64; 5] = [1190.98, 20203.7, 847.29, 0.0, 306.82];
+/// Loss (`-ln utility`) per unit of each feature, fitted over every content tile and variant of
+/// the shared scenes and the generated SH3 scene by `tools/fit_estimate_weights.py` on the
+/// correlation table's CSV: the direction maximises the smallest per-scene Spearman correlation
+/// with the 1280x720 frames' SSIM, the scale matches the rendered utility
+/// ([`super::utility::utilities`]) in least squares. Its measured agreement, in sample and with
+/// each scene left out of the fit, is in BENCHMARKS.md, "Quality variants".
+pub const WEIGHTS: [f64; 5] = [1052.46, 19052.6, 2104.68, 0.0, 2314.71];
 
 /// The coverage-weighted features of `candidate` against `reference` (same splats in the same
 /// order, tile-relative), seen as [`ViewSetup`] sees them. `None` when the counts differ.
