@@ -371,19 +371,19 @@ fn bad_plans_and_parts_are_refused() {
     // Merge: too few parts, and a part of another plan.
     let s: Vec<PathBuf> = (0..2).map(|i| tmp.path().join(format!("s{i}"))).collect();
     let p: Vec<PathBuf> = (0..2).map(|i| tmp.path().join(format!("p{i}"))).collect();
-    for i in 0..2 {
+    for (i, si) in s.iter().enumerate() {
         let n = i.to_string();
         ok(run(&part_args(
             &input,
             &plan_path,
             &n,
-            &s[i],
+            si,
             &["--phase", "samples"],
         )));
     }
-    for i in 0..2 {
+    for (i, pi) in p.iter().enumerate() {
         let n = i.to_string();
-        let mut a = part_args(&input, &plan_path, &n, &p[i], &["--samples"]);
+        let mut a = part_args(&input, &plan_path, &n, pi, &["--samples"]);
         a.extend(s.iter().map(|d| d.as_os_str()));
         ok(run(&a));
     }
