@@ -104,7 +104,7 @@ pub(super) struct UnitOut {
     pub(super) radius: F,
 }
 
-/// A tile with content, exactly as the tree holds it before `finish_tree`.
+/// A tile with content, exactly as the tree holds it before `finish_tree` (no timings).
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub(super) struct TileRec {
@@ -115,7 +115,6 @@ pub(super) struct TileRec {
     pub(super) splat_count: u32,
     pub(super) variant_bytes: [u32; 4],
     pub(super) variant_utility: [F; 4],
-    pub(super) encode_seconds: [F; 4],
     pub(super) bytes: u64,
 }
 
@@ -129,18 +128,17 @@ impl TileRec {
             splat_count: f.splat_count,
             variant_bytes: f.variant_bytes,
             variant_utility: f.variant_utility.map(|u| F(u as f64)),
-            encode_seconds: f.encode_seconds.map(F),
             bytes: f.bytes,
         }
     }
 
-    /// The content facts.
+    /// The content facts (encoding times are not kept: the part file is the same on a rerun).
     pub(super) fn facts(&self) -> ContentFacts {
         ContentFacts {
             splat_count: self.splat_count,
             variant_bytes: self.variant_bytes,
             variant_utility: self.variant_utility.map(|u| u.0 as f32),
-            encode_seconds: self.encode_seconds.map(|s| s.0),
+            encode_seconds: [0.0; 4],
             bytes: self.bytes,
         }
     }

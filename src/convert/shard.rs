@@ -140,6 +140,7 @@ pub(super) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ConvertError
     let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
     let write = || -> std::io::Result<()> {
         use std::io::Write;
+        std::fs::create_dir_all(&dir)?;
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
         f.sync_all()?;
