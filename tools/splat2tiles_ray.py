@@ -59,16 +59,17 @@ def part_step(binary, input_path, plan, part, phase, out, samples, memory_limit,
     if kill == f"{phase}:{part}" and not os.path.exists(marker):
         open(marker, "w").close()
         # Start the step, let it write for a while, then kill it and this worker outright.
-        child = subprocess.Popen(argv[:-2] + ["--quiet"], env=env,
+        child = subprocess.Popen(argv, env=env,
                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         deadline = time.time() + 60
         parent = os.path.dirname(os.path.abspath(out)) or "."
         name = os.path.basename(out)
+        # Killed once its staging folder holds something (spill files: it is writing).
         while time.time() < deadline and child.poll() is None:
-            if any(f.startswith(f".{name}.") and "tmp" in f for f in os.listdir(parent)):
-                time.sleep(0.2)
+            staged = [f for f in os.listdir(parent) if f.startswith(f".{name}.s2t-tmp-")]
+            if staged and os.listdir(os.path.join(parent, staged[0])):
                 break
-            time.sleep(0.05)
+            time.sleep(0.005)
         child.kill()
         child.wait()
         os.kill(os.getpid(), signal.SIGKILL)
@@ -153,7 +154,8 @@ def convert(input_path, output, parts, work, binary="splat2tiles", convert_args=
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
+                                 epilog="after --: convert options for the plan")
     ap.add_argument("input", help="input scene (a path every node can read)")
     ap.add_argument("-o", "--output", required=True, help="output tileset folder")
     ap.add_argument("--parts", type=int, required=True, help="number of parts (Ray tasks)")
@@ -165,10 +167,10 @@ def main(argv=None):
                     help="Ray CPUs per task (also the step's worker threads)")
     ap.add_argument("--num-cpus", type=int, help="CPUs of the local cluster (no RAY_ADDRESS)")
     ap.add_argument("--json", action="store_true", help="print the step reports as JSON")
-    ap.add_argument("convert_args", nargs=argparse.REMAINDER,
-                    help="after --: convert options for the plan (e.g. --max-splats 16384)")
-    a = ap.parse_args(argv)
-    extra = a.convert_args[1:] if a.convert_args[:1] == ["--"] else a.convert_args
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # After `--`: convert options for the plan (e.g. -- --max-splats 16384).
+    extra = argv[argv.index("--") + 1:] if "--" in argv else []
+    a = ap.parse_args(argv[:argv.index("--")] if "--" in argv else argv)
     r = convert(a.input, a.output, a.parts, a.work, a.binary, extra, a.memory_limit,
                 a.retries, a.cpus_per_task, a.num_cpus)
     if a.json:
