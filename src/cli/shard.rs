@@ -54,6 +54,16 @@ pub struct MergeArgs {
     pub quiet: bool,
 }
 
+/// Bytes this process read or wrote through system calls so far (Linux `/proc/self/io`
+/// `rchar` / `wchar`: files and pipes, cache hits included), if the OS tells.
+fn io_bytes(field: &str) -> Option<u64> {
+    let io = std::fs::read_to_string("/proc/self/io").ok()?;
+    let line = io
+        .lines()
+        .find(|l| l.starts_with(field) && l[field.len()..].starts_with(':'))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
 fn fail(e: ConvertError) -> i32 {
     if e.is_interrupt() {
         eprintln!("splat2tiles: interrupted; no output written");
@@ -88,6 +98,7 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
                         "plan": plan, "splats": r.splats, "units": r.units,
                         "partSplats": r.part_splats, "droppedNonFinite": r.dropped_non_finite,
                         "seconds": r.seconds, "peakRssMiB": peak_rss_mib(),
+                        "readBytes": io_bytes("rchar"), "writtenBytes": io_bytes("wchar"),
                     });
                     println!("{v}");
                 } else if !args.quiet {
@@ -128,6 +139,7 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
                     "contentTiles": r.content_tiles, "bytes": r.bytes,
                     "spillBytes": r.spill_bytes, "leafRadius": r.leaf_radius,
                     "seconds": r.seconds, "peakRssMiB": peak_rss_mib(),
+                    "readBytes": io_bytes("rchar"), "writtenBytes": io_bytes("wchar"),
                 });
                 println!("{v}");
             } else if !args.quiet {
@@ -164,6 +176,7 @@ pub fn run_merge(args: MergeArgs) -> i32 {
                     "partFiles": r.part_files, "partBytes": r.part_bytes,
                     "copiedBytes": r.copied_bytes, "bytes": r.bytes, "seconds": r.seconds,
                     "peakRssMiB": peak_rss_mib(),
+                    "readBytes": io_bytes("rchar"), "writtenBytes": io_bytes("wchar"),
                 });
                 println!("{v}");
             } else if !args.quiet {
