@@ -267,6 +267,28 @@ fn variants_and_georeferenced_scenes_merge_identically() {
     }
 }
 
+/// Splats with NaN/Inf are dropped by the plan's count and skipped by every part (whole chunks
+/// decoded, indices among the finite splats), and the output is the single machine's.
+#[test]
+fn non_finite_splats_are_dropped_alike() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("city.splat");
+    write_city_splat(&input, 120_000, 29);
+    let mut bytes = std::fs::read(&input).unwrap();
+    for i in (0..120_000).step_by(997) {
+        bytes[i * 32..i * 32 + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    }
+    std::fs::write(&input, &bytes).unwrap();
+    let extra = ["--max-splats", "2048", "--no-utility"];
+    let base = tmp.path().join("base");
+    single(&input, &base, &extra);
+    let out = tmp.path().join("out");
+    let reports = shard(&input, &tmp.path().join("w"), 3, &extra, "64MiB", &out);
+    let splats: u64 = reports.iter().map(|r| r["splats"].as_u64().unwrap()).sum();
+    assert_eq!(splats, 120_000 - 121);
+    assert_same_files(&base, &out);
+}
+
 /// A scene that fits one leaf is one unit (the root) in the first part; the other parts are
 /// empty, and the merge still gives the single-machine bytes.
 #[test]
