@@ -346,7 +346,17 @@ fn bad_plans_and_parts_are_refused() {
     let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
     v["units"][0]["splats"] = 1.into();
     std::fs::write(&bad, v.to_string()).unwrap();
-    refused(run(&part_args(&input, &bad, "0", &out, &[])), "units hold");
+    refused(
+        run(&part_args(&input, &bad, "0", &out, &[])),
+        "splats where the histogram has",
+    );
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["histogram"][0][1] = (v["histogram"][0][1].as_u64().unwrap() + 1).into();
+    std::fs::write(&bad, v.to_string()).unwrap();
+    refused(
+        run(&part_args(&input, &bad, "0", &out, &[])),
+        "the histogram holds",
+    );
     let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
     v["units"].as_array_mut().unwrap().reverse();
     std::fs::write(&bad, v.to_string()).unwrap();

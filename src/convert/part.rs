@@ -213,7 +213,9 @@ pub fn convert_part(
         budget.write_budget,
     );
     spiller.all_finite = plan.file.input.dropped == 0;
-    let groups = spiller.split_units(&input, &units).map_err(relocate)?;
+    let groups = spiller
+        .split_units(&input, &units, &plan.prefix)
+        .map_err(relocate)?;
     drop(input);
     let mut report = PartReport {
         splats: groups.iter().map(|g| g.count()).sum(),

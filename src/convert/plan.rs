@@ -46,6 +46,9 @@ pub(super) struct PlanFile {
     pub(super) layout: LayoutRec,
     pub(super) parts: usize,
     pub(super) units: Vec<UnitRec>,
+    /// `[cell, splats]` of every occupied cell of the first routing histogram (Morton order),
+    /// so parts route without counting again.
+    pub(super) histogram: Vec<[u64; 2]>,
 }
 
 /// What the plan knows of its input (a part refuses another file).
@@ -128,6 +131,8 @@ pub(super) struct Plan {
     pub(super) layout: Layout,
     /// Units, keys parsed, in file (Morton) order.
     pub(super) units: Vec<(TileKey, u64, usize)>,
+    /// Prefix sums of the histogram's cells.
+    pub(super) prefix: Vec<u64>,
 }
 
 /// Opens an input for a sharded step: chunked when it can be, else read whole under the limit.
@@ -203,6 +208,12 @@ pub fn make_plan(
     for i in 0..cells {
         prefix[i + 1] = prefix[i] + hist[i];
     }
+    let histogram: Vec<[u64; 2]> = hist
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| **c > 0)
+        .map(|(i, c)| [i as u64, *c])
+        .collect();
     drop(hist);
     // Units top-down: a subtree that fits the unit cap (its parent does not, and the cap is at
     // least a leaf's budget, so the whole-scene partition reaches it), or a histogram cell.
@@ -274,6 +285,7 @@ pub fn make_plan(
         layout: layout_rec(&layout),
         parts,
         units: unit_recs,
+        histogram,
     };
     let json = serde_json::to_vec_pretty(&file).expect("plan serialises");
     write_atomic(plan, &json)?;
@@ -466,6 +478,29 @@ impl Plan {
         let scheme = layout.scheme;
         let dims = scheme.dims();
         let g = histogram_levels(dims, layout.depth());
+        let cells = 1usize << (dims * g);
+        let mut hist = vec![0u64; cells];
+        let mut last_cell = None;
+        for (i, &[cell, count]) in file.histogram.iter().enumerate() {
+            if cell >= cells as u64 || last_cell.is_some_and(|l| l >= cell) || count == 0 {
+                return Err(invalid(format!(
+                    "histogram[{i}]: cells must be below {cells}, increasing, with splats"
+                )));
+            }
+            last_cell = Some(cell);
+            hist[cell as usize] = count;
+        }
+        let mut prefix = vec![0u64; cells + 1];
+        for i in 0..cells {
+            prefix[i + 1] = prefix[i].saturating_add(hist[i]);
+        }
+        drop(hist);
+        if prefix[cells] != file.input.finite {
+            return Err(invalid(format!(
+                "the histogram holds {} splats, the input {}",
+                prefix[cells], file.input.finite
+            )));
+        }
         let mut units = Vec::with_capacity(file.units.len());
         let mut end = 0u64;
         let mut last_part = 0usize;
@@ -485,6 +520,13 @@ impl Plan {
                 )));
             }
             end = first + (1u64 << shift);
+            if prefix[end as usize] - prefix[first as usize] != u.splats {
+                return Err(invalid(format!(
+                    "units[{i}]: {} splats where the histogram has {}",
+                    u.splats,
+                    prefix[end as usize] - prefix[first as usize]
+                )));
+            }
             if u.part >= file.parts || u.part < last_part {
                 return Err(invalid(format!(
                     "units[{i}].part {}: parts must be below {} and non-decreasing",
@@ -507,6 +549,7 @@ impl Plan {
             path: path.to_path_buf(),
             layout,
             units,
+            prefix,
         })
     }
 

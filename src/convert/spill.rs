@@ -459,18 +459,20 @@ impl<'a> Spiller<'a> {
     }
 
     /// Routes the finite splats of `input` that lie in the subtrees `units` (a part of a
-    /// sharded conversion: disjoint, Morton order, at most [`unit_level`] levels deep) into
-    /// groups of regions below them; the other splats are read and skipped.
+    /// sharded conversion: disjoint, Morton order, at most [`histogram_levels`] deep) into
+    /// groups of regions below them; the other splats are read and skipped. `prefix`: the
+    /// prefix sums of the plan's histogram of the input's cells (one read of the input saved).
     pub(super) fn split_units(
         &mut self,
         input: &Input,
         units: &[TileKey],
+        prefix: &[u64],
     ) -> Result<Vec<Group>, ConvertError> {
         if units.is_empty() {
             return Ok(Vec::new());
         }
         std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
-        self.route(Feed::Input(input), TileKey::ROOT, Some(units))
+        self.route(Feed::Input(input), TileKey::ROOT, Some((units, prefix)))
     }
 
     fn too_dense(&self, count: u64, level: u32) -> ConvertError {
@@ -535,13 +537,14 @@ impl<'a> Spiller<'a> {
     }
 
     /// Routes the splats of `feed`, all inside `key`'s cell, into groups of regions below it;
-    /// with `units` (subtrees of `key` within the histogram's depth), only the splats inside
-    /// them, into regions below them.
+    /// with `units` (subtrees of `key` within the histogram's depth, and the prefix sums of the
+    /// input's histogram below `key` when known), only the splats inside them, into regions
+    /// below them.
     fn route(
         &mut self,
         feed: Feed<'_>,
         key: TileKey,
-        units: Option<&[TileKey]>,
+        units: Option<(&[TileKey], &[u64])>,
     ) -> Result<Vec<Group>, ConvertError> {
         let layout = self.layout;
         let scheme = layout.scheme;
@@ -555,30 +558,36 @@ impl<'a> Spiller<'a> {
             let code = layout.code(p);
             ((code >> (dims * (depth - level))) as usize) & (cells - 1)
         };
-        let mut hist = vec![0u64; cells];
-        let mut of = Vec::new();
-        self.feed(&feed, |b| {
-            super::check_interrupt()?;
-            b.positions
-                .par_iter()
-                .map(|p| cell_of(*p) as u32)
-                .collect_into_vec(&mut of);
-            for &c in &of {
-                hist[c as usize] += 1;
+        let prefix = match units {
+            // A sharded part: the plan's histogram of the whole input (one pass saved).
+            Some((_, planned)) if planned.len() == cells + 1 => planned.to_vec(),
+            _ => {
+                let mut hist = vec![0u64; cells];
+                let mut of = Vec::new();
+                self.feed(&feed, |b| {
+                    super::check_interrupt()?;
+                    b.positions
+                        .par_iter()
+                        .map(|p| cell_of(*p) as u32)
+                        .collect_into_vec(&mut of);
+                    for &c in &of {
+                        hist[c as usize] += 1;
+                    }
+                    Ok(())
+                })?;
+                let mut prefix = vec![0u64; cells + 1];
+                for i in 0..cells {
+                    prefix[i + 1] = prefix[i] + hist[i];
+                }
+                prefix
             }
-            Ok(())
-        })?;
-        let mut prefix = vec![0u64; cells + 1];
-        for i in 0..cells {
-            prefix[i + 1] = prefix[i] + hist[i];
-        }
-        drop(hist);
+        };
         // Regions top-down: a subtree that fits (or a cell at the histogram's depth).
         let base = scheme.encode(key.x, key.y, key.z);
         let mut regions: Vec<(RegionSpec, usize, usize)> = Vec::new();
         let mut stack = match units {
             None => vec![(key.level, 0usize, cells)],
-            Some(units) => units
+            Some((units, _)) => units
                 .iter()
                 .rev()
                 .map(|u| {
