@@ -18,6 +18,8 @@ struct Cli {
 enum Command {
     /// Convert a PLY, .splat or .spz scene into an implicit 3D Tiles 1.1 tileset.
     Convert(cli::convert::ConvertArgs),
+    /// Merge the parts of a sharded conversion (`convert --plan`) into one tileset.
+    Merge(cli::shard::MergeArgs),
     /// Check a tileset (JSON, subtrees, metadata, every KHR_gaussian_splatting glb) and report issues.
     Validate(cli::validate::ValidateArgs),
     /// Render a scene file or a tileset with the CPU reference renderer to a PNG.
@@ -38,6 +40,7 @@ fn main() {
     let args = Cli::parse();
     let code = match args.command {
         Command::Convert(a) => cli::convert::run(a),
+        Command::Merge(a) => cli::shard::run_merge(a),
         Command::Validate(a) => cli::validate::run(a),
         Command::Render(a) => report(render_cli::run_render(&a)),
         Command::Compare(a) => report(render_cli::run_compare(&a)),

@@ -16,14 +16,25 @@ use std::path::PathBuf;
 #[command(after_help = "Examples:
   splat2tiles convert scene.ply -o out/
   splat2tiles convert scene.splat -o out/ --max-splats 16384
-  splat2tiles convert city.ply -o city/ --origin 2.2945,48.8584,35 --up-axis -y --heading 90")]
+  splat2tiles convert city.ply -o city/ --origin 2.2945,48.8584,35 --up-axis -y --heading 90
+Sharded (README \"Converting on a cluster\"):
+  splat2tiles convert city.ply --plan plan.json --parts 4
+  splat2tiles convert city.ply --plan plan.json --part 0 --phase samples -o s0   (each part)
+  splat2tiles convert city.ply --plan plan.json --part 0 --samples s0 s1 s2 s3 -o p0
+  splat2tiles merge plan.json p0 p1 p2 p3 -o city/")]
 pub struct ConvertArgs {
     /// Input scene: trainer PLY (binary or ascii), antimatter15 .splat, or Niantic .spz (v2-v4).
     pub input: PathBuf,
     /// Output folder: absent, empty, or an earlier splat2tiles output (replaced only when the new
     /// one is complete); any other folder is refused, never deleted.
-    #[arg(short, long)]
-    pub output: PathBuf,
+    #[arg(short, long, required_unless_present = "plan")]
+    pub output: Option<PathBuf>,
+    /// Sharded conversion: the plan file. Alone (with --parts), write the plan; with --part,
+    /// build that part of it (its conversion options are the plan's).
+    #[arg(long)]
+    pub plan: Option<PathBuf>,
+    #[command(flatten)]
+    pub shard: super::shard::ShardArgs,
     /// Most splats per leaf tile.
     #[arg(long, default_value_t = 32_768, value_parser = clap::value_parser!(u64).range(1..=16_777_216))]
     pub max_splats: u64,
@@ -88,13 +99,9 @@ pub struct ConvertArgs {
     pub quiet: bool,
 }
 
-/// Runs `convert`; returns the process exit code.
-pub fn run(args: ConvertArgs) -> i32 {
-    if !args.heading.is_finite() {
-        eprintln!("splat2tiles: --heading must be a finite number of degrees");
-        return super::EXIT_FAILURE;
-    }
-    let opts = ConvertOptions {
+/// The conversion options the arguments ask for.
+fn options(args: &ConvertArgs) -> ConvertOptions {
+    ConvertOptions {
         max_splats_per_tile: args.max_splats as usize,
         max_depth: args.max_depth,
         up_axis: args.up_axis,
@@ -120,9 +127,25 @@ pub fn run(args: ConvertArgs) -> i32 {
             .memory_limit
             .unwrap_or_else(MemoryLimit::machine_default)
             .bytes(),
+    }
+}
+
+/// Runs `convert`; returns the process exit code.
+pub fn run(args: ConvertArgs) -> i32 {
+    if !args.heading.is_finite() {
+        eprintln!("splat2tiles: --heading must be a finite number of degrees");
+        return super::EXIT_FAILURE;
+    }
+    let opts = options(&args);
+    if let Some(plan) = &args.plan {
+        return super::shard::run(&args, plan, &opts);
+    }
+    let Some(output) = &args.output else {
+        eprintln!("splat2tiles: --output is required");
+        return super::EXIT_FAILURE;
     };
     crate::output::install_interrupt_handler();
-    match convert(&args.input, &args.output, &opts) {
+    match convert(&args.input, output, &opts) {
         Ok(r) => {
             for note in &r.notes {
                 eprintln!("splat2tiles: {note}");
@@ -148,7 +171,7 @@ pub fn run(args: ConvertArgs) -> i32 {
                 });
                 println!("{v}");
             } else if !args.quiet {
-                let tileset = args.output.join("tileset.json");
+                let tileset = output.join("tileset.json");
                 println!(
                     "converted {}: {} splats in, {} out (SH degree {}, up axis {})",
                     args.input.display(),

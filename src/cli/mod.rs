@@ -3,6 +3,7 @@
 
 pub mod convert;
 pub mod serve;
+pub mod shard;
 pub mod simulate;
 pub mod stats;
 pub mod validate;

@@ -107,10 +107,10 @@ pub(super) struct Layout {
     /// Web-Mercator tile of the implicit root (georeferenced only).
     pub(super) mercator_root: Option<MercatorKey>,
     /// ENU -> ECEF (georeferenced only).
-    enu: Option<DMat4>,
+    pub(super) enu: Option<DMat4>,
     /// Local scenes: the root box's minimum corner and size.
-    min: DVec3,
-    size: DVec3,
+    pub(super) min: DVec3,
+    pub(super) size: DVec3,
 }
 
 impl Layout {

@@ -5,7 +5,11 @@
 //! stays within `--memory-limit` (ARCHITECTURE.md "Out-of-core conversion").
 
 mod frame;
+mod merge;
+mod part;
+mod plan;
 mod region;
+mod shard;
 mod source;
 mod spill;
 mod store;
@@ -22,6 +26,9 @@ use crate::tiling::TileKey;
 use crate::variants::{ContentError, ContentFacts, VariantOptions};
 use frame::{FrameAccum, Layout};
 use indicatif::{ProgressBar, ProgressStyle};
+pub use merge::{MergeReport, merge_parts};
+pub use part::{PartPhase, PartReport, convert_part};
+pub use plan::{MAX_PARTS, PLAN_VERSION, PlanReport, make_plan};
 use rayon::prelude::*;
 use region::{GroupLeaves, RegionCtx};
 use source::Input;
@@ -393,38 +400,9 @@ fn run(
     let budget = Budget::new(opts.memory_limit, degree, opts.max_splats_per_tile);
 
     // Frame stage: one pass for the non-finite policy, the bounds and the georeferenced root.
-    let mut acc = FrameAccum::new(opts.origin.is_some());
-    let enu = opts.origin.map(Geodetic::enu_to_ecef);
-    let mut counts = Counts::default();
     // A chunked scene that fits the budget is kept from this pass (not decoded a second time).
     let hold = matches!(input, Input::Chunked(_)) && input.len() <= budget.cap;
-    let mut held = Splats::with_capacity(degree, if hold { input.len() as usize } else { 0 });
-    input.for_each_raw(budget.chunk, |ch| {
-        check_interrupt()?;
-        let s = ch.splats;
-        let keep: Vec<bool> = (0..s.len())
-            .into_par_iter()
-            .map(|i| s.is_finite(i))
-            .collect();
-        let kept = keep.iter().filter(|k| **k).count() as u64;
-        if counts.first_bad.is_none() && kept < s.len() as u64 {
-            counts.first_bad = keep.iter().position(|k| !k).map(|i| ch.first + i as u64);
-        }
-        counts.finite += kept;
-        counts.dropped += s.len() as u64 - kept;
-        counts.repaired += ch.repaired_rotations;
-        counts.overflowed += ch.overflowed_scales;
-        acc.add(s, &keep, a, enu);
-        if hold {
-            if kept == s.len() as u64 {
-                region::append(&mut held, s);
-            } else {
-                let finite: Vec<usize> = (0..s.len()).filter(|&i| keep[i]).collect();
-                region::append(&mut held, &s.select(&finite));
-            }
-        }
-        Ok(())
-    })?;
+    let (acc, counts, held) = frame_pass(&input, a, opts, budget.chunk, hold)?;
     let mut report = ConvertReport {
         splats_in: input.len() as usize,
         repaired_rotations: counts.repaired,
@@ -433,48 +411,7 @@ fn run(
         up_axis: up.to_string(),
         ..Default::default()
     };
-    if let Some(i) = counts.first_bad {
-        match opts.non_finite {
-            NonFinitePolicy::Fail => {
-                let note = if counts.overflowed > 0 {
-                    format!(
-                        " ({} splats have finite log-scales too large for exp(), e.g. above 88.7: \
-                         their scale overflows)",
-                        counts.overflowed
-                    )
-                } else {
-                    String::new()
-                };
-                return Err(ConvertError::NonFinite {
-                    file: name.to_string(),
-                    location: input.locator().describe(i as usize),
-                    index: i as usize,
-                    note,
-                });
-            }
-            NonFinitePolicy::Drop => report.dropped_non_finite = counts.dropped as usize,
-        }
-    }
-    if counts.finite == 0 {
-        let why = if report.dropped_non_finite > 0 && counts.overflowed > 0 {
-            format!(
-                " (all {} splats had NaN or infinite values; {} of them are finite in the file but \
-                 have log-scales too large for exp(), e.g. above 88.7, so their scale overflows)",
-                report.dropped_non_finite, counts.overflowed
-            )
-        } else if report.dropped_non_finite > 0 {
-            format!(
-                " (all {} splats had NaN or infinite values)",
-                report.dropped_non_finite
-            )
-        } else {
-            " (the file holds zero splats)".to_string()
-        };
-        return Err(ConvertError::Empty {
-            file: name.to_string(),
-            why,
-        });
-    }
+    report.dropped_non_finite = check_counts(&counts, &input, name, opts)?;
     report
         .stage_seconds
         .push(("frame", start.elapsed().as_secs_f64()));
@@ -533,6 +470,7 @@ fn run(
         opts,
         dir: &dir,
         nn_step: counts.finite.div_ceil(SPACING_SAMPLES).max(1) as usize,
+        write_leaves: true,
     };
     let leaf_bar = bar(opts.progress, groups.len() as u64, "writing leaves");
     let mut built: Vec<GroupLeaves> = Vec::with_capacity(groups.len());
@@ -605,31 +543,15 @@ fn run(
         report
             .stage_seconds
             .push(("parents", start.elapsed().as_secs_f64()));
-        parents
-            .extend(top::build_top(&roots, &store, degree, r, &diagonals, &cx).map_err(relocate)?);
+        parents.extend(
+            top::build_top(&roots, &store, degree, r, &diagonals, &cx, &|_| false)
+                .map_err(relocate)?,
+        );
         drop(store);
         report
             .stage_seconds
             .push(("top", start.elapsed().as_secs_f64()));
-        for (key, p) in parents {
-            // Parents that are no real level of detail keep no content (tiling::levels).
-            let Some((facts, lo, hi)) = p.content else {
-                continue;
-            };
-            let t = tree.get_mut(&key).expect("parents are tree tiles");
-            t.splat_count = facts.splat_count;
-            t.bytes = facts.bytes;
-            t.has_content = true;
-            t.error = p.error;
-            t.lo = t.lo.min(lo);
-            t.hi = t.hi.max(hi);
-            report.content_tiles += 1;
-            report.parent_splats += facts.splat_count as usize;
-            report.bytes += facts.bytes;
-            report.contents.push((key, facts.clone()));
-            t.facts = Some(facts);
-        }
-        report.contents.sort_by_key(|(k, _)| *k);
+        apply_parents(&mut tree, parents, &mut report);
         report.lod_radius = r;
         report.lod_seconds = t0.elapsed().as_secs_f64();
     } else {
@@ -688,6 +610,127 @@ fn run(
     }
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// The frame pass: every splat once, for the non-finite policy, the bounds and the
+/// georeferenced root; with `hold`, the finite splats are kept (a scene that fits the budget).
+fn frame_pass(
+    input: &Input,
+    a: glam::DMat3,
+    opts: &ConvertOptions,
+    chunk: usize,
+    hold: bool,
+) -> Result<(FrameAccum, Counts, Splats), ConvertError> {
+    let degree = input.sh_degree();
+    let mut acc = FrameAccum::new(opts.origin.is_some());
+    let enu = opts.origin.map(Geodetic::enu_to_ecef);
+    let mut counts = Counts::default();
+    let mut held = Splats::with_capacity(degree, if hold { input.len() as usize } else { 0 });
+    input.for_each_raw(chunk, |ch| {
+        check_interrupt()?;
+        let s = ch.splats;
+        let keep: Vec<bool> = (0..s.len())
+            .into_par_iter()
+            .map(|i| s.is_finite(i))
+            .collect();
+        let kept = keep.iter().filter(|k| **k).count() as u64;
+        if counts.first_bad.is_none() && kept < s.len() as u64 {
+            counts.first_bad = keep.iter().position(|k| !k).map(|i| ch.first + i as u64);
+        }
+        counts.finite += kept;
+        counts.dropped += s.len() as u64 - kept;
+        counts.repaired += ch.repaired_rotations;
+        counts.overflowed += ch.overflowed_scales;
+        acc.add(s, &keep, a, enu);
+        if hold {
+            if kept == s.len() as u64 {
+                region::append(&mut held, s);
+            } else {
+                let finite: Vec<usize> = (0..s.len()).filter(|&i| keep[i]).collect();
+                region::append(&mut held, &s.select(&finite));
+            }
+        }
+        Ok(())
+    })?;
+    Ok((acc, counts, held))
+}
+
+/// Applies the non-finite policy and refuses an input without finite splats; returns the
+/// splats dropped.
+fn check_counts(
+    counts: &Counts,
+    input: &Input,
+    name: &str,
+    opts: &ConvertOptions,
+) -> Result<usize, ConvertError> {
+    let mut dropped = 0;
+    if let Some(i) = counts.first_bad {
+        match opts.non_finite {
+            NonFinitePolicy::Fail => {
+                let note = if counts.overflowed > 0 {
+                    format!(
+                        " ({} splats have finite log-scales too large for exp(), e.g. above 88.7: \
+                         their scale overflows)",
+                        counts.overflowed
+                    )
+                } else {
+                    String::new()
+                };
+                return Err(ConvertError::NonFinite {
+                    file: name.to_string(),
+                    location: input.locator().describe(i as usize),
+                    index: i as usize,
+                    note,
+                });
+            }
+            NonFinitePolicy::Drop => dropped = counts.dropped as usize,
+        }
+    }
+    if counts.finite == 0 {
+        let why = if dropped > 0 && counts.overflowed > 0 {
+            format!(
+                " (all {} splats had NaN or infinite values; {} of them are finite in the file but \
+                 have log-scales too large for exp(), e.g. above 88.7, so their scale overflows)",
+                dropped, counts.overflowed
+            )
+        } else if dropped > 0 {
+            format!(" (all {dropped} splats had NaN or infinite values)")
+        } else {
+            " (the file holds zero splats)".to_string()
+        };
+        return Err(ConvertError::Empty {
+            file: name.to_string(),
+            why,
+        });
+    }
+    Ok(dropped)
+}
+
+/// Gives the tree its LOD parents with content (boxes, errors, facts) and counts them in the
+/// report; parents that are no real level of detail keep no content (`tiling::levels`).
+fn apply_parents(
+    tree: &mut std::collections::BTreeMap<TileKey, TreeTile>,
+    parents: std::collections::BTreeMap<TileKey, region::WrittenParent>,
+    report: &mut ConvertReport,
+) {
+    for (key, p) in parents {
+        let Some((facts, lo, hi)) = p.content else {
+            continue;
+        };
+        let t = tree.get_mut(&key).expect("parents are tree tiles");
+        t.splat_count = facts.splat_count;
+        t.bytes = facts.bytes;
+        t.has_content = true;
+        t.error = p.error;
+        t.lo = t.lo.min(lo);
+        t.hi = t.hi.max(hi);
+        report.content_tiles += 1;
+        report.parent_splats += facts.splat_count as usize;
+        report.bytes += facts.bytes;
+        report.contents.push((key, facts.clone()));
+        t.facts = Some(facts);
+    }
+    report.contents.sort_by_key(|(k, _)| *k);
 }
 
 /// The default leaf radius `r`: the deepest leaf tile's edge divided by [`LEAF_SIZE_DIVISOR`],

@@ -42,6 +42,9 @@ pub(super) struct RegionCtx<'a> {
     pub(super) dir: &'a Path,
     /// Every `nn_step`-th splat of a leaf (importance order) is a spacing sample.
     pub(super) nn_step: usize,
+    /// Pass 1 writes the leaves (otherwise it only partitions and samples the spacing: the
+    /// first phase of a sharded part, `part`).
+    pub(super) write_leaves: bool,
 }
 
 /// One region after pass 1: its leaves in Morton order with their splat counts.
@@ -308,6 +311,7 @@ pub(super) fn build_leaves(
             .for_each(|(_, ind)| sort_indices_by_importance(&splats, ind));
         let written: Result<Vec<(TileKey, TreeTile)>, ConvertError> = leaves
             .par_iter()
+            .filter(|_| cx.write_leaves)
             .map(|(key, ind)| {
                 let tile = splats.select(ind);
                 let (lo, hi, facts) = write_centred(layout, *key, &tile, cx.dir, cx.opts)?;
@@ -336,6 +340,10 @@ pub(super) fn build_leaves(
         }
     }
     out.data = match file {
+        _ if !cx.write_leaves => LeafOrder::Memory {
+            splats: Splats::new(splats.sh_degree),
+            order: Vec::new(),
+        },
         None => LeafOrder::Memory { splats, order },
         Some(p) => {
             // The spill file stays; pass 2 reads it again in leaf order (4 bytes per splat
@@ -484,6 +492,7 @@ pub(super) fn build_parents(
         let root: Mutex<Option<Result<(), ConvertError>>> = Mutex::new(None);
         let built = if cx.opts.lod.enabled {
             crate::lod::build_parents(
+                root_key,
                 &keys,
                 splats.sh_degree,
                 r,

@@ -311,6 +311,12 @@ fn read_records(
     }
 }
 
+/// Levels of the first routing histogram below a subtree `room` levels above the deepest
+/// level: at most 2^15 cells. Units of a sharded plan lie within these levels below the root.
+pub(super) fn histogram_levels(dims: u32, room: u32) -> u32 {
+    (15 / dims).min(room)
+}
+
 /// Most spill files one routing pass writes at once (more groups take two passes).
 const MAX_OPEN_FILES: usize = 256;
 
@@ -449,7 +455,24 @@ impl<'a> Spiller<'a> {
             return Ok(vec![whole(s, count)]);
         }
         std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
-        self.route(Feed::Input(input), TileKey::ROOT)
+        self.route(Feed::Input(input), TileKey::ROOT, None)
+    }
+
+    /// Routes the finite splats of `input` that lie in the subtrees `units` (a part of a
+    /// sharded conversion: disjoint, Morton order, at most [`histogram_levels`] deep) into
+    /// groups of regions below them; the other splats are read and skipped. `prefix`: the
+    /// prefix sums of the plan's histogram of the input's cells (one read of the input saved).
+    pub(super) fn split_units(
+        &mut self,
+        input: &Input,
+        units: &[TileKey],
+        prefix: &[u64],
+    ) -> Result<Vec<Group>, ConvertError> {
+        if units.is_empty() {
+            return Ok(Vec::new());
+        }
+        std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
+        self.route(Feed::Input(input), TileKey::ROOT, Some((units, prefix)))
     }
 
     fn too_dense(&self, count: u64, level: u32) -> ConvertError {
@@ -491,6 +514,10 @@ impl<'a> Spiller<'a> {
                 .map(|p| which(*p))
                 .collect_into_vec(&mut dest);
             for (i, &gi) in dest.iter().enumerate() {
+                if gi >= writers.len() {
+                    // Outside the subtrees being routed (another part's splats).
+                    continue;
+                }
                 rec.clear();
                 format.encode(&b, i, &mut rec);
                 writers[gi]
@@ -509,42 +536,68 @@ impl<'a> Spiller<'a> {
         Ok(paths)
     }
 
-    /// Routes the splats of `feed`, all inside `key`'s cell, into groups of regions below it.
-    fn route(&mut self, feed: Feed<'_>, key: TileKey) -> Result<Vec<Group>, ConvertError> {
+    /// Routes the splats of `feed`, all inside `key`'s cell, into groups of regions below it;
+    /// with `units` (subtrees of `key` within the histogram's depth, and the prefix sums of the
+    /// input's histogram below `key` when known), only the splats inside them, into regions
+    /// below them.
+    fn route(
+        &mut self,
+        feed: Feed<'_>,
+        key: TileKey,
+        units: Option<(&[TileKey], &[u64])>,
+    ) -> Result<Vec<Group>, ConvertError> {
         let layout = self.layout;
         let scheme = layout.scheme;
         let dims = scheme.dims();
         let depth = layout.depth();
         // Histogram of the cells `g` levels below `key` (at most 2^15 cells).
-        let g = (15 / dims).min(depth - key.level);
+        let g = histogram_levels(dims, depth - key.level);
         let level = key.level + g;
         let cells = 1usize << (dims * g);
         let cell_of = |p: [f64; 3]| -> usize {
             let code = layout.code(p);
             ((code >> (dims * (depth - level))) as usize) & (cells - 1)
         };
-        let mut hist = vec![0u64; cells];
-        let mut of = Vec::new();
-        self.feed(&feed, |b| {
-            super::check_interrupt()?;
-            b.positions
-                .par_iter()
-                .map(|p| cell_of(*p) as u32)
-                .collect_into_vec(&mut of);
-            for &c in &of {
-                hist[c as usize] += 1;
+        let prefix = match units {
+            // A sharded part: the plan's histogram of the whole input (one pass saved).
+            Some((_, planned)) if planned.len() == cells + 1 => planned.to_vec(),
+            _ => {
+                let mut hist = vec![0u64; cells];
+                let mut of = Vec::new();
+                self.feed(&feed, |b| {
+                    super::check_interrupt()?;
+                    b.positions
+                        .par_iter()
+                        .map(|p| cell_of(*p) as u32)
+                        .collect_into_vec(&mut of);
+                    for &c in &of {
+                        hist[c as usize] += 1;
+                    }
+                    Ok(())
+                })?;
+                let mut prefix = vec![0u64; cells + 1];
+                for i in 0..cells {
+                    prefix[i + 1] = prefix[i] + hist[i];
+                }
+                prefix
             }
-            Ok(())
-        })?;
-        let mut prefix = vec![0u64; cells + 1];
-        for i in 0..cells {
-            prefix[i + 1] = prefix[i] + hist[i];
-        }
-        drop(hist);
+        };
         // Regions top-down: a subtree that fits (or a cell at the histogram's depth).
         let base = scheme.encode(key.x, key.y, key.z);
         let mut regions: Vec<(RegionSpec, usize, usize)> = Vec::new();
-        let mut stack = vec![(key.level, 0usize, cells)];
+        let mut stack = match units {
+            None => vec![(key.level, 0usize, cells)],
+            Some((units, _)) => units
+                .iter()
+                .rev()
+                .map(|u| {
+                    let below = dims * (level - u.level);
+                    let rel =
+                        scheme.encode(u.x, u.y, u.z) - (base << (dims * (u.level - key.level)));
+                    ((u.level), (rel as usize) << below, 1usize << below)
+                })
+                .collect(),
+        };
         while let Some((l, a, n)) = stack.pop() {
             let count = prefix[a + n] - prefix[a];
             if count == 0 {
@@ -615,7 +668,7 @@ impl<'a> Spiller<'a> {
             }
             if grp.len() == 1 && only.count > self.cap {
                 // Too big at the histogram's depth: route it again, one histogram deeper.
-                let sub = self.route(Feed::File(&path), only.key)?;
+                let sub = self.route(Feed::File(&path), only.key, None)?;
                 std::fs::remove_file(&path).map_err(super::io_err(&path, "removing spill file"))?;
                 out.extend(sub);
             } else {

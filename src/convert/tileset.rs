@@ -95,7 +95,7 @@ pub(super) fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
 
 /// The geometric error a content tile is viewed at: its own, or for a leaf (error 0) its
 /// parent's, from whose switching distance on it is drawn (0 for a lone root leaf).
-fn view_error(tree: &BTreeMap<TileKey, TreeTile>, k: TileKey) -> f64 {
+pub(super) fn view_error(tree: &BTreeMap<TileKey, TreeTile>, k: TileKey) -> f64 {
     let own = tree[&k].error;
     if own > 0.0 {
         return own;

@@ -11,7 +11,8 @@ use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
 
 /// Builds and writes every tile above the region roots `roots` (in Morton order, disjoint
-/// subtrees); nothing when one region covers the whole tree.
+/// subtrees) up to the root, or up to the first tile `ceiling` holds (the units of a sharded
+/// part); nothing when one region covers the whole tree.
 pub(super) fn build_top(
     roots: &[RootContent],
     store: &ContentStore,
@@ -19,12 +20,15 @@ pub(super) fn build_top(
     r: f64,
     diagonals: &HashMap<TileKey, f64>,
     cx: &RegionCtx<'_>,
+    ceiling: &dyn Fn(TileKey) -> bool,
 ) -> Result<BTreeMap<TileKey, WrittenParent>, ConvertError> {
     let mut deepest: HashMap<TileKey, u32> = HashMap::new();
     let mut children: BTreeMap<TileKey, Vec<TileKey>> = BTreeMap::new();
     for root in roots {
         let mut k = root.key;
-        while let Some(p) = k.parent() {
+        while !ceiling(k)
+            && let Some(p) = k.parent()
+        {
             let e = deepest.entry(p).or_insert(root.deepest);
             *e = (*e).max(root.deepest);
             let kids = children.entry(p).or_default();

@@ -239,10 +239,14 @@ pub fn build_parent(
     }
 }
 
-/// Builds every ancestor of `leaves` bottom-up. `leaf_splats(key)` gives a leaf's splats;
+/// Builds every ancestor of `leaves` bottom-up up to `root` (their subtree's root; nothing
+/// above it: a region's parents, the levels above it are built from the region roots).
+/// `leaf_splats(key)` gives a leaf's splats;
 /// `sink` receives each parent as soon as it is built (in parallel within a level) and returns
 /// what the caller wants to keep per tile. Returns those values keyed by tile.
+#[allow(clippy::too_many_arguments)]
 pub fn build_parents<T, E, L, S>(
+    root: TileKey,
     leaves: &[TileKey],
     sh_degree: u8,
     r: f64,
@@ -264,7 +268,9 @@ where
     for &leaf in leaves {
         deepest.insert(leaf, leaf.level);
         let mut k = leaf;
-        while let Some(p) = k.parent() {
+        while k != root
+            && let Some(p) = k.parent()
+        {
             let e = deepest.entry(p).or_insert(leaf.level);
             *e = (*e).max(leaf.level);
             let kids = children.entry(p).or_default();

@@ -2,6 +2,7 @@
 //! seeded generated scenes, and decoding a whole tileset back into splats.
 #![allow(dead_code)]
 
+pub mod city;
 pub mod scenes;
 pub mod splat_file;
 
