@@ -554,6 +554,15 @@ impl Ctx<'_> {
         let data = &data[acc.byte_offset as usize..];
         let cs = ct.size();
         let mut out = Vec::with_capacity(count * comps);
+        if ct == ComponentType::F32 && stride == elem {
+            // Tightly packed floats (every Best tile): one pass over the bytes.
+            out.extend(
+                data[..count * elem]
+                    .chunks_exact(4)
+                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            );
+            return Ok((out, comps));
+        }
         for i in 0..count {
             let e = &data[i * stride..i * stride + elem];
             for c in 0..comps {
