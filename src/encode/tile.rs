@@ -554,13 +554,15 @@ impl Ctx<'_> {
         let data = &data[acc.byte_offset as usize..];
         let cs = ct.size();
         let mut out = Vec::with_capacity(count * comps);
-        if ct == ComponentType::F32 && stride == elem {
-            // Tightly packed floats (every Best tile): one pass over the bytes.
-            out.extend(
-                data[..count * elem]
-                    .chunks_exact(4)
-                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-            );
+        if ct == ComponentType::F32 {
+            // Floats (every Best tile, packed or interleaved): element by element, without the
+            // per-component dispatch. `needed` above bounds the last element.
+            out.resize(count * comps, 0.0);
+            for (o, e) in out.chunks_exact_mut(comps).zip(data.chunks(stride)) {
+                for (v, b) in o.iter_mut().zip(e[..elem].chunks_exact(4)) {
+                    *v = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                }
+            }
             return Ok((out, comps));
         }
         for i in 0..count {
