@@ -3,72 +3,17 @@
 
 mod common;
 
+use common::city::write_city_splat;
 use common::*;
 use splat2tiles::convert::{ConvertOptions, convert};
 use splat2tiles::splat::Splats;
 use splat2tiles::tiling::TileKey;
-use std::collections::BTreeMap;
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-/// Writes `n` splats as an antimatter15 `.splat` file: a "city" of blocks of different
-/// densities (so regions split unevenly), streamed record by record (no scene in memory).
-fn write_city_splat(path: &Path, n: usize, seed: u64) {
-    let f = std::fs::File::create(path).unwrap();
-    let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
-    let mut r = Rng(seed);
-    for i in 0..n {
-        // 16 x 16 blocks of 50 m; block density grows with its index, a tower every 7th block.
-        let block = ((i as u64).wrapping_mul(2654435761) % 256) as f64;
-        let (bx, by) = ((block % 16.0) * 50.0, (block / 16.0).floor() * 50.0);
-        let tall = if (block as u64).is_multiple_of(7) {
-            60.0
-        } else {
-            8.0
-        };
-        let p = [
-            (bx + r.range(0.0, 40.0)) as f32,
-            (by + r.range(0.0, 40.0)) as f32,
-            -(r.range(0.0, tall)) as f32,
-        ];
-        let s = r.range(0.02, 0.4) as f32;
-        let mut rec = Vec::with_capacity(32);
-        for v in p.iter().chain(&[s, s * 0.8, s * 0.5]) {
-            rec.extend_from_slice(&v.to_le_bytes());
-        }
-        for _ in 0..4 {
-            rec.push((r.f() * 255.0) as u8);
-        }
-        for _ in 0..4 {
-            rec.push((r.f() * 255.0) as u8);
-        }
-        w.write_all(&rec).unwrap();
-    }
-    w.flush().unwrap();
-}
-
-/// Every file under `dir` (relative path -> bytes).
-fn files(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                let rel = p.strip_prefix(dir).unwrap().to_path_buf();
-                out.insert(rel, std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    out
-}
-
 fn assert_same_files(a: &Path, b: &Path) {
-    let fa = files(a);
-    let fb = files(b);
+    let fa = tree_files(a);
+    let fb = tree_files(b);
     assert_eq!(
         fa.keys().collect::<Vec<_>>(),
         fb.keys().collect::<Vec<_>>(),

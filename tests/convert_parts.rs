@@ -8,32 +8,11 @@ mod common;
 use common::city::write_city_splat;
 use common::*;
 use splat2tiles::splat::Splats;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// Every file under `dir` (relative path -> bytes).
-fn files(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(
-                    p.strip_prefix(dir).unwrap().to_path_buf(),
-                    std::fs::read(&p).unwrap(),
-                );
-            }
-        }
-    }
-    out
-}
-
 fn assert_same_files(a: &Path, b: &Path) {
-    let (fa, fb) = (files(a), files(b));
+    let (fa, fb) = (tree_files(a), tree_files(b));
     assert_eq!(
         fa.keys().collect::<Vec<_>>(),
         fb.keys().collect::<Vec<_>>(),
@@ -196,12 +175,12 @@ fn four_parts_give_the_single_machine_bytes() {
             let plan_path = work.join("plan.json");
             let samples: Vec<PathBuf> = (0..4).map(|i| work.join(format!("s{i}"))).collect();
             let p2 = work.join("p2");
-            let before = files(&p2);
+            let before = tree_files(&p2);
             let mut a = part_args(&input, &plan_path, "2", &p2, &[]);
             a.push(os("--samples"));
             a.extend(samples.iter().map(|s| s.as_os_str()));
             ok(run(&a));
-            let after = files(&p2);
+            let after = tree_files(&p2);
             assert_eq!(
                 after.keys().collect::<Vec<_>>(),
                 before.keys().collect::<Vec<_>>()

@@ -9,7 +9,6 @@ mod common;
 
 use common::city::write_city_splat;
 use common::*;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -56,25 +55,6 @@ fn ray_python() -> Option<PathBuf> {
         assert!(has_ray(&py), "ray not importable after pip install {RAY}");
     }
     Some(py)
-}
-
-fn files(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(
-                    p.strip_prefix(dir).unwrap().to_path_buf(),
-                    std::fs::read(&p).unwrap(),
-                );
-            }
-        }
-    }
-    out
 }
 
 #[test]
@@ -145,7 +125,7 @@ fn ray_driver_converts_in_four_parts_with_a_killed_task() {
     let splats: u64 = build.iter().map(|b| b["splats"].as_u64().unwrap()).sum();
     assert_eq!(splats, 300_000);
 
-    let (a, b) = (files(&base), files(&out));
+    let (a, b) = (tree_files(&base), tree_files(&out));
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
     for (k, v) in &a {
         assert!(v == &b[k], "{} differs", k.display());

@@ -329,26 +329,6 @@ fn nnls_recovers_non_negative_weights() {
     }
 }
 
-/// Every file under `dir`, by relative path.
-fn files(dir: &std::path::Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec<u8>> {
-    let mut out = std::collections::BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(
-                    p.strip_prefix(dir).unwrap().to_path_buf(),
-                    std::fs::read(&p).unwrap(),
-                );
-            }
-        }
-    }
-    out
-}
-
 /// With every variant and estimated utilities, the out-of-core path (many spilled regions, one
 /// thread) writes the same bytes as the in-memory one (two threads).
 #[test]
@@ -378,7 +358,7 @@ fn variants_and_estimates_are_the_same_out_of_core() {
     let b = run(&ooc, 1, 1 << 20);
     assert_eq!(a.regions, 1);
     assert!(b.regions > 1, "{}", b.regions);
-    let (fa, fb) = (files(&mem), files(&ooc));
+    let (fa, fb) = (tree_files(&mem), tree_files(&ooc));
     assert_eq!(fa.keys().collect::<Vec<_>>(), fb.keys().collect::<Vec<_>>());
     for (k, v) in &fa {
         assert!(v == &fb[k], "{} differs", k.display());
