@@ -11,19 +11,6 @@ use splat2tiles::tiling::TileKey;
 use std::path::Path;
 use std::process::Command;
 
-fn assert_same_files(a: &Path, b: &Path) {
-    let fa = tree_files(a);
-    let fb = tree_files(b);
-    assert_eq!(
-        fa.keys().collect::<Vec<_>>(),
-        fb.keys().collect::<Vec<_>>(),
-        "same file names"
-    );
-    for (k, v) in &fa {
-        assert!(v == &fb[k], "{} differs", k.display());
-    }
-}
-
 fn convert_cli(input: &Path, out: &Path, extra: &[&str]) -> serde_json::Value {
     let o = Command::new(bin())
         .arg("convert")
@@ -36,21 +23,6 @@ fn convert_cli(input: &Path, out: &Path, extra: &[&str]) -> serde_json::Value {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     serde_json::from_slice(&o.stdout).unwrap()
-}
-
-fn validate(out: &Path) {
-    let o = Command::new(bin())
-        .arg("validate")
-        .arg(out.join("tileset.json"))
-        .arg("--check-extent")
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        o.status.success() && text.contains("(0 errors, 0 warnings"),
-        "validate: {text}{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
 }
 
 /// Tile boxes enclose every splat's 3-sigma ellipsoid, leaves and LOD parents alike:
@@ -69,7 +41,7 @@ fn shared_scenes_have_no_extent_warnings() {
             .path()
             .join(format!("{}{}", name.replace('.', "_"), extra.len()));
         convert_cli(&scene(name), &out, extra);
-        validate(&out);
+        assert_valid_with_extents(&out);
     }
 }
 
@@ -94,7 +66,7 @@ fn two_million_splats_under_64_mib_match_the_in_memory_output() {
     assert!(b["spillBytes"].as_u64().unwrap() < 2_000_000 * 76, "{b}");
     assert_eq!(a["splatsOut"], 2_000_000);
     assert_same_files(&mem, &ooc);
-    validate(&ooc);
+    assert_valid_with_extents(&ooc);
     // No spill file or staging folder is left beside or inside the output.
     let names: Vec<_> = std::fs::read_dir(tmp.path())
         .unwrap()
@@ -144,7 +116,7 @@ fn threads_and_limits_give_identical_bytes() {
         assert_eq!(convert_lib(&input, &out, threads, limit), map);
         assert_same_files(&base, &out);
     }
-    validate(&base);
+    assert_valid_with_extents(&base);
 }
 
 /// `--non-finite fail` names the first bad splat's byte offset when it lies in a later chunk of

@@ -11,18 +11,6 @@ use splat2tiles::splat::Splats;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn assert_same_files(a: &Path, b: &Path) {
-    let (fa, fb) = (tree_files(a), tree_files(b));
-    assert_eq!(
-        fa.keys().collect::<Vec<_>>(),
-        fb.keys().collect::<Vec<_>>(),
-        "same file names"
-    );
-    for (k, v) in &fa {
-        assert!(v == &fb[k], "{} differs", k.display());
-    }
-}
-
 fn run(args: &[&std::ffi::OsStr]) -> Output {
     Command::new(bin()).args(args).output().unwrap()
 }
@@ -128,21 +116,6 @@ fn shard(
     reports
 }
 
-fn validate(out: &Path) {
-    let o = Command::new(bin())
-        .arg("validate")
-        .arg(out.join("tileset.json"))
-        .arg("--check-extent")
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        o.status.success() && text.contains("(0 errors, 0 warnings"),
-        "validate: {text}{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
-
 /// 400k splats of a city in 4 parts (parts spilling at 64 MiB) and in 1 and 3 parts give the
 /// single-machine bytes, and validate; each part's peak RSS stays under its memory limit.
 #[test]
@@ -168,7 +141,7 @@ fn four_parts_give_the_single_machine_bytes() {
             }
         }
         if parts == 4 {
-            validate(&out);
+            assert_valid_with_extents(&out);
             // A part run again (a retried task) gives the same bytes.
             let again = tmp.path().join("again");
             std::fs::create_dir(&again).unwrap();
@@ -444,5 +417,5 @@ fn bad_plans_and_parts_are_refused() {
         merged.as_os_str(),
         os("--json"),
     ]));
-    validate(&merged);
+    assert_valid_with_extents(&merged);
 }

@@ -125,22 +125,8 @@ fn ray_driver_converts_in_four_parts_with_a_killed_task() {
     let splats: u64 = build.iter().map(|b| b["splats"].as_u64().unwrap()).sum();
     assert_eq!(splats, 300_000);
 
-    let (a, b) = (tree_files(&base), tree_files(&out));
-    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
-    for (k, v) in &a {
-        assert!(v == &b[k], "{} differs", k.display());
-    }
-    let o = Command::new(bin())
-        .arg("validate")
-        .arg(out.join("tileset.json"))
-        .arg("--check-extent")
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        o.status.success() && text.contains("(0 errors, 0 warnings"),
-        "{text}"
-    );
+    assert_same_files(&base, &out);
+    assert_valid_with_extents(&out);
     // No staging folder of the killed attempt is left beside the part.
     let left: Vec<String> = std::fs::read_dir(&work)
         .unwrap()

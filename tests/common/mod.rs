@@ -34,6 +34,35 @@ pub fn tree_files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
     out
 }
 
+/// Asserts that `a` and `b` hold the same files with the same bytes.
+pub fn assert_same_files(a: &Path, b: &Path) {
+    let (fa, fb) = (tree_files(a), tree_files(b));
+    assert_eq!(
+        fa.keys().collect::<Vec<_>>(),
+        fb.keys().collect::<Vec<_>>(),
+        "same file names"
+    );
+    for (k, v) in &fa {
+        assert!(v == &fb[k], "{} differs", k.display());
+    }
+}
+
+/// Asserts that `validate --check-extent` finds no error and no warning in the tileset at `out`.
+pub fn assert_valid_with_extents(out: &Path) {
+    let o = std::process::Command::new(bin())
+        .arg("validate")
+        .arg(out.join("tileset.json"))
+        .arg("--check-extent")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && text.contains("(0 errors, 0 warnings"),
+        "validate: {text}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 /// `../shared/scenes` beside the crate (present in CI).
 pub fn scenes() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes")
