@@ -117,8 +117,16 @@ fn run_city(bin: &Path, input: &Path) -> String {
     let budget = env_or("CITY_WALK_BUDGET_MB", "256");
     let scale = env_or("CITY_WALK_SCALE", "20");
     let keep = std::env::var_os("CITY_WALK_KEEP").is_some();
+    let (width, height) = env_or("CITY_WALK_SIZE", "640x360")
+        .split_once('x')
+        .map(|(w, h)| (w.to_string(), h.to_string()))
+        .expect("CITY_WALK_SIZE: WIDTHxHEIGHT");
     let common = |csv: &Path| -> Vec<String> {
         vec![
+            "--width".into(),
+            width.clone(),
+            "--height".into(),
+            height.clone(),
             "--trace".into(),
             trace.to_string_lossy().into(),
             "--csv".into(),
@@ -145,73 +153,34 @@ fn run_city(bin: &Path, input: &Path) -> String {
         assert!(st.success(), "convert {} failed", input.display());
         convert_s = Some(t.elapsed().as_secs_f64());
     }
+    // The peers place the trace from the root box: keep tileset.json after the tiles go.
+    let tiles_json = target.join(format!("city-walk-{name}.tileset.json"));
+    std::fs::copy(tiles.join("tileset.json"), &tiles_json).unwrap();
     // 2. The walk.
-    let walk_csv = target.join(format!("city-walk-{name}.csv"));
+    let walk_name = format!("{name}-{budget}MB");
+    let walk_csv = target.join(format!("city-walk-{walk_name}.csv"));
     let walk = {
         let viewing = view(
             bin,
             &tiles,
-            &target.join(format!("city-walk-{name}.view.log")),
+            &target.join(format!("city-walk-{walk_name}.view.log")),
         );
         let mut args = vec![viewing.base.clone()];
         args.extend(common(&walk_csv));
         args.extend(["--budget-mb".into(), budget.clone(), "--shot".into()]);
         args.push(
             target
-                .join(format!("city-walk-{name}.png"))
+                .join(format!("city-walk-{walk_name}.png"))
                 .to_string_lossy()
                 .into(),
         );
         node(
             "city_walk.mjs",
             &args,
-            &target.join(format!("city-walk-{name}.json")),
+            &target.join(format!("city-walk-{walk_name}.json")),
         )
     };
-    // 3. The peer: the same city as one file.
-    let file = work.join(format!("{name}.compressed.ply"));
-    let mut transform_s = None;
-    if !file.is_file() {
-        let t = Instant::now();
-        let st = Command::new(root().join("tests/js/node_modules/.bin/splat-transform"))
-            .args(["-q", "-w"])
-            .arg(input)
-            .arg(&file)
-            .status()
-            .expect("splat-transform (npm ci --prefix tests/js)");
-        assert!(
-            st.success(),
-            "splat-transform failed on {}",
-            input.display()
-        );
-        transform_s = Some(t.elapsed().as_secs_f64());
-    }
-    let peer_csv = target.join(format!("city-peer-{name}.csv"));
-    let mut args = vec![file.to_string_lossy().into()];
-    args.extend(common(&peer_csv));
-    args.extend([
-        "--tileset".into(),
-        tiles.join("tileset.json").to_string_lossy().into(),
-        "--timeout".into(),
-        env_or("CITY_WALK_PEER_TIMEOUT", "600"),
-        "--shot".into(),
-        target
-            .join(format!("city-peer-{name}.png"))
-            .to_string_lossy()
-            .into(),
-    ]);
-    let peer = node(
-        "city_peer.mjs",
-        &args,
-        &target.join(format!("city-peer-{name}.json")),
-    );
     let tiles_bytes = dir_bytes(&tiles);
-    let file_bytes = std::fs::metadata(&file).map(|m| m.len()).unwrap_or(0);
-    if !keep {
-        let _ = std::fs::remove_dir_all(&tiles);
-        let _ = std::fs::remove_file(&file);
-    }
-
     let m = &walk["max"];
     let mut rows = String::new();
     let _ = writeln!(
@@ -238,21 +207,75 @@ fn run_city(bin: &Path, input: &Path) -> String {
         mib(&m["jsHeapUsed"]),
         mib(&m["browserPss"]),
     );
-    let pm = &peer["max"];
-    let _ = writeln!(
-        rows,
-        "| {name} | PlayCanvas {} full download ({:.0} MiB .compressed.ply{}) | {} | first frame {} | all | - | {} (VRAM) | {} | {} |",
-        peer["engine"].as_str().unwrap_or("?"),
-        file_bytes as f64 / 1048576.0,
-        transform_s.map_or(String::new(), |s| format!(", splat-transform {s:.0} s")),
-        peer["outcome"].as_str().unwrap_or("?"),
-        peer["timeToFirstFrameSeconds"]
-            .as_f64()
-            .map_or("none".into(), |s| format!("{s:.1} s")),
-        mib(&pm["vramBytes"]),
-        mib(&pm["jsHeapUsed"]),
-        mib(&pm["browserPss"]),
-    );
+    if !keep {
+        let _ = std::fs::remove_dir_all(&tiles);
+    }
+
+    // 3. The peer: the same city as one file, in each format asked for.
+    let formats = env_or("CITY_WALK_PEER_FORMATS", "compressed.ply,ply");
+    for ext in formats.split(',').map(str::trim).filter(|e| !e.is_empty()) {
+        let file = work.join(format!("{name}.{ext}"));
+        let tag = ext.replace('.', "-");
+        let mut transform_s = None;
+        if !file.is_file() {
+            let t = Instant::now();
+            let st = Command::new(root().join("tests/js/node_modules/.bin/splat-transform"))
+                .args(["-q", "-w"])
+                .arg(input)
+                .arg(&file)
+                .status()
+                .expect("splat-transform (npm ci --prefix tests/js)");
+            assert!(
+                st.success(),
+                "splat-transform failed on {}",
+                input.display()
+            );
+            transform_s = Some(t.elapsed().as_secs_f64());
+        }
+        let peer_csv = target.join(format!("city-peer-{name}-{tag}.csv"));
+        let mut args = vec![file.to_string_lossy().into()];
+        args.extend(common(&peer_csv));
+        args.extend([
+            "--tileset".into(),
+            tiles_json.to_string_lossy().into(),
+            "--timeout".into(),
+            env_or("CITY_WALK_PEER_TIMEOUT", "600"),
+            "--shot".into(),
+            target
+                .join(format!("city-peer-{name}-{tag}.png"))
+                .to_string_lossy()
+                .into(),
+        ]);
+        let peer = node(
+            "city_peer.mjs",
+            &args,
+            &target.join(format!("city-peer-{name}-{tag}.json")),
+        );
+        let file_bytes = std::fs::metadata(&file).map(|m| m.len()).unwrap_or(0);
+        if !keep {
+            let _ = std::fs::remove_file(&file);
+        }
+        let pm = &peer["max"];
+        let _ = writeln!(
+            rows,
+            "| {name} | PlayCanvas {} full download ({:.0} MiB .{ext}{}) | {}{} | first frame {} | all | - | {} (VRAM) | {} | {} |",
+            peer["engine"].as_str().unwrap_or("?"),
+            file_bytes as f64 / 1048576.0,
+            transform_s.map_or(String::new(), |s| format!(", splat-transform {s:.0} s")),
+            peer["outcome"].as_str().unwrap_or("?"),
+            peer["peer"]["errors"]
+                .as_array()
+                .and_then(|e| e.first())
+                .and_then(|e| e.as_str())
+                .map_or(String::new(), |e| format!(": {e}")),
+            peer["timeToFirstFrameSeconds"]
+                .as_f64()
+                .map_or("none".into(), |s| format!("{s:.1} s")),
+            mib(&pm["vramBytes"]),
+            mib(&pm["jsHeapUsed"]),
+            mib(&pm["browserPss"]),
+        );
+    }
     rows
 }
 
@@ -299,30 +322,44 @@ fn read_csv(path: &Path, names: &[&str]) -> Vec<Vec<(f64, f64)>> {
 /// splats and frames; per peer run, its memory until it ended.
 fn plot() {
     let target = root().join("target");
-    let mut names: Vec<String> = std::fs::read_dir(&target)
-        .unwrap()
-        .flatten()
-        .filter_map(|e| {
-            let n = e.file_name().to_string_lossy().into_owned();
-            n.strip_prefix("city-walk-")
-                .and_then(|n| n.strip_suffix(".csv"))
-                .map(String::from)
-        })
-        .collect();
-    names.sort();
+    let files = |prefix: &str| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(&target)
+            .unwrap()
+            .flatten()
+            .filter_map(|e| {
+                let n = e.file_name().to_string_lossy().into_owned();
+                n.strip_prefix(prefix)
+                    .and_then(|n| n.strip_suffix(".csv"))
+                    .map(String::from)
+            })
+            .collect();
+        v.sort();
+        v
+    };
     let mb = |s: Vec<(f64, f64)>| -> Vec<(f64, f64)> {
         s.into_iter().map(|(x, y)| (x, y / 1048576.0)).collect()
     };
+    let named = |labels: &[&str], data: Vec<Vec<(f64, f64)>>| -> Vec<Series> {
+        labels
+            .iter()
+            .zip(data)
+            .map(|(l, d)| (l.to_string(), mb(d)))
+            .collect()
+    };
     let mut charts = vec![];
-    for name in &names {
-        let cols = [
-            "budget_bytes",
-            "cache_bytes",
-            "gpu_bytes",
-            "wasm_bytes",
-            "js_heap_used",
-            "browser_pss",
-        ];
+    for name in files("city-walk-") {
+        let csv = target.join(format!("city-walk-{name}.csv"));
+        let data = read_csv(
+            &csv,
+            &[
+                "budget_bytes",
+                "cache_bytes",
+                "gpu_bytes",
+                "wasm_bytes",
+                "js_heap_used",
+                "browser_pss",
+            ],
+        );
         let labels = [
             "budgetMB",
             "cache",
@@ -331,23 +368,14 @@ fn plot() {
             "JS heap",
             "browser PSS",
         ];
-        let data = read_csv(&target.join(format!("city-walk-{name}.csv")), &cols);
-        let series: Vec<Series> = labels
-            .iter()
-            .zip(data)
-            .map(|(l, d)| (l.to_string(), mb(d)))
-            .collect();
         charts.push(line_chart(
             &format!("web viewer walking {name}: memory"),
             "seconds into the walk",
             "MiB",
-            &series,
+            &named(&labels, data),
             None,
         ));
-        let d = read_csv(
-            &target.join(format!("city-walk-{name}.csv")),
-            &["resident_splats", "frames"],
-        );
+        let d = read_csv(&csv, &["resident_splats", "frames"]);
         let series: Vec<Series> = vec![
             (
                 "resident splats / 1000".into(),
@@ -362,26 +390,22 @@ fn plot() {
             &series,
             None,
         ));
-        let peer = target.join(format!("city-peer-{name}.csv"));
-        if peer.is_file() {
-            let cols = ["vram_bytes", "js_heap_used", "browser_pss"];
-            let labels = ["VRAM (PlayCanvas's count)", "JS heap", "browser PSS"];
-            let data = read_csv(&peer, &cols);
-            let series: Vec<Series> = labels
-                .iter()
-                .zip(data)
-                .map(|(l, d)| (l.to_string(), mb(d)))
-                .collect();
-            charts.push(line_chart(
-                &format!("PlayCanvas, {name} as one file: memory"),
-                "seconds since page load",
-                "MiB",
-                &series,
-                None,
-            ));
-        }
     }
-    std::fs::write(root().join("docs/city-walk.svg"), panels(&charts, 3)).unwrap();
+    for name in files("city-peer-") {
+        let data = read_csv(
+            &target.join(format!("city-peer-{name}.csv")),
+            &["vram_bytes", "js_heap_used", "browser_pss"],
+        );
+        let labels = ["VRAM (PlayCanvas's count)", "JS heap", "browser PSS"];
+        charts.push(line_chart(
+            &format!("PlayCanvas, {name}: memory"),
+            "seconds since page load",
+            "MiB",
+            &named(&labels, data),
+            None,
+        ));
+    }
+    std::fs::write(root().join("docs/city-walk.svg"), panels(&charts, 2)).unwrap();
 }
 
 fn main() {
