@@ -5,15 +5,17 @@
 //! `cargo bench --bench city` with `CITY_KEEP=1`: `target/city-bench/city-N-sh0.splat`), or
 //! `cargo bench --bench city_walk -- plot` to redraw `docs/city-walk.svg` from the samples in
 //! `target/`. Per city: converts it with the release binary (`--memory-limit 2GiB`) into
-//! `CITY_WALK_DIR` (default `target/tmp-big/city-walk`), serves it with `splat2tiles view`, runs
-//! `tests/js/city_walk.mjs` (the trace `CITY_WALK_TRACE`, default EyeNavGS
-//! `navigation-traces/nyc/user101_nyc.csv`, placed as a street-level walk at the city's centre:
-//! horizontal x`CITY_WALK_SCALE` (20), eye 1.7 m above the ground z = 0; `budgetMB`
-//! `CITY_WALK_BUDGET_MB` (256)), then converts the city to one `.compressed.ply` with
-//! `@playcanvas/splat-transform` and runs `tests/js/city_peer.mjs` (PlayCanvas engine, first
-//! frame within `CITY_WALK_PEER_TIMEOUT` s, default 600). Writes `target/city-walk-NAME.{csv,json,png}`,
-//! `target/city-peer-NAME.{csv,json,png}`, `target/city-walk.md` (the table) and
-//! `docs/city-walk.svg`; deletes the tileset and the peer file unless `CITY_WALK_KEEP=1`.
+//! `CITY_WALK_DIR` (default `target/tmp-big/city-walk`) unless already there, serves it with
+//! `splat2tiles view`, runs `tests/js/city_walk.mjs` (trace `CITY_WALK_TRACE`, default EyeNavGS
+//! `../shared/navigation-traces/nyc/user101_nyc.csv`, placed as a street-level walk at the city's
+//! centre: horizontal x`CITY_WALK_SCALE` (20), eye 1.7 m above the ground z = 0; `budgetMB`
+//! `CITY_WALK_BUDGET_MB` (256); canvas `CITY_WALK_SIZE` (640x360)), then for each format of
+//! `CITY_WALK_PEER_FORMATS` (default `compressed.ply,ply`; empty: no peer) converts the city to
+//! that one file with `@playcanvas/splat-transform` unless already there and runs
+//! `tests/js/city_peer.mjs` (PlayCanvas engine; first frame within `CITY_WALK_PEER_TIMEOUT` s,
+//! default 600). Writes `target/city-walk-NAME-BUDGETMB.{csv,json,png}`,
+//! `target/city-peer-NAME-FORMAT.{csv,json,png}`, `target/city-walk.md` (the table) and
+//! `docs/city-walk.svg`; deletes the tileset and the peer files unless `CITY_WALK_KEEP=1`.
 
 mod common;
 use common::release_binary;
