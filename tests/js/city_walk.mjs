@@ -54,6 +54,7 @@ try {
   if (opt.seconds !== undefined) {
     const s = num('seconds', 0);
     poses = poses.filter((p) => p.t <= s);
+    if (poses.length < 2) throw new Error(`--seconds ${s}: fewer than 2 trace samples`);
   }
 } catch (e) {
   console.error(`city_walk: ${e?.message ?? e}`);
