@@ -465,3 +465,104 @@ fn web_viewer_draws_generated_cities_like_the_reference() {
         }
     }
 }
+
+/// The city walk of `tests/js/city_walk.mjs` (issue 18, item 3; the 50M run is
+/// `benches/city_walk.rs`) in small: a generated 60,000-splat city, the first 10 s of a real head
+/// trace (EyeNavGS, `../shared/navigation-traces/README.md`) placed as a street-level walk (x20
+/// horizontally, eye 1.7 m above the ground), a 1 MB budget the city's tiles do not fit in. The
+/// page does not crash, frames keep coming during the walk, the client's cache never exceeds
+/// budgetMB, every sample records the memory columns, and the eye stays at street level.
+#[test]
+fn web_viewer_walks_a_city_trace_within_its_budget() {
+    require_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = city(tmp.path(), "walk", 60_000, None);
+    let viewing = view(&dir, &tmp.path().join("view.log"));
+    let csv = tmp.path().join("walk.csv");
+    let trace = scenes().join("../navigation-traces/nyc/user101_nyc.csv");
+    let o = Command::new("node")
+        .arg(js_dir().join("city_walk.mjs"))
+        .arg(&viewing.base)
+        .arg("--trace")
+        .arg(&trace)
+        .arg("--csv")
+        .arg(&csv)
+        .args(["--seconds", "10", "--budget-mb", "1", "--ground", "0"])
+        .args(["--width", "160", "--height", "120", "--timeout", "240"])
+        .output()
+        .expect("cannot run `node` (install Node >= 20)");
+    drop(viewing);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let v: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| {
+        panic!(
+            "city_walk.mjs printed no JSON ({e}):\n{stdout}\n{}",
+            String::from_utf8_lossy(&o.stderr)
+        )
+    });
+    assert!(o.status.success() && v["ok"] == true, "walk failed: {v:#}");
+    assert_eq!(v["crashed"], false, "{v:#}");
+    assert_eq!(
+        v["problems"],
+        Value::Array(vec![]),
+        "console problems: {v:#}"
+    );
+    assert!(
+        u(&v["framesDuringWalk"]) > 0,
+        "no frame during the walk: {v:#}"
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse::<f64>().unwrap()).collect())
+        .collect();
+    assert!(rows.len() >= 3, "{} samples: {v:#}", rows.len());
+    let budget = 1u64 << 20;
+    let mut moved = 0.0f64;
+    for r in &rows {
+        assert_eq!(r[col("budget_bytes")] as u64, budget, "{r:?}");
+        assert!(
+            r[col("cache_bytes")] as u64 <= budget,
+            "cache over budget: {r:?}"
+        );
+        for c in [
+            "gpu_bytes",
+            "wasm_bytes",
+            "js_heap_used",
+            "browser_pss",
+            "renderer_pss",
+        ] {
+            assert!(r[col(c)] > 0.0, "{c} not recorded: {r:?}");
+        }
+        let z = r[col("eye_z")];
+        assert!((0.5..3.0).contains(&z), "eye not at street level: {r:?}");
+        moved = moved.max(
+            (r[col("eye_x")] - rows[0][col("eye_x")])
+                .hypot(r[col("eye_y")] - rows[0][col("eye_y")]),
+        );
+    }
+    assert!(moved > 0.5, "the camera did not walk: {v:#}");
+    assert!(
+        rows.iter().any(|r| r[col("resident_splats")] > 0.0),
+        "nothing was ever resident: {v:#}"
+    );
+    // The tiles did not all fit: the 1 MB budget made the client choose.
+    assert!(
+        dir_size(&dir.join("tiles")) > budget,
+        "the city fits the budget"
+    );
+}
+
+fn dir_size(dir: &Path) -> u64 {
+    let mut n = 0;
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let m = e.metadata().unwrap();
+        n += if m.is_dir() {
+            dir_size(&e.path())
+        } else {
+            m.len()
+        };
+    }
+    n
+}

@@ -463,6 +463,11 @@ impl WebViewer {
             "residentTiles": c.resident_tiles,
             "cacheBytes": c.cache_bytes,
             "gpuBytes": self.renderer.gpu_bytes(),
+            "rendererCpuBytes": self.renderer.cpu_bytes(),
+            "budgetBytes": (self.options.budget_mb * 1048576.0) as u64,
+            // The wasm module's linear memory (everything Rust allocated, high-water: wasm
+            // memory never shrinks); outside the JS heap the page's metrics report.
+            "wasmBytes": core::arch::wasm32::memory_size::<0>() as u64 * 65536,
             "bandwidth": c.bandwidth,
             "pending": c.pending_fetches,
             "inFlight": s.in_flight(),
