@@ -481,8 +481,13 @@ impl WebViewer {
             "camera": self.camera_spec(),
             "mode": self.controls.as_ref().map(|c| c.mode).unwrap_or(Mode::Fly).as_str(),
             "speed": self.controls.as_ref().map(|c| c.speed()).unwrap_or(0.0),
-            "idle": !self.view_unplanned && s.client.is_idle() && s.in_flight() == 0,
-            "settled": !self.view_unplanned && now - self.last_change > self.fade_s + 0.05,
+            "idle": !self.view_unplanned
+                && s.client.is_idle()
+                && s.in_flight() == 0
+                && !s.client.has_updates(),
+            "settled": !self.view_unplanned
+                && !s.client.has_updates()
+                && now - self.last_change > self.fade_s + 0.05,
         })
     }
 
