@@ -479,6 +479,12 @@ impl StreamClient {
         self.view.iter().map(|&i| self.info[i].key).collect()
     }
 
+    /// Whether scene updates are waiting for [`Self::take_updates`] (a driver that runs
+    /// [`Self::update`] between frames has not drawn them yet).
+    pub fn has_updates(&self) -> bool {
+        !self.updates.is_empty()
+    }
+
     /// Takes the scene updates produced since the last call, in order.
     pub fn take_updates(&mut self) -> Vec<SceneUpdate> {
         std::mem::take(&mut self.updates)

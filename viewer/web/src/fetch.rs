@@ -6,7 +6,8 @@ use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
 
 use js_sys::{Reflect, Uint8Array};
-use splat2tiles::client::{FetchRequest, RequestId, StreamClient};
+use splat2tiles::client::{Action, FetchRequest, RequestId, StreamClient};
+use splat2tiles::render::camera::Camera;
 use wasm_bindgen::{JsCast, JsValue};
 use wasm_bindgen_futures::JsFuture;
 use web_sys::{
@@ -23,6 +24,9 @@ pub struct Shared {
     aborted: HashSet<RequestId>,
     /// Requests aborted.
     pub aborts: u64,
+    /// The camera of the last frame: a finished request runs the client's update with it, so
+    /// the next requests start then, not only at the next frame (frames can be seconds apart).
+    pub camera: Option<Camera>,
 }
 
 impl Shared {
@@ -33,6 +37,7 @@ impl Shared {
             inflight: HashMap::new(),
             aborted: HashSet::new(),
             aborts: 0,
+            camera: None,
         }
     }
 
@@ -78,7 +83,24 @@ pub fn start(shared: &Rc<RefCell<Shared>>, req: FetchRequest) {
                 .client
                 .on_error(req.id, &format!("{}: {msg}", req.url), now_s()),
         }
+        // A slot is free: let the client use it now rather than at the next frame.
+        let actions = match s.camera {
+            Some(cam) => s.client.update(now_s(), &cam),
+            None => vec![],
+        };
+        drop(s);
+        dispatch(&shared, actions);
     });
+}
+
+/// Carries out the client's actions: fetches started, requests aborted.
+pub fn dispatch(shared: &Rc<RefCell<Shared>>, actions: Vec<Action>) {
+    for a in actions {
+        match a {
+            Action::Fetch(req) => start(shared, req),
+            Action::Abort { id } => abort(shared, id),
+        }
+    }
 }
 
 /// Aborts a request in flight (the client keeps what arrived and may resume it with Range).

@@ -6,7 +6,7 @@ use std::rc::Rc;
 
 use glam::DVec3;
 use serde_json::json;
-use splat2tiles::client::{Action, ClientConfig, SceneUpdate, StreamClient};
+use splat2tiles::client::{ClientConfig, SceneUpdate, StreamClient};
 use splat2tiles::render::camera::{self, Camera};
 use splat2tiles::render::view_spec::{ViewSpec, is_georeferenced};
 use splat2tiles::stream::Level;
@@ -338,14 +338,13 @@ impl WebViewer {
         }
         let cam = self.camera();
         // Streaming: the client decides, the page fetches.
-        let actions = self.shared.borrow_mut().client.update(now_s, &cam);
+        let actions = {
+            let mut s = self.shared.borrow_mut();
+            s.camera = Some(cam);
+            s.client.update(now_s, &cam)
+        };
         self.view_unplanned = false;
-        for a in actions {
-            match a {
-                Action::Fetch(req) => fetch::start(&self.shared, req),
-                Action::Abort { id } => fetch::abort(&self.shared, id),
-            }
-        }
+        fetch::dispatch(&self.shared, actions);
         let updates = self.shared.borrow_mut().client.take_updates();
         for u in updates {
             self.last_change = now_s;
@@ -482,8 +481,13 @@ impl WebViewer {
             "camera": self.camera_spec(),
             "mode": self.controls.as_ref().map(|c| c.mode).unwrap_or(Mode::Fly).as_str(),
             "speed": self.controls.as_ref().map(|c| c.speed()).unwrap_or(0.0),
-            "idle": !self.view_unplanned && s.client.is_idle() && s.in_flight() == 0,
-            "settled": !self.view_unplanned && now - self.last_change > self.fade_s + 0.05,
+            "idle": !self.view_unplanned
+                && s.client.is_idle()
+                && s.in_flight() == 0
+                && !s.client.has_updates(),
+            "settled": !self.view_unplanned
+                && !s.client.has_updates()
+                && now - self.last_change > self.fade_s + 0.05,
         })
     }
 
