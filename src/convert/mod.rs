@@ -322,6 +322,25 @@ pub fn convert_scene(
     run(Input::Memory(scene), name, output, opts)
 }
 
+/// The up axis of `input` (`--up-axis`, else its format's default), the source -> tileset
+/// rotation (with `--heading`) and the memory budget of converting it: shared by a conversion
+/// and a plan.
+fn frame_and_budget(input: &Input, opts: &ConvertOptions) -> (UpAxis, glam::DMat3, Budget) {
+    let up = opts.up_axis.unwrap_or_else(|| {
+        input
+            .format()
+            .default_up_axis()
+            .parse()
+            .unwrap_or(UpAxis::NegY)
+    });
+    let budget = Budget::new(
+        opts.memory_limit,
+        input.sh_degree(),
+        opts.max_splats_per_tile,
+    );
+    (up, source_to_tileset(up, opts.heading_deg), budget)
+}
+
 /// How the memory limit is shared out between the stages (see ARCHITECTURE.md).
 #[derive(Debug, Clone, Copy)]
 struct Budget {
@@ -388,16 +407,8 @@ fn run(
     opts: &ConvertOptions,
 ) -> Result<ConvertReport, ConvertError> {
     let start = Instant::now();
-    let up = opts.up_axis.unwrap_or_else(|| {
-        input
-            .format()
-            .default_up_axis()
-            .parse()
-            .unwrap_or(UpAxis::NegY)
-    });
-    let a = source_to_tileset(up, opts.heading_deg);
+    let (up, a, budget) = frame_and_budget(&input, opts);
     let degree = input.sh_degree();
-    let budget = Budget::new(opts.memory_limit, degree, opts.max_splats_per_tile);
 
     // Frame stage: one pass for the non-finite policy, the bounds and the georeferenced root.
     // A chunked scene that fits the budget is kept from this pass (not decoded a second time).

@@ -8,10 +8,12 @@
 use super::frame::Layout;
 use super::shard::{F, arr_key, bad, digest, f3, key_arr, parse, read_bounded, v3, write_atomic};
 use super::source::Input;
-use super::spill::{SpillFormat, histogram_levels};
-use super::{Budget, ConvertError, ConvertOptions, check_counts, check_interrupt, frame_pass};
+use super::spill::{SpillFormat, count_cells, histogram_levels, prefix_sums};
+use super::{
+    ConvertError, ConvertOptions, check_counts, check_interrupt, frame_and_budget, frame_pass,
+};
+use crate::frame::UpAxis;
 use crate::frame::mercator::MercatorKey;
-use crate::frame::{UpAxis, source_to_tileset};
 use crate::io::{self, ChunkedInput};
 use crate::lod::{LodOptions, MergeRule};
 use crate::tiling::tileset::BoundingVolume;
@@ -19,7 +21,6 @@ use crate::tiling::{Scheme, TileKey};
 use crate::variants::{Profile, Variant, VariantOptions};
 use clap::ValueEnum;
 use glam::{DMat3, DMat4};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -170,16 +171,8 @@ pub fn make_plan(
         .map_err(super::io_err(input_path, "reading"))?
         .len();
     let input = open_input(input_path, opts.memory_limit)?;
-    let up = opts.up_axis.unwrap_or_else(|| {
-        input
-            .format()
-            .default_up_axis()
-            .parse()
-            .unwrap_or(UpAxis::NegY)
-    });
-    let a = source_to_tileset(up, opts.heading_deg);
+    let (up, a, budget) = frame_and_budget(&input, opts);
     let degree = input.sh_degree();
-    let budget = Budget::new(opts.memory_limit, degree, opts.max_splats_per_tile);
     let (acc, counts, _) = frame_pass(&input, a, opts, budget.chunk, false)?;
     let dropped = check_counts(&counts, &input, &name, opts)? as u64;
     let layout = Layout::new(&acc, a, opts);
@@ -195,19 +188,12 @@ pub fn make_plan(
     let mut of: Vec<u32> = Vec::new();
     input.for_each_batch(budget.chunk, format.is_raw(), counts.dropped == 0, |b| {
         check_interrupt()?;
-        b.positions
-            .par_iter()
-            .map(|p| (layout.code(*p) >> (dims * (depth - g))) as u32)
-            .collect_into_vec(&mut of);
-        for &c in &of {
-            hist[c as usize] += 1;
-        }
+        count_cells(&mut hist, &mut of, b.positions, |p| {
+            (layout.code(p) >> (dims * (depth - g))) as usize
+        });
         Ok(())
     })?;
-    let mut prefix = vec![0u64; cells + 1];
-    for i in 0..cells {
-        prefix[i + 1] = prefix[i] + hist[i];
-    }
+    let prefix = prefix_sums(&hist);
     let histogram: Vec<[u64; 2]> = hist
         .iter()
         .enumerate()

@@ -566,20 +566,10 @@ impl<'a> Spiller<'a> {
                 let mut of = Vec::new();
                 self.feed(&feed, |b| {
                     super::check_interrupt()?;
-                    b.positions
-                        .par_iter()
-                        .map(|p| cell_of(*p) as u32)
-                        .collect_into_vec(&mut of);
-                    for &c in &of {
-                        hist[c as usize] += 1;
-                    }
+                    count_cells(&mut hist, &mut of, b.positions, cell_of);
                     Ok(())
                 })?;
-                let mut prefix = vec![0u64; cells + 1];
-                for i in 0..cells {
-                    prefix[i + 1] = prefix[i] + hist[i];
-                }
-                prefix
+                prefix_sums(&hist)
             }
         };
         // Regions top-down: a subtree that fits (or a cell at the histogram's depth).
@@ -680,6 +670,32 @@ impl<'a> Spiller<'a> {
         }
         Ok(out)
     }
+}
+
+/// Adds each position's histogram cell (`cell_of`, below `hist.len()`) to `hist`; `of` is
+/// scratch kept between batches.
+pub(super) fn count_cells(
+    hist: &mut [u64],
+    of: &mut Vec<u32>,
+    positions: &[[f64; 3]],
+    cell_of: impl Fn([f64; 3]) -> usize + Sync,
+) {
+    positions
+        .par_iter()
+        .map(|p| cell_of(*p) as u32)
+        .collect_into_vec(of);
+    for &c in of.iter() {
+        hist[c as usize] += 1;
+    }
+}
+
+/// Exclusive prefix sums of `hist`: `hist.len() + 1` entries, the last the total.
+pub(super) fn prefix_sums(hist: &[u64]) -> Vec<u64> {
+    let mut prefix = vec![0u64; hist.len() + 1];
+    for (i, h) in hist.iter().enumerate() {
+        prefix[i + 1] = prefix[i] + h;
+    }
+    prefix
 }
 
 #[cfg(test)]
