@@ -14,6 +14,7 @@ pub mod planner;
 pub mod predict;
 pub mod priority;
 pub mod rng;
+pub mod select;
 pub mod visibility;
 
 pub use bandwidth::EwmaBandwidth;

@@ -1,0 +1,448 @@
+//! Scoring a streaming session as the papers mean it: the cut each view needs (from the whole
+//! tileset, not the client's partial view of it), cache hits over first-time tile entries, the
+//! SSIM of what the client draws against that cut at Best, new-region events, TGQ and waste.
+//!
+//! Definitions (issue 19 item 3; TileSplat sec. 4.4.2):
+//! - **needed cut**: [`crate::stream::select::select_cut`] over every available tile at the
+//!   camera's viewport (the client's own rule, given all subtrees).
+//! - **CHR**: a tile *enters* when it is in the needed cut and was not at the previous tick. An
+//!   entry is a hit when the client holds the tile (any variant) at that tick. Entries at the
+//!   first tick (empty cache), first-time entries and re-entries are counted apart.
+//! - **quality**: SSIM of the client's drawn tiles (the variants it holds, parents standing in
+//!   for missing children) against the needed cut at Best, rendered at a reduced viewport.
+//! - **events**: the first tick, and every tick where at least `new_fraction` of the needed cut
+//!   was never needed before (a new street) or the view turned by `turn_deg` within 1 s; events
+//!   closer than `min_gap_s` to the previous one are merged into it.
+//! - **TGQ**: seconds from an event to the first quality sample >= the threshold (0.90).
+//! - **WD**: content downloads completed for tiles never in a needed cut during the session.
+
+use crate::render::{Camera, Image, RenderOptions, render, ssim};
+use crate::splat::Splats;
+use crate::stream::catalog::Level;
+use crate::stream::select::{CutTree, box_sphere, select_cut};
+use crate::tiling::TileKey;
+use crate::tiling::load::LoadedTileset;
+use anyhow::Context;
+use glam::{DMat4, DVec3};
+use std::collections::{HashMap, HashSet};
+use std::path::Path;
+
+/// A tileset as the scorer sees it: every available tile, its sphere, and decoded content.
+pub struct Truth {
+    ts: LoadedTileset,
+    roots: Vec<usize>,
+    children: Vec<Vec<usize>>,
+    spheres: Vec<Option<(DVec3, f64)>>,
+    index: HashMap<TileKey, usize>,
+    content: HashMap<(usize, Level), (Splats, DMat4)>,
+}
+
+impl CutTree for Truth {
+    fn roots(&self) -> &[usize] {
+        &self.roots
+    }
+    fn children(&self, i: usize) -> &[usize] {
+        &self.children[i]
+    }
+    fn sphere(&self, i: usize) -> Option<(DVec3, f64)> {
+        self.spheres[i]
+    }
+    fn geometric_error(&self, i: usize) -> f64 {
+        self.ts.tiles[i].geometric_error
+    }
+    fn has_content(&self, i: usize) -> bool {
+        self.ts.tiles[i].content.is_some()
+    }
+}
+
+impl Truth {
+    /// Reads `tileset.json` and every subtree below it.
+    pub fn load(tileset_json: &Path) -> anyhow::Result<Truth> {
+        let ts = crate::tiling::load::load_tileset(tileset_json)
+            .with_context(|| tileset_json.display().to_string())?;
+        let index: HashMap<TileKey, usize> = ts
+            .tiles
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (t.key, i))
+            .collect();
+        let mut children = vec![vec![]; ts.tiles.len()];
+        let mut roots = vec![];
+        for (i, t) in ts.tiles.iter().enumerate() {
+            match t.key.parent().and_then(|p| index.get(&p)) {
+                Some(&p) => children[p].push(i),
+                None => roots.push(i),
+            }
+        }
+        let spheres = ts
+            .tiles
+            .iter()
+            .map(|t| t.bounding_box.map(|b| box_sphere(&b, &ts.root_transform)))
+            .collect();
+        Ok(Truth {
+            ts,
+            roots,
+            children,
+            spheres,
+            index,
+            content: HashMap::new(),
+        })
+    }
+
+    /// Number of available tiles.
+    pub fn len(&self) -> usize {
+        self.ts.tiles.len()
+    }
+
+    /// Whether the tileset has no tiles.
+    pub fn is_empty(&self) -> bool {
+        self.ts.tiles.is_empty()
+    }
+
+    /// Box of every tile (world frame), as `render --auto-view` frames it.
+    pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
+        crate::render::cli::tileset_bounds(&self.ts)
+    }
+
+    /// The cut `cam` needs at `max_sse` (frustum-culled), as tile keys.
+    pub fn needed(&self, cam: &Camera, max_sse: f64) -> Vec<TileKey> {
+        select_cut(self, cam, max_sse, true, |_| true)
+            .into_iter()
+            .map(|i| self.ts.tiles[i].key)
+            .collect()
+    }
+
+    /// Decodes (once) the content of `key` at `level`.
+    fn decode(&mut self, key: TileKey, level: Level) -> anyhow::Result<Option<usize>> {
+        let Some(&i) = self.index.get(&key) else {
+            return Ok(None);
+        };
+        if self.ts.tiles[i].content.is_none() {
+            return Ok(None);
+        }
+        if !self.content.contains_key(&(i, level)) {
+            let v = crate::variants::ALL[level.index()];
+            let p = self
+                .ts
+                .dir
+                .join(crate::variants::content_uri(self.ts.scheme, key, v));
+            let bytes = std::fs::read(&p).with_context(|| p.display().to_string())?;
+            let (splats, node) =
+                crate::variants::decode_variant(&bytes).with_context(|| p.display().to_string())?;
+            let m = crate::render::cli::content_model(&self.ts, &node);
+            self.content.insert((i, level), (splats, m));
+        }
+        Ok(Some(i))
+    }
+
+    /// Renders `tiles` (each at its level) from `cam` on black.
+    pub fn render(&mut self, tiles: &[(TileKey, Level)], cam: &Camera) -> anyhow::Result<Image> {
+        let mut have = vec![];
+        for &(k, l) in tiles {
+            if let Some(i) = self.decode(k, l)? {
+                have.push((i, l));
+            }
+        }
+        let inst: Vec<(&Splats, DMat4)> = have
+            .iter()
+            .map(|k| {
+                let (s, m) = &self.content[k];
+                (s, *m)
+            })
+            .collect();
+        Ok(render(&inst, cam, &RenderOptions::default()))
+    }
+
+    /// Quality of a drawn set for `cam`: SSIM at `width` x `height` of `drawn` against
+    /// `needed` at Best (1.0 without rendering when they are the same tiles, all Best).
+    pub fn quality(
+        &mut self,
+        needed: &[TileKey],
+        drawn: &[(TileKey, Level)],
+        cam: &Camera,
+        width: u32,
+        height: u32,
+    ) -> anyhow::Result<f64> {
+        let mut a: Vec<TileKey> = needed.to_vec();
+        let mut b: Vec<TileKey> = drawn
+            .iter()
+            .filter(|(_, l)| *l == Level::Best)
+            .map(|(k, _)| *k)
+            .collect();
+        a.sort_unstable();
+        b.sort_unstable();
+        if a == b && b.len() == drawn.len() {
+            return Ok(1.0);
+        }
+        let small = cam.resized(width, height);
+        let best: Vec<(TileKey, Level)> = needed.iter().map(|k| (*k, Level::Best)).collect();
+        let reference = self.render(&best, &small)?;
+        let got = self.render(drawn, &small)?;
+        Ok(ssim(&got, &reference)?)
+    }
+}
+
+/// Hits out of entries.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Ratio {
+    /// Entries that found the tile held.
+    pub hits: u64,
+    /// Entries.
+    pub n: u64,
+}
+
+impl Ratio {
+    /// Hits / entries (`None` without entries).
+    pub fn rate(&self) -> Option<f64> {
+        (self.n > 0).then(|| self.hits as f64 / self.n as f64)
+    }
+}
+
+/// Cache hits, counted apart by kind of entry.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Chr {
+    /// Entries at the first tick (empty cache).
+    pub initial: Ratio,
+    /// First-time entries after the first tick: the CHR the papers mean.
+    pub first: Ratio,
+    /// Entries of tiles needed before, left and needed again.
+    pub reentry: Ratio,
+}
+
+/// One tick as the scorer needs it.
+#[derive(Debug, Clone, Copy)]
+pub struct TickView<'a> {
+    /// Seconds.
+    pub t: f64,
+    /// The needed cut.
+    pub needed: &'a [TileKey],
+    /// Tiles the client holds (any variant).
+    pub resident: &'a [TileKey],
+}
+
+/// CHR over a session's ticks (see the module docs).
+pub fn cache_hits(ticks: &[TickView]) -> Chr {
+    let mut out = Chr::default();
+    let mut ever: HashSet<TileKey> = HashSet::new();
+    let mut prev: HashSet<TileKey> = HashSet::new();
+    for (k, tick) in ticks.iter().enumerate() {
+        let held: HashSet<TileKey> = tick.resident.iter().copied().collect();
+        let now: HashSet<TileKey> = tick.needed.iter().copied().collect();
+        for key in &now {
+            if prev.contains(key) {
+                continue;
+            }
+            let r = if k == 0 {
+                &mut out.initial
+            } else if ever.contains(key) {
+                &mut out.reentry
+            } else {
+                &mut out.first
+            };
+            r.n += 1;
+            r.hits += held.contains(key) as u64;
+        }
+        ever.extend(now.iter().copied());
+        prev = now;
+    }
+    out
+}
+
+/// Event detection settings (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EventRule {
+    /// Share of the needed cut never needed before that makes a new-region event.
+    pub new_fraction: f64,
+    /// Yaw change within 1 s that makes a turn event (degrees).
+    pub turn_deg: f64,
+    /// Events closer than this to the previous one are merged (s).
+    pub min_gap_s: f64,
+}
+
+impl Default for EventRule {
+    fn default() -> Self {
+        EventRule {
+            new_fraction: 0.3,
+            turn_deg: 45.0,
+            min_gap_s: 3.0,
+        }
+    }
+}
+
+/// Times of new-region events: the first tick, then entries into unseen parts and turns.
+/// `yaw_deg[k]` is tick `k`'s heading.
+pub fn events(ticks: &[TickView], yaw_deg: &[f64], rule: &EventRule) -> Vec<f64> {
+    let mut out: Vec<f64> = vec![];
+    let mut ever: HashSet<TileKey> = HashSet::new();
+    let mut back = 0usize;
+    for (k, tick) in ticks.iter().enumerate() {
+        let fresh = tick.needed.iter().filter(|k| !ever.contains(k)).count();
+        let new_region =
+            !tick.needed.is_empty() && fresh as f64 >= rule.new_fraction * tick.needed.len() as f64;
+        while back < k && ticks[back].t < tick.t - 1.0 {
+            back += 1;
+        }
+        let turned = match (yaw_deg.get(back), yaw_deg.get(k)) {
+            (Some(a), Some(b)) => {
+                let d = (b - a + 180.0).rem_euclid(360.0) - 180.0;
+                d.abs() >= rule.turn_deg
+            }
+            _ => false,
+        };
+        let first = k == 0;
+        if (first || new_region || turned)
+            && out.last().is_none_or(|&e| tick.t - e >= rule.min_gap_s)
+        {
+            out.push(tick.t);
+        }
+        ever.extend(tick.needed.iter().copied());
+    }
+    out
+}
+
+/// Per event: seconds until the first quality sample `(t, ssim)` at or after it reaches
+/// `threshold`, `None` when none does before the next event (or the end).
+pub fn time_to_quality(events: &[f64], quality: &[(f64, f64)], threshold: f64) -> Vec<Option<f64>> {
+    events
+        .iter()
+        .enumerate()
+        .map(|(j, &e)| {
+            let end = events.get(j + 1).copied().unwrap_or(f64::INFINITY);
+            quality
+                .iter()
+                .find(|(t, q)| *t >= e && *t < end && *q >= threshold)
+                .map(|(t, _)| t - e)
+        })
+        .collect()
+}
+
+/// Downloads for tiles never needed.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Waste {
+    /// Completed content downloads.
+    pub tiles: u64,
+    /// Their bytes.
+    pub bytes: u64,
+    /// Of them, for tiles never in a needed cut.
+    pub wasted_tiles: u64,
+    /// Their bytes.
+    pub wasted_bytes: u64,
+}
+
+/// WD over completed downloads `(tile, bytes)` given every tile needed during the session.
+pub fn wasted(downloads: &[(TileKey, u64)], ticks: &[TickView]) -> Waste {
+    let needed: HashSet<TileKey> = ticks
+        .iter()
+        .flat_map(|t| t.needed.iter().copied())
+        .collect();
+    let mut w = Waste::default();
+    for &(k, b) in downloads {
+        w.tiles += 1;
+        w.bytes += b;
+        if !needed.contains(&k) {
+            w.wasted_tiles += 1;
+            w.wasted_bytes += b;
+        }
+    }
+    w
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn key(x: u32) -> TileKey {
+        TileKey {
+            level: 1,
+            x,
+            y: 0,
+            z: 0,
+        }
+    }
+
+    #[test]
+    fn entries_are_split_into_initial_first_time_and_reentries() {
+        let (a, b, c) = ([key(0)], [key(0), key(1)], [key(2)]);
+        let ticks = [
+            // t0: a enters with nothing held (initial miss).
+            TickView {
+                t: 0.0,
+                needed: &a,
+                resident: &[],
+            },
+            // t1: key1 enters, held (first-time hit); key0 stays (not an entry).
+            TickView {
+                t: 1.0,
+                needed: &b,
+                resident: &b,
+            },
+            // t2: key2 enters, not held (first-time miss).
+            TickView {
+                t: 2.0,
+                needed: &c,
+                resident: &b,
+            },
+            // t3: key0 comes back, held (re-entry hit); key1 comes back, not held (miss).
+            TickView {
+                t: 3.0,
+                needed: &b,
+                resident: &a,
+            },
+        ];
+        let chr = cache_hits(&ticks);
+        assert_eq!(chr.initial, Ratio { hits: 0, n: 1 });
+        assert_eq!(chr.first, Ratio { hits: 1, n: 2 });
+        assert_eq!(chr.reentry, Ratio { hits: 1, n: 2 });
+        assert_eq!(chr.first.rate(), Some(0.5));
+        assert_eq!(Ratio::default().rate(), None);
+    }
+
+    #[test]
+    fn events_fire_on_new_regions_and_turns_not_on_steady_views() {
+        let (a, b) = ([key(0), key(1)], [key(2), key(3)]);
+        let mut ticks = vec![];
+        let mut yaw = vec![];
+        for k in 0..120 {
+            let t = k as f64 / 12.0;
+            // Steady on `a` for 4 s, then a new street `b`.
+            ticks.push(TickView {
+                t,
+                needed: if t < 4.0 { &a } else { &b },
+                resident: &[],
+            });
+            // Then at 7 s a quick 90-degree turn over half a second.
+            yaw.push(if t < 7.0 {
+                0.0
+            } else {
+                ((t - 7.0) * 180.0).min(90.0)
+            });
+        }
+        let ev = events(&ticks, &yaw, &EventRule::default());
+        assert_eq!(ev.len(), 3, "{ev:?}");
+        assert_eq!(ev[0], 0.0);
+        assert!((ev[1] - 4.0).abs() < 0.1, "{ev:?}");
+        assert!(ev[2] > 7.0 && ev[2] < 7.6, "{ev:?}");
+    }
+
+    #[test]
+    fn tgq_is_per_event_and_none_when_quality_never_comes() {
+        let q = [(0.0, 0.5), (1.0, 0.95), (5.0, 0.2), (6.0, 0.5)];
+        let t = time_to_quality(&[0.0, 5.0], &q, 0.9);
+        assert_eq!(t, vec![Some(1.0), None]);
+    }
+
+    #[test]
+    fn waste_counts_downloads_of_tiles_never_needed() {
+        let a = [key(0)];
+        let ticks = [TickView {
+            t: 0.0,
+            needed: &a,
+            resident: &[],
+        }];
+        let w = wasted(&[(key(0), 100), (key(5), 40)], &ticks);
+        assert_eq!(
+            (w.tiles, w.bytes, w.wasted_tiles, w.wasted_bytes),
+            (2, 140, 1, 40)
+        );
+    }
+}
