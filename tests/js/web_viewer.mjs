@@ -6,8 +6,10 @@
 //
 // usage: node web_viewer.mjs BASE_URL --shot out.png [--width 480] [--height 360]
 //          [--auto-view 0] [--levels best] [--throttle BYTES_PER_S] [--timeout SECONDS]
-//          [--camera SPEC] [--max-sse PX] [--still]
+//          [--camera SPEC] [--max-sse PX] [--still] [--frame-interval MS]
 // --still: no turning away and back, only wait until the view is settled (city parity checks).
+// --frame-interval: every requestAnimationFrame callback waits MS first (a slow GPU, seconds per
+// frame): what the client fetches between frames then shows in the responses.
 // Exit 0 when the run finished (the caller judges what it measured), 1 when it did not.
 import fs from 'node:fs';
 import { launch, problems, parseArgs } from './interop_harness.mjs';
@@ -70,6 +72,12 @@ try {
   });
   if (opt.camera) qs.set('camera', String(opt.camera));
   if (opt['max-sse']) qs.set('maxSse', String(opt['max-sse']));
+  if (opt['frame-interval']) {
+    await page.addInitScript((ms) => {
+      const raf = window.requestAnimationFrame.bind(window);
+      window.requestAnimationFrame = (cb) => setTimeout(() => raf(cb), ms);
+    }, Number(opt['frame-interval']));
+  }
   await page.goto(`${base}viewer/index.html?${qs}`);
   await page.waitForFunction(() => window.splat2tiles || document.title.startsWith('error'), null, {
     timeout: 60000,
