@@ -27,6 +27,7 @@
 
 #[cfg(feature = "native")]
 pub mod native;
+pub mod updates;
 pub mod url;
 
 use std::collections::{HashMap, HashSet};
@@ -485,9 +486,10 @@ impl StreamClient {
         !self.updates.is_empty()
     }
 
-    /// Takes the scene updates produced since the last call, in order.
+    /// Takes the scene updates produced since the last call, in order; a drawable inserted and
+    /// removed since then is left out (`updates::coalesce`).
     pub fn take_updates(&mut self) -> Vec<SceneUpdate> {
-        std::mem::take(&mut self.updates)
+        updates::coalesce(std::mem::take(&mut self.updates))
     }
 
     /// Counters and gauges.
