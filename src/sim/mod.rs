@@ -2,6 +2,8 @@
 //! `stream` core, with the metrics of TileSplat Table 4 (CHR, TGQ, WD) and Table 5.
 
 pub mod client;
+pub mod eyenav;
+pub mod network;
 pub mod svg;
 pub mod trace;
 
