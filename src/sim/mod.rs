@@ -4,6 +4,8 @@
 pub mod client;
 pub mod eyenav;
 pub mod network;
+pub mod split;
+pub mod stream_city;
 pub mod svg;
 pub mod trace;
 
