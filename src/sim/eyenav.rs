@@ -148,7 +148,7 @@ pub fn parse_session(text: &str, name: &str, scene: &str, user: &str) -> Result<
         }
         let q = DQuat::from_xyzw(v[4], v[5], v[6], v[7]);
         let len = q.length();
-        if !(len > 1e-6) {
+        if len.is_nan() || len <= 1e-6 {
             return Err(format!("{name}: line {ln}: zero quaternion"));
         }
         let q = q / len;
