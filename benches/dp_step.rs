@@ -1,5 +1,5 @@
 //! DC-DP accuracy vs solve time over its time step (issue 19, item 4; not a test): the same
-//! planning problems solved at 10, 20, 50 and 100 ms steps, each plan executed exactly (continuous
+//! planning problems solved at 5 (reference), 10, 20, 50 and 100 ms steps, each plan executed exactly (continuous
 //! time) over the true link, scored by on-time utility and misses.
 //!
 //! Run: `cargo bench --bench dp_step` (release). Problems: 20 per link, 200 candidates each, Best
@@ -7,7 +7,8 @@
 //! Medium 0.48, Low 0.30 of Best: `sim::stream_city`, 105.6/53.6/51.2/31.7 MiB), utilities 1 /
 //! 0.99 / 0.95 / 0.85 (+-0.01), deadlines: a fifth due in 0.25-1 s, the rest in 0.5-10 s; horizon
 //! 10 s (the client's); RTT 40 ms with 4 requests in flight (`PlanStepConfig::concurrency`: the
-//! first 30 ms carry no new bytes, 10 ms per request). Links: 10 and 50 Mbit/s constant, and the
+//! first 30 ms carry no new bytes, 10 ms per request; one row set without RTT). Links: 10 and 50
+//! Mbit/s constant, and the
 //! HSDPA log `bus.ljansbakken-oslo-report.2010-09-28_1407CEST.log` x10 (a 4G-like link;
 //! `../shared/network-traces/README.md`) from 20 s in, planned on its own future
 //! (`bandwidth::future_pieces`, the oracle network). Execution: downloads one after another in
@@ -24,9 +25,8 @@ use splat2tiles::stream::planner::{LinkForecast, PlanStepConfig};
 use splat2tiles::stream::rng::SplitMix64;
 
 const HORIZON_S: f64 = 10.0;
-const RTT_S: f64 = 0.04;
 const CONCURRENCY: usize = 4;
-const STEPS_MS: [f64; 4] = [10.0, 20.0, 50.0, 100.0];
+const STEPS_MS: [f64; 5] = [5.0, 10.0, 20.0, 50.0, 100.0];
 
 fn problem(seed: u64) -> Vec<Candidate> {
     let mut rng = SplitMix64::new(seed);
@@ -80,9 +80,9 @@ fn transfer_end(pieces: &[(f64, f64)], t0: f64, bytes: f64) -> f64 {
 }
 
 /// Executes `plan` over the true link: (on-time utility, misses).
-fn execute(cands: &[Candidate], plan: &Plan, pieces: &[(f64, f64)]) -> (f64, usize) {
-    let gap = RTT_S * (1.0 - 1.0 / CONCURRENCY as f64);
-    let per = RTT_S / CONCURRENCY as f64;
+fn execute(cands: &[Candidate], plan: &Plan, pieces: &[(f64, f64)], rtt: f64) -> (f64, usize) {
+    let gap = rtt * (1.0 - 1.0 / CONCURRENCY as f64);
+    let per = rtt / CONCURRENCY as f64;
     let mut clock = gap;
     let mut on_time = vec![false; cands.len()];
     let mut utility = 0.0;
@@ -108,28 +108,30 @@ fn main() {
     )
     .expect("HSDPA log");
     let looped = hsdpa.looped(1000.0);
-    let links: Vec<(String, Vec<(f64, f64)>)> = vec![
-        ("10 Mbit/s".into(), vec![(0.0, 10e6 / 8.0)]),
-        ("50 Mbit/s".into(), vec![(0.0, 50e6 / 8.0)]),
+    let links: Vec<(String, Vec<(f64, f64)>, f64)> = vec![
+        ("10 Mbit/s, no RTT".into(), vec![(0.0, 10e6 / 8.0)], 0.0),
+        ("10 Mbit/s".into(), vec![(0.0, 10e6 / 8.0)], 0.04),
+        ("50 Mbit/s".into(), vec![(0.0, 50e6 / 8.0)], 0.04),
         (
             format!(
-                "HSDPA x10 (mean {:.1} Mbit/s x10)",
+                "HSDPA bus log x10 (recorded mean {:.2} Mbit/s)",
                 hsdpa.mean_bytes_per_s() * 8.0 / 1e6 / 10.0
             ),
             future_pieces(&looped, 20.0, HORIZON_S + 1.0),
+            0.04,
         ),
     ];
     println!(
-        "| link | step | on-time utility (% of 10 ms) | misses (of 200) | fetches | solve ms (median) |"
+        "| link | step | on-time utility (% of 5 ms) | misses (of 200) | fetches | solve ms (median) |"
     );
     println!("|---|---:|---:|---:|---:|---:|");
-    for (name, pieces) in &links {
+    for (name, pieces, rtt) in &links {
         let mut rows = vec![];
         for step_ms in STEPS_MS {
             let cfg = PlanStepConfig {
                 step_s: step_ms / 1e3,
                 horizon_s: HORIZON_S,
-                latency_s: RTT_S,
+                latency_s: *rtt,
                 concurrency: CONCURRENCY,
                 ..PlanStepConfig::default()
             };
@@ -148,7 +150,7 @@ fn main() {
                     step_s: cfg.step_s,
                     horizon_steps: steps,
                     memory_budget: u64::MAX,
-                    latency_s: RTT_S / CONCURRENCY as f64,
+                    latency_s: rtt / CONCURRENCY as f64,
                 };
                 let mut plan = Plan::default();
                 let mut t = vec![];
@@ -159,7 +161,7 @@ fn main() {
                 }
                 t.sort_by(f64::total_cmp);
                 times.push(t[2]);
-                let (u, m) = execute(&cands, &plan, pieces);
+                let (u, m) = execute(&cands, &plan, pieces, *rtt);
                 util += u;
                 misses += m;
                 fetches += plan.fetches.len();
