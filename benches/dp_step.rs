@@ -24,6 +24,9 @@ use splat2tiles::stream::plan::{Candidate, Plan, PlanRequest, solve_dp};
 use splat2tiles::stream::planner::{LinkForecast, PlanStepConfig};
 use splat2tiles::stream::rng::SplitMix64;
 
+/// A link of the table: name, `(start s, bytes/s)` pieces, RTT (s).
+type Link = (String, Vec<(f64, f64)>, f64);
+
 const HORIZON_S: f64 = 10.0;
 const CONCURRENCY: usize = 4;
 const STEPS_MS: [f64; 5] = [5.0, 10.0, 20.0, 50.0, 100.0];
@@ -108,7 +111,7 @@ fn main() {
     )
     .expect("HSDPA log");
     let looped = hsdpa.looped(1000.0);
-    let links: Vec<(String, Vec<(f64, f64)>, f64)> = vec![
+    let links: Vec<Link> = vec![
         ("10 Mbit/s, no RTT".into(), vec![(0.0, 10e6 / 8.0)], 0.0),
         ("10 Mbit/s".into(), vec![(0.0, 10e6 / 8.0)], 0.04),
         ("50 Mbit/s".into(), vec![(0.0, 50e6 / 8.0)], 0.04),

@@ -72,7 +72,7 @@ impl Default for CitySpec {
     fn default() -> Self {
         CitySpec {
             splats: 1_500_000,
-            stride: 2,
+            stride: 8,
             seed: 19,
             max_splats_per_tile: 8192,
         }
