@@ -148,8 +148,13 @@ pub fn parse_session(text: &str, name: &str, scene: &str, user: &str) -> Result<
         }
         let q = DQuat::from_xyzw(v[4], v[5], v[6], v[7]);
         let len = q.length();
-        if len.is_nan() || len <= 1e-6 {
-            return Err(format!("{name}: line {ln}: zero quaternion"));
+        if !len.is_finite() || len <= 1e-6 {
+            return Err(format!("{name}: line {ln}: zero or overflowing quaternion"));
+        }
+        if let Some(first) = samples.first()
+            && !(v[0] - first.t).is_finite()
+        {
+            return Err(format!("{name}: line {ln}: time out of range"));
         }
         let q = q / len;
         samples.push(RawSample {
@@ -463,7 +468,7 @@ mod tests {
             ),
             (
                 "t_s,x,y,z,qx,qy,qz,qw\n0,1,2,3,0,0,0,1\n1,1,2,3,0,0,0,0\n",
-                "zero quat",
+                "zero or",
             ),
             (
                 "t_s,x,y,z,qx,qy,qz,qw\n0,1,2,3,0,0,0,1\n1,1,2,x,0,0,0,1\n",
@@ -476,6 +481,35 @@ mod tests {
                 e.starts_with("bad.csv") && e.contains(want),
                 "{text:?}: {e}"
             );
+        }
+    }
+
+    /// Random text and mutated valid files never panic (they parse or name a line).
+    #[test]
+    fn random_and_mutated_inputs_never_panic() {
+        let mut rng = crate::stream::rng::SplitMix64::new(5);
+        let alphabet = b"0123456789.,-+eEnaNifINF \t\n\"xqt_s";
+        for _ in 0..2000 {
+            let len = rng.below(200);
+            let junk: String = (0..len)
+                .map(|_| alphabet[rng.below(alphabet.len())] as char)
+                .collect();
+            let mut mutated = CSV.as_bytes().to_vec();
+            for _ in 0..3 {
+                let i = rng.below(mutated.len());
+                mutated[i] = alphabet[rng.below(alphabet.len())];
+            }
+            let mutated = String::from_utf8_lossy(&mutated).into_owned();
+            for text in [
+                junk.clone(),
+                format!("t_s,x,y,z,qx,qy,qz,qw\n{junk}"),
+                mutated,
+            ] {
+                if let Err(e) = parse_session(&text, "f.csv", "s", "u") {
+                    assert!(e.starts_with("f.csv"), "{e}");
+                }
+                let _ = parse_scene_settings(&text, "s.csv");
+            }
         }
     }
 

@@ -118,6 +118,12 @@ pub fn parse_log(text: &str, name: &str, scale: f64) -> Result<NetTrace, String>
         {
             return Err(format!("{name}: line {ln}: time does not increase"));
         }
+        let rate = mbps * 1e6 / 8.0 * scale;
+        if raw.first().is_some_and(|f| !(t - f.0).is_finite()) || !rate.is_finite() {
+            return Err(format!(
+                "{name}: line {ln}: time or throughput out of range"
+            ));
+        }
         raw.push((t, mbps));
     }
     let Some(&(t0, _)) = raw.first() else {
@@ -208,6 +214,8 @@ mod tests {
             ("0 1\n1 inf\n", "line 2"),
             ("0 1\n0 1\n", "does not increase"),
             ("1 1\n0 1\n", "line 2"),
+            ("-1e308 1\n1e308 1\n", "out of range"),
+            ("0 1e308\n", "out of range"),
         ] {
             let e = parse_log(text, "bad.log", 1.0).unwrap_err();
             assert!(
@@ -217,6 +225,28 @@ mod tests {
         }
         for s in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             assert!(parse_log("0 1\n", "s.log", s).is_err());
+        }
+    }
+
+    /// Random text never panics: it parses or names a line.
+    #[test]
+    fn random_logs_never_panic() {
+        let mut rng = crate::stream::rng::SplitMix64::new(9);
+        let alphabet = b"0123456789.-+eEnaNifINF \t\n#x";
+        for _ in 0..3000 {
+            let len = rng.below(120);
+            let text: String = (0..len)
+                .map(|_| alphabet[rng.below(alphabet.len())] as char)
+                .collect();
+            match parse_log(&text, "r.log", 1.0) {
+                Ok(t) => {
+                    assert!(t.pieces[0].0 == 0.0 && t.duration_s >= 0.0);
+                    assert!(t.pieces.windows(2).all(|w| w[1].0 > w[0].0));
+                    assert!(t.pieces.iter().all(|p| p.1 >= 0.0 && p.1.is_finite()));
+                    let _ = t.looped(50.0);
+                }
+                Err(e) => assert!(e.starts_with("r.log"), "{e}"),
+            }
         }
     }
 
