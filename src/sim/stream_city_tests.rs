@@ -16,6 +16,15 @@ fn nav() -> PathBuf {
     root().join("../shared/navigation-traces")
 }
 
+/// Deletes a test's folder however the test ends.
+struct RemoveOnDrop(PathBuf);
+
+impl Drop for RemoveOnDrop {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
 fn small() -> CitySpec {
     CitySpec {
         splats: 60_000,
@@ -60,6 +69,7 @@ fn small_city_has_streets_four_variants_and_is_reproducible() {
     );
     let tmp = root().join(format!("target/tmp-stream-city-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
+    let _cleanup = RemoveOnDrop(tmp.clone());
     let origin = Some(Geodetic::parse(DEFAULT_ORIGIN).unwrap());
     let a = build_city(&scenes(), &tmp.join("a/city"), &spec, origin).unwrap();
     let b = build_city(&scenes(), &tmp.join("b/city"), &spec, origin).unwrap();
@@ -102,7 +112,6 @@ fn small_city_has_streets_four_variants_and_is_reproducible() {
         late.iter().map(|l| l.0).sum::<usize>() >= 10,
         "(first seen after 30 s, seen) per walk: {late:?}"
     );
-    std::fs::remove_dir_all(&tmp).unwrap();
 }
 
 #[test]
