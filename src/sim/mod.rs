@@ -2,7 +2,11 @@
 //! `stream` core, with the metrics of TileSplat Table 4 (CHR, TGQ, WD) and Table 5.
 
 pub mod client;
+pub mod eyenav;
+pub mod network;
 pub mod score;
+pub mod split;
+pub mod stream_city;
 pub mod svg;
 pub mod trace;
 

@@ -18,6 +18,13 @@ pub struct CityLayout {
     pub block: f64,
     /// Seed of the placement, rotation and scale of every copy.
     pub seed: u64,
+    /// Random shift of a copy from its grid point, as a fraction of `spacing` (each axis).
+    pub jitter: f64,
+    /// A copy's size is `block` times a uniform factor in `[scale.0, scale.1)`.
+    pub scale: (f64, f64),
+    /// Turn copies only by multiples of 90 degrees (footprints stay axis-aligned squares, so
+    /// `spacing - block * scale.1` is a street between them).
+    pub quarter_turns: bool,
 }
 
 impl Default for CityLayout {
@@ -27,6 +34,9 @@ impl Default for CityLayout {
             spacing: 30.0,
             block: 16.0,
             seed: 15,
+            jitter: 0.25,
+            scale: (0.6, 1.6),
+            quarter_turns: false,
         }
     }
 }
@@ -98,9 +108,22 @@ fn transform(
     out
 }
 
+/// Copies per row of the grid [`generate_city`] lays out for `sources` (0 without splats).
+pub fn grid_side(sources: &[Splats], layout: &CityLayout) -> usize {
+    let sizes: usize = sources.iter().map(|s| s.len()).sum();
+    if sizes == 0 {
+        return 0;
+    }
+    let mean = sizes as f64 / sources.len() as f64;
+    let copies = (layout.splats as f64 / mean).ceil().max(1.0) as usize;
+    (copies as f64).sqrt().ceil() as usize
+}
+
 /// A city of `layout.splats` splats: copies of the normalised `sources` (see
-/// [`normalise_source`]) taken in turn, each turned by a random heading, scaled to
-/// `block * [0.6, 1.6)` and placed on a square grid of `spacing` with a jitter of a quarter of it.
+/// [`normalise_source`]) taken in turn, each turned by a random heading (a random multiple of 90
+/// degrees with `quarter_turns`), scaled to `block * [scale.0, scale.1)` and placed on a square
+/// grid of `spacing` (copy `c` at `(c % side, c / side)`, `side = ceil(sqrt(copies))`) with a
+/// jitter of `jitter * spacing`.
 /// All sources must share one SH degree; returns an empty set without sources.
 pub fn generate_city(sources: &[Splats], layout: &CityLayout) -> Splats {
     let sh = sources.first().map(|s| s.sh_degree).unwrap_or(0);
@@ -109,22 +132,26 @@ pub fn generate_city(sources: &[Splats], layout: &CityLayout) -> Splats {
     if sizes == 0 || sources.iter().any(|s| s.sh_degree != sh) {
         return out;
     }
-    let mean = sizes as f64 / sources.len() as f64;
-    let copies = (layout.splats as f64 / mean).ceil().max(1.0) as usize;
-    let side = (copies as f64).sqrt().ceil() as usize;
+    let side = grid_side(sources, layout);
     let mut state = layout.seed;
     let mut c = 0usize;
     while out.len() < layout.splats {
         let src = &sources[c % sources.len()];
         let (gx, gy) = ((c % side) as f64, (c / side) as f64);
-        let jitter = layout.spacing * 0.25;
+        let jitter = layout.spacing * layout.jitter;
         let offset = DVec3::new(
             gx * layout.spacing + (unit(&mut state) - 0.5) * 2.0 * jitter,
             gy * layout.spacing + (unit(&mut state) - 0.5) * 2.0 * jitter,
             0.0,
         );
-        let heading = unit(&mut state) * std::f64::consts::TAU;
-        let k = layout.block * (0.6 + unit(&mut state));
+        let turn = unit(&mut state);
+        let heading = if layout.quarter_turns {
+            (turn * 4.0).floor() * std::f64::consts::FRAC_PI_2
+        } else {
+            turn * std::f64::consts::TAU
+        };
+        let (s0, s1) = layout.scale;
+        let k = layout.block * (s0 + (s1 - s0) * unit(&mut state));
         let pts: Vec<DVec3> = src
             .positions
             .iter()

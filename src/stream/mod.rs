@@ -22,6 +22,6 @@ pub use cache::{Cache, CacheConfig, EvictContext};
 pub use catalog::{CatalogTile, LEVELS, Level, TileCatalog, Variant, VariantSource};
 pub use geom::{Frustum, Intrinsics, Obb, ViewPose};
 pub use plan::{Candidate, Fetch, Plan, PlanRequest, Planner};
-pub use planner::{PlanStepConfig, first_visibility, plan_step};
+pub use planner::{LinkForecast, PlanStepConfig, first_visibility, plan_step, plan_visible_link};
 pub use predict::{ConstantVelocity, LinearExtrapolation, Oracle, Predictor, Reactive};
 pub use visibility::{VisTest, cull_hierarchical};
