@@ -99,6 +99,11 @@ impl Truth {
         self.ts.tiles.is_empty()
     }
 
+    /// Root transform (tileset frame to world): a trace pose's camera is this times its pose.
+    pub fn root_transform(&self) -> DMat4 {
+        self.ts.root_transform
+    }
+
     /// Box of every tile (world frame), as `render --auto-view` frames it.
     pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
         crate::render::cli::tileset_bounds(&self.ts)
