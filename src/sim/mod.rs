@@ -4,6 +4,7 @@
 pub mod client;
 pub mod svg;
 pub mod trace;
+pub mod transport;
 
 pub use client::{NetModel, SimConfig, SimResult, run_session};
 pub use trace::Trace;
