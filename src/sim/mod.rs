@@ -2,6 +2,7 @@
 //! `stream` core, with the metrics of TileSplat Table 4 (CHR, TGQ, WD) and Table 5.
 
 pub mod client;
+pub mod session;
 pub mod svg;
 pub mod trace;
 pub mod transport;

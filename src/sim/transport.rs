@@ -465,3 +465,148 @@ impl SimTransport {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fetch(id: RequestId, url: String, range_start: u64, if_range: Option<String>) -> Action {
+        Action::Fetch(FetchRequest {
+            id,
+            url,
+            range_start,
+            if_range,
+            priority: 1.0,
+        })
+    }
+
+    /// Runs until nothing is left; returns every delivery.
+    fn drain(t: &mut SimTransport) -> Vec<Delivery> {
+        let until = t.now() + 100.0;
+        std::iter::from_fn(|| t.next(until)).collect()
+    }
+
+    fn net(bytes_per_s: f64) -> NetModel {
+        NetModel {
+            bandwidth: vec![(0.0, bytes_per_s)],
+            rtt_s: 0.1,
+            overhead_bytes: 1000,
+            chunk_bytes: 4000,
+        }
+    }
+
+    #[test]
+    fn shares_the_link_chunks_bodies_and_honours_ranges_and_aborts() {
+        let dir = tempfile::tempdir().unwrap();
+        let body: Vec<u8> = (0..10_000u32).map(|i| (i * 7) as u8).collect();
+        std::fs::write(dir.path().join("a.bin"), &body).unwrap();
+        std::fs::write(dir.path().join("b.bin"), &body).unwrap();
+        let mut t = SimTransport::new(dir.path(), net(1e4));
+        let url = |n: &str| format!("{}/{n}", dir.path().display());
+        // Alone: RTT, then 1000 + 10000 bytes at 10 kB/s.
+        t.apply(&[fetch(1, url("a.bin"), 0, None)]);
+        let ev = drain(&mut t);
+        let done = ev.iter().find(|d| d.event == NetEvent::Done).unwrap();
+        assert!((done.t - 1.2).abs() < 1e-9, "{}", done.t);
+        let data: Vec<u8> = ev
+            .iter()
+            .filter_map(|d| match &d.event {
+                NetEvent::Data(b) => Some(b.clone()),
+                _ => None,
+            })
+            .flatten()
+            .collect();
+        assert_eq!(data, body);
+        assert_eq!(
+            ev.iter()
+                .filter(|d| matches!(d.event, NetEvent::Data(_)))
+                .count(),
+            3
+        );
+        let NetEvent::Response { etag, .. } = &ev[0].event else {
+            panic!("{:?}", ev[0]);
+        };
+        // Two at once share the link: both end at 1.2 + 0.1 + 2 * 1.1.
+        let t0 = t.now();
+        t.apply(&[
+            fetch(2, url("a.bin"), 0, None),
+            fetch(3, url("b.bin"), 0, None),
+        ]);
+        let ends: Vec<f64> = drain(&mut t)
+            .iter()
+            .filter(|d| d.event == NetEvent::Done)
+            .map(|d| d.t - t0)
+            .collect();
+        assert_eq!(ends.len(), 2);
+        assert!(ends.iter().all(|e| (e - 2.3).abs() < 1e-9), "{ends:?}");
+        // A resume with the right validator gets a 206 from its byte; a wrong one a 200.
+        t.apply(&[
+            fetch(4, url("a.bin"), 6000, etag.clone()),
+            fetch(5, url("a.bin"), 6000, Some("\"other\"".into())),
+        ]);
+        let ev = drain(&mut t);
+        let heads: Vec<&NetEvent> = ev
+            .iter()
+            .filter(|d| matches!(d.event, NetEvent::Response { .. }))
+            .map(|d| &d.event)
+            .collect();
+        assert!(matches!(
+            heads[0],
+            NetEvent::Response {
+                status: 206,
+                range_start: Some(6000),
+                ..
+            }
+        ));
+        assert!(matches!(heads[1], NetEvent::Response { status: 200, .. }));
+        let got4: usize = ev
+            .iter()
+            .filter(|d| d.id == 4)
+            .map(|d| match &d.event {
+                NetEvent::Data(b) => b.len(),
+                _ => 0,
+            })
+            .sum();
+        assert_eq!(got4, 4000);
+        // An abort stops the transfer: nothing more for it, logged as aborted.
+        t.apply(&[fetch(6, url("a.bin"), 0, None)]);
+        let first = t.next(t.now() + 100.0).unwrap();
+        assert_eq!(first.id, 6);
+        t.apply(&[Action::Abort { id: 6 }]);
+        assert!(drain(&mut t).is_empty());
+        let log = t.log().last().unwrap();
+        assert_eq!((log.id, log.outcome), (6, Outcome::Aborted));
+        // Outside the root or missing: 404, then the end.
+        t.apply(&[
+            fetch(7, "/etc/passwd".into(), 0, None),
+            fetch(8, url("../x"), 0, None),
+            fetch(9, url("missing"), 0, None),
+        ]);
+        let ev = drain(&mut t);
+        assert_eq!(ev.len(), 6);
+        assert!(
+            ev.iter()
+                .step_by(2)
+                .all(|d| matches!(d.event, NetEvent::Response { status: 404, .. }))
+        );
+        assert!(t.log()[6..].iter().all(|l| l.outcome == Outcome::Failed));
+    }
+
+    #[test]
+    fn follows_piecewise_bandwidth() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("a.bin"), vec![1u8; 9000]).unwrap();
+        let mut n = net(1e4);
+        // 10 kB/s until 0.5 s, nothing until 1.5 s, then 20 kB/s.
+        n.bandwidth = vec![(0.0, 1e4), (0.5, 0.0), (1.5, 2e4)];
+        let mut t = SimTransport::new(dir.path(), n);
+        t.apply(&[fetch(1, format!("{}/a.bin", dir.path().display()), 0, None)]);
+        let done = drain(&mut t)
+            .into_iter()
+            .find(|d| d.event == NetEvent::Done)
+            .unwrap();
+        // 4000 B by 0.5 s, then 6000 B from 1.5 s at 20 kB/s.
+        assert!((done.t - 1.8).abs() < 1e-9, "{}", done.t);
+        assert_eq!(t.wire_bytes(), 10_000);
+    }
+}
