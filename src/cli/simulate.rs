@@ -152,8 +152,12 @@ fn render_tiles(s: &Scene, p: &ViewPose, tiles: impl Iterator<Item = (TileKey, L
     render(&inst, &camera(s, p), &RenderOptions::default())
 }
 
-/// SSIM of what the client drew at a tick against its view set fully resident at Best.
+/// SSIM of what the client drew at a tick against its view set fully resident at Best (None
+/// before the client has a view set: nothing to compare, not a perfect frame).
 fn tick_ssim(s: &Scene, t: &TickLog) -> Option<f64> {
+    if t.view_set.is_empty() {
+        return None;
+    }
     let drawn = render_tiles(s, &t.pose, t.drawn.iter().map(|d| (d.0, d.1)));
     let best = render_tiles(s, &t.pose, t.view_set.iter().map(|k| (*k, Level::Best)));
     ssim(&drawn, &best).ok()
@@ -378,7 +382,7 @@ fn table4(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<String> {
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "### TileSplat Table 4: prediction in the client loop\n\nThe shipped client (`client::StreamClient`, 1280x720, 50 deg, 4 requests in flight, replan every 2.5 s, on a view-set change, a >20% speed change or an unwanted view tile; the App. C.5 fallback for every predictor: 5 s, radius 0.3 x scene diagonal, Medium) over the simulated transport: shared scenes tiled at {} splats/tile, {bw} Mbps, 40 ms RTT, 400 B/request, 16 KiB chunks; traces: SGSS orbital (80 s) + 2 walks (60 s) per scene, 12 Hz. CHR over first-time view-set entries after the first view (re-entries apart); WD = completed downloads whose tile is never in the view set afterwards; SSIM of the drawn tiles against the same view set at Best, {W}x{H}, 1 Hz; TGQ = first sample with SSIM >= 0.9. Mean over scenes and traces.\n\n| predictor | CHR | re-entry hits | TGQ (s) | WD (tiles) | WD (bytes) | mean SSIM | MB | aborts | resumes |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "### TileSplat Table 4: prediction in the client loop\n\nThe shipped client (`client::StreamClient`, 1280x720, 50 deg, 4 requests in flight, replan every 2.5 s, on a view-set change, a >20% speed change or an unwanted view tile; the App. C.5 fallback for every predictor: 5 s, radius 0.3 x scene diagonal, Medium) over the simulated transport: shared scenes tiled at {} splats/tile, {bw} Mbps, 40 ms RTT, 400 B/request, 16 KiB chunks; traces: SGSS orbital (80 s) + 2 walks (60 s) per scene, 12 Hz. CHR over first-time view-set entries after the first view (re-entries apart); WD = completed downloads whose tile is never in the view set afterwards; SSIM of the drawn tiles against the same view set at Best, {W}x{H}, 1 Hz (0 until the client has a view set); TGQ = first sample with SSIM >= 0.9, from the trace start. Mean over scenes and traces.\n\n| predictor | CHR | re-entry hits | TGQ (s) | WD (tiles) | WD (bytes) | mean SSIM | MB | aborts | resumes |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         args.max_splats,
     );
     let mut rows: Vec<Vec<Row>> = (0..PREDICTORS.len()).map(|_| vec![]).collect();

@@ -259,6 +259,8 @@ pub struct ClientStats {
     pub rejected: u64,
     /// Tiles evicted from the cache.
     pub evictions: u64,
+    /// Plans made (replans included).
+    pub plans: u64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -103,6 +103,7 @@ impl StreamClient {
 
     pub(super) fn replan(&mut self, camera: &Camera, pose: &ViewPose) {
         self.last_plan = self.now;
+        self.stats.plans += 1;
         self.dirty = false;
         self.predicted_subtrees.clear();
         let fallback = self.in_fallback();

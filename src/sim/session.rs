@@ -83,6 +83,8 @@ pub struct SessionLog {
     pub evictions: u64,
     /// Errors the client recorded.
     pub errors: u64,
+    /// Plans the client made.
+    pub plans: u64,
     /// Every client input in order, when [`SessionOptions::record_inputs`] was set.
     pub inputs: Vec<Input>,
     /// The actions of each update, in order, when [`SessionOptions::record_inputs`] was set.
@@ -230,6 +232,7 @@ pub fn run_session(
     run.log.resumes = s.resumes;
     run.log.evictions = s.evictions;
     run.log.errors = s.errors;
+    run.log.plans = s.plans;
     run.log.requests = run
         .net
         .log()
