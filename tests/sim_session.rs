@@ -246,3 +246,38 @@ fn simulate_is_deterministic_for_a_seed() {
     assert!(a.contains("| plant |") && a.contains("| biker |"), "{a}");
     assert_eq!(a, table("b"));
 }
+
+/// Replan triggers: a still camera with everything resident makes no plan (the period is set
+/// out of reach); a speed change (1 mm per tick from rest) does, without any view-set change.
+#[test]
+fn a_speed_change_replans() {
+    let still = plant_trace().poses[0];
+    let mut poses = vec![];
+    for k in 0..(20 * 12) {
+        let t = k as f64 / 12.0;
+        let moving = t >= 15.0;
+        let step = if moving {
+            (k - 15 * 12) as f64 * 1e-3
+        } else {
+            0.0
+        };
+        poses.push(splat2tiles::stream::geom::ViewPose {
+            t,
+            pos: still.pos + DVec3::new(0.0, 0.0, step),
+            ..still
+        });
+    }
+    let c = ClientConfig {
+        replan_s: 1e9,
+        ..cfg(PredictorKind::Reactive)
+    };
+    let fast = NetModel::constant(100.0, 0.04);
+    let log = run_session(plant(), c, &poses, &fast, SessionOptions::default());
+    let at = |t: f64| log.ticks.iter().rev().find(|k| k.t <= t).unwrap();
+    let (a, b) = (at(10.0), at(14.9));
+    assert_eq!(a.resident.len(), a.view_set.len(), "not settled by 10 s");
+    assert_eq!(a.plans, b.plans, "replanned while still and settled");
+    let c = at(16.0);
+    assert_eq!(b.view_set, c.view_set);
+    assert!(c.plans > b.plans, "no replan on the speed change");
+}

@@ -41,6 +41,8 @@ pub struct TickLog {
     pub cache_bytes: u64,
     /// Requests in flight.
     pub in_flight: usize,
+    /// Plans the client made so far.
+    pub plans: u64,
 }
 
 /// One request the client issued.
@@ -225,6 +227,7 @@ pub fn run_session(
             bandwidth_estimate: s.bandwidth,
             cache_bytes: s.cache_bytes,
             in_flight: run.net.in_flight(),
+            plans: s.plans,
         });
     }
     let s = run.client.stats();
