@@ -6,7 +6,9 @@ mod common;
 use common::{bin, scene};
 use glam::{DMat4, DVec3};
 use splat2tiles::client::native::Driver;
-use splat2tiles::client::{ClientConfig, PredictorKind, SceneUpdate};
+use splat2tiles::client::{
+    Action, ClientConfig, PredictorKind, SceneUpdate, StreamClient, timeline,
+};
 use splat2tiles::convert::{ConvertOptions, convert};
 use splat2tiles::encode::read_tile_glb;
 use splat2tiles::render::camera::Camera;
@@ -113,15 +115,26 @@ fn apply(scene: &mut Scene, ups: Vec<SceneUpdate>) {
     }
 }
 
-/// Ticks the driver in real time along `cams` (each for `per` seconds; the last until idle).
-fn stream(url: &str, cams: &[Camera], per: f64) -> (Scene, Driver) {
-    let cfg = ClientConfig {
+fn stream_cfg() -> ClientConfig {
+    ClientConfig {
         levels: vec![Level::Best],
         predictor: PredictorKind::Reactive,
         max_concurrent: 4,
         ..ClientConfig::default()
-    };
-    let mut d = Driver::new(url, cfg);
+    }
+}
+
+/// Ticks the driver in real time along `cams` (each for `per` seconds; the last until idle).
+fn stream(url: &str, cams: &[Camera], per: f64) -> (Scene, Driver) {
+    stream_with(url, cams, per, false)
+}
+
+/// [`stream`], recording the client's inputs when `record` is set.
+fn stream_with(url: &str, cams: &[Camera], per: f64, record: bool) -> (Scene, Driver) {
+    let mut d = Driver::new(url, stream_cfg());
+    if record {
+        d.record();
+    }
     let mut scene = Scene::new();
     let t0 = Instant::now();
     let mut k = 0;
@@ -233,4 +246,44 @@ fn http_stream_survives_looking_away_and_back() {
         "aborts {}, resumes {}, restarts {}, bytes {}",
         st.aborts, st.resumes, st.restarts, st.bytes_received
     );
+}
+
+/// The client's decisions are a function of its input timeline: the native driver's recorded
+/// session over HTTP (pauses and resumes included), replayed through a fresh client, gives the
+/// same actions at every update (no timing assertion: whatever timeline the machine produced).
+#[test]
+fn native_session_replays_to_the_same_decisions() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("plant");
+    convert_plant(&dir);
+    let ts = load_tileset(&dir.join("tileset.json")).unwrap();
+    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
+    let target = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 0.0).center();
+    let away = Camera::look_at(
+        1280,
+        720,
+        50.0,
+        cam.center(),
+        cam.center() * 2.0 - target,
+        DVec3::Z,
+    );
+    let served = serve(&dir);
+    let http = format!("http://127.0.0.1:{}/tileset.json", served.port);
+    let cams = [cam, away, cam, away, cam];
+    let (_, mut d) = stream_with(&http, &cams, 0.03, true);
+    let rec = d.take_recording().expect("recording");
+    drop(d);
+    let fetches = rec
+        .actions
+        .iter()
+        .flatten()
+        .filter(|a| matches!(a, Action::Fetch(_)))
+        .count();
+    assert!(fetches > 3 && rec.inputs.len() > rec.actions.len());
+    let mut fresh = StreamClient::new(&http, stream_cfg());
+    let replayed = timeline::replay(&mut fresh, &rec.inputs);
+    assert_eq!(replayed.len(), rec.actions.len());
+    for (k, (a, b)) in rec.actions.iter().zip(&replayed).enumerate() {
+        assert_eq!(a, b, "update {k}");
+    }
 }

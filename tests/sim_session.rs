@@ -1,86 +1,201 @@
-//! Simulator checks: sessions are deterministic for a fixed seed, the cache stays within
-//! capacity, the oracle is at least as good as reactive on cache hits, and traces round-trip.
+//! Simulator checks on the converted plant (`../shared/scenes/plant.splat`, see its README): the
+//! real client over the simulated transport is deterministic, its recorded inputs replay to the
+//! same decisions, the logs are consistent with the files and the link, the fallback rule applies
+//! to every predictor, and traces round-trip.
 
+mod common;
+
+use common::scene;
 use glam::DVec3;
-use splat2tiles::sim::client::{NetModel, SimConfig, run_session};
+use splat2tiles::client::{ClientConfig, PredictorKind, StreamClient, timeline};
+use splat2tiles::convert::{ConvertOptions, convert};
+use splat2tiles::sim::session::{SessionLog, SessionOptions, run_session};
+use splat2tiles::sim::summary::summarize;
 use splat2tiles::sim::trace::{self, Trace};
-use splat2tiles::stream::cache::CacheConfig;
+use splat2tiles::sim::transport::{NetModel, Outcome};
+use splat2tiles::stream::Level;
 use splat2tiles::stream::catalog::TileCatalog;
-use splat2tiles::stream::geom::Intrinsics;
-use splat2tiles::stream::planner::PlanStepConfig;
-use splat2tiles::stream::predict::{LinearExtrapolation, Oracle, Predictor, Reactive};
-use splat2tiles::stream::rng::SplitMix64;
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::LoadedTile;
+use splat2tiles::stream::predict::{Oracle, Predictor};
+use splat2tiles::tiling::load::load_tileset;
+use splat2tiles::variants::{Variant, VariantOptions};
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
-/// 16 x 16 leaf tiles of 10 m under a quadtree.
-fn grid() -> TileCatalog {
-    let mut tiles = vec![];
-    for level in 0..=4u32 {
-        let n = 1u32 << level;
-        let size = 160.0 / n as f64;
-        for y in 0..n {
-            for x in 0..n {
-                let c = [(x as f64 + 0.5) * size, (y as f64 + 0.5) * size, 3.0];
-                let h = size / 2.0;
-                tiles.push(LoadedTile {
-                    key: TileKey { level, x, y, z: 0 },
-                    content: (level == 4).then(|| format!("{x}_{y}.glb").into()),
-                    bounding_box: Some([c[0], c[1], c[2], h, 0.0, 0.0, 0.0, h, 0.0, 0.0, 0.0, 3.0]),
-                    geometric_error: 0.0,
-                    splat_count: Some(1000),
-                });
-            }
-        }
-    }
-    let mut rng = SplitMix64::new(3);
-    TileCatalog::from_loaded(&tiles, |_| Some(rng.range(50e3, 300e3) as u64))
+/// The plant converted once (Best + Low, small tiles, two levels per subtree file).
+fn plant() -> &'static Path {
+    static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    &DIR.get_or_init(|| {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("plant");
+        let opts = ConvertOptions {
+            max_splats_per_tile: 8192,
+            subtree_levels: Some(2),
+            variants: VariantOptions {
+                variants: vec![Variant::Best, Variant::Low],
+                measure_utility: false,
+                ..VariantOptions::default()
+            },
+            ..ConvertOptions::default()
+        };
+        convert(&scene("plant.splat"), &out, &opts).expect("convert plant.splat");
+        (tmp, out)
+    })
+    .1
 }
 
-fn config() -> SimConfig {
-    SimConfig {
-        net: NetModel::constant(8.0, 0.04),
-        cache: CacheConfig {
-            capacity_bytes: 8_000_000,
-            far_m: 60.0,
-            hold_s: 3.0,
-        },
-        plan: PlanStepConfig {
-            intrinsics: Intrinsics {
-                far: 80.0,
-                ..Intrinsics::default()
-            },
-            ..PlanStepConfig::default()
-        },
-        fallback_radius: 30.0,
-        ..SimConfig::default()
+fn bounds() -> (DVec3, DVec3) {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    TileCatalog::from_loaded(&ts.tiles, |_| Some(1)).bounds()
+}
+
+/// A 30 s orbit-then-walk trace around the plant.
+fn plant_trace() -> Trace {
+    let (lo, hi) = bounds();
+    let mut t = trace::orbital("plant", lo, hi, 3, "test");
+    t.poses.retain(|p| p.t <= 30.0);
+    t
+}
+
+/// A 30 s first-person walk through the plant (sees part of it at a time).
+fn plant_walk() -> Trace {
+    let (lo, hi) = bounds();
+    let c = (lo + hi) * 0.5;
+    let diag = (hi - lo).truncate().length();
+    trace::walk("plant", lo, hi, c.z, 0.08 * diag, 30.0, 4, "test")
+}
+
+fn cfg(predictor: PredictorKind) -> ClientConfig {
+    ClientConfig {
+        max_concurrent: 4,
+        predictor,
+        memory_budget_bytes: 64 << 20,
+        ..ClientConfig::default()
+    }
+}
+
+fn net() -> NetModel {
+    NetModel::constant(2.0, 0.04)
+}
+
+fn run(oracle: Option<&Trace>, c: ClientConfig, record: bool) -> SessionLog {
+    run_on(oracle, c, record, &net())
+}
+
+fn run_on(oracle: Option<&Trace>, c: ClientConfig, record: bool, net: &NetModel) -> SessionLog {
+    run_trace(&plant_trace(), oracle, c, record, net)
+}
+
+fn run_trace(
+    tr: &Trace,
+    oracle: Option<&Trace>,
+    c: ClientConfig,
+    record: bool,
+    net: &NetModel,
+) -> SessionLog {
+    let opts = SessionOptions {
+        predictor: oracle.map(|t| {
+            Box::new(Oracle {
+                trace: t.poses.clone(),
+            }) as Box<dyn Predictor + Send>
+        }),
+        record_inputs: record,
+    };
+    run_session(plant(), c, &tr.poses, net, opts)
+}
+
+#[test]
+fn sessions_are_deterministic_and_replay_to_the_same_decisions() {
+    let tr = plant_trace();
+    for oracle in [None, Some(&tr)] {
+        let a = run(oracle, cfg(PredictorKind::Linear), true);
+        let b = run(oracle, cfg(PredictorKind::Linear), true);
+        assert_eq!(a, b, "two runs differ");
+        assert_eq!(a.ticks.len(), tr.poses.len());
+        assert!(a.updates > a.ticks.len(), "no update on response ends");
+        // The recorded inputs replayed through a fresh client give the same actions.
+        let url = format!("{}/tileset.json", plant().display());
+        let mut fresh = match oracle {
+            Some(t) => StreamClient::with_predictor(
+                &url,
+                cfg(PredictorKind::Linear),
+                Box::new(Oracle {
+                    trace: t.poses.clone(),
+                }),
+            ),
+            None => StreamClient::new(&url, cfg(PredictorKind::Linear)),
+        };
+        let replayed = timeline::replay(&mut fresh, &a.inputs);
+        assert_eq!(replayed, a.actions);
     }
 }
 
 #[test]
-fn sessions_are_deterministic_and_bounded() {
-    let cat = grid();
-    let (lo, hi) = cat.bounds();
-    let tr = trace::walk("grid", lo, hi, 1.7, 1.4, 40.0, 5, "test");
-    let cfg = config();
-    let run = |p: &mut dyn Predictor| run_session(&cat, &tr.poses, p, &cfg, |_, _, _| None);
-    let a = run(&mut LinearExtrapolation::default());
-    let b = run(&mut LinearExtrapolation::default());
-    assert_eq!(a, b);
-    assert!(a.fetches > 0 && a.bytes > 0);
-    let reactive = run(&mut Reactive);
-    let oracle = run(&mut Oracle {
-        trace: tr.poses.clone(),
-    });
-    assert!(
-        oracle.chr + 1e-9 >= reactive.chr,
-        "{} < {}",
-        oracle.chr,
-        reactive.chr
-    );
-    for f in &oracle.frames {
-        assert!(f.resident <= f.visible);
-        assert!((0.0..=1.0).contains(&f.quality));
+fn logs_agree_with_the_files_and_the_link() {
+    let log = run(None, cfg(PredictorKind::Linear), false);
+    let done: Vec<_> = log
+        .requests
+        .iter()
+        .filter(|r| r.outcome == Outcome::Done)
+        .collect();
+    assert!(done.iter().filter(|r| r.key.is_some()).count() > 3);
+    for r in &done {
+        let len = std::fs::metadata(&r.url).unwrap().len();
+        assert_eq!(r.bytes, len - r.range_start, "{}", r.url);
+        assert!(r.end_s.unwrap() > r.start_s);
+    }
+    let rate = net().bandwidth[0].1;
+    let t0 = log.ticks[0].t;
+    let mut prev = 0;
+    for t in &log.ticks {
+        assert!(t.bytes_down >= prev && t.bytes_down <= t.wire_bytes);
+        prev = t.bytes_down;
+        // The link never carries more than its rate allows.
+        assert!(t.wire_bytes as f64 <= rate * (t.t - t0) + 1.0);
+        let resident: BTreeSet<_> = t.resident.iter().collect();
+        for d in &t.drawn {
+            assert!(resident.contains(&(d.0, d.1)), "drawn but not resident");
+        }
+    }
+    let s = summarize(&log);
+    assert!(s.entries + s.first_view_tiles > 0 && s.hits <= s.entries);
+    assert!(s.wasted <= s.fetched && s.bytes_down == prev);
+}
+
+#[test]
+fn the_fallback_rule_applies_to_every_predictor() {
+    let tr = plant_walk();
+    let (lo, hi) = bounds();
+    let radius = (hi - lo).length();
+    // Tiles fetched in the first 5 s that no view set of that time needed.
+    let outside = |log: &SessionLog| {
+        let viewed: BTreeSet<_> = log
+            .ticks
+            .iter()
+            .filter(|t| t.t < 5.0)
+            .flat_map(|t| t.view_set.iter().copied())
+            .collect();
+        log.requests
+            .iter()
+            .filter(|r| r.start_s < 5.0 && r.key.is_some_and(|k| !viewed.contains(&k)))
+            .inspect(|r| assert_eq!(r.level, Some(Level::Low), "Medium, else the nearest"))
+            .count()
+    };
+    for (kind, oracle) in [
+        (PredictorKind::Reactive, None),
+        (PredictorKind::Linear, None),
+        (PredictorKind::Reactive, Some(&tr)),
+    ] {
+        let with = ClientConfig {
+            fallback_radius_m: radius,
+            ..cfg(kind)
+        };
+        // A fast link: the view set is complete well before the 5 s are over.
+        let fast = NetModel::constant(100.0, 0.04);
+        let log = run_trace(&tr, oracle, with, false, &fast);
+        assert!(outside(&log) > 0, "{kind:?} oracle {}", oracle.is_some());
+        let without = run_trace(&tr, oracle, cfg(kind), false, &fast);
+        assert_eq!(outside(&without), 0, "{kind:?} oracle {}", oracle.is_some());
     }
 }
 
@@ -100,4 +215,69 @@ fn traces_round_trip_and_reject_bad_input() {
     assert!(Trace::from_csv(bad).unwrap_err().contains("line 4"));
     let d = trace::dolly("x", DVec3::ZERO, DVec3::splat(4.0), 2, "test");
     assert!((d.duration() - 20.0).abs() < 1e-9);
+}
+
+/// `simulate --experiment dolly` (three shared scenes, the real client over the simulated
+/// transport, three predictors each) writes the same table twice for a seed.
+#[test]
+fn simulate_is_deterministic_for_a_seed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenes = common::scene("plant.splat").parent().unwrap().to_path_buf();
+    let table = |run: &str| {
+        let out = tmp.path().join(run);
+        let st = std::process::Command::new(common::bin())
+            .args(["simulate", "--experiment", "dolly", "--seed", "7"])
+            .arg("--scenes")
+            .arg(&scenes)
+            .arg("--out")
+            .arg(&out)
+            .arg("--plots")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        std::fs::read_to_string(out.join("streaming.md")).unwrap()
+    };
+    let a = table("a");
+    assert!(a.contains("| plant |") && a.contains("| biker |"), "{a}");
+    assert_eq!(a, table("b"));
+}
+
+/// Replan triggers: a still camera with everything resident makes no plan (the period is set
+/// out of reach); a speed change (1 mm per tick from rest) does, without any view-set change.
+#[test]
+fn a_speed_change_replans() {
+    let still = plant_trace().poses[0];
+    let mut poses = vec![];
+    for k in 0..(20 * 12) {
+        let t = k as f64 / 12.0;
+        let moving = t >= 15.0;
+        let step = if moving {
+            (k - 15 * 12) as f64 * 1e-3
+        } else {
+            0.0
+        };
+        poses.push(splat2tiles::stream::geom::ViewPose {
+            t,
+            pos: still.pos + DVec3::new(0.0, 0.0, step),
+            ..still
+        });
+    }
+    let c = ClientConfig {
+        replan_s: 1e9,
+        ..cfg(PredictorKind::Reactive)
+    };
+    let fast = NetModel::constant(100.0, 0.04);
+    let log = run_session(plant(), c, &poses, &fast, SessionOptions::default());
+    let at = |t: f64| log.ticks.iter().rev().find(|k| k.t <= t).unwrap();
+    let (a, b) = (at(10.0), at(14.9));
+    assert_eq!(a.resident.len(), a.view_set.len(), "not settled by 10 s");
+    assert_eq!(a.plans, b.plans, "replanned while still and settled");
+    let c = at(16.0);
+    assert_eq!(b.view_set, c.view_set);
+    assert!(c.plans > b.plans, "no replan on the speed change");
 }

@@ -2,21 +2,24 @@
 //! Tables 4-5, SGSS Table 3, frustum-test false positives), trace generation, and their tables
 //! (markdown) and plots (SVG). Deterministic for a fixed `--seed`.
 
+use crate::client::{ClientConfig, PredictorKind};
 use crate::render::{Camera, Image, RenderOptions, render, ssim};
-use crate::sim::client::{NetModel, SimConfig, SimResult, run_session};
+use crate::sim::session::{SessionLog, SessionOptions, TickLog, run_session};
+use crate::sim::summary::{Summary, summarize};
 use crate::sim::svg::{Series, line_chart};
 use crate::sim::trace::{self, Trace};
+use crate::sim::transport::NetModel;
 use crate::splat::Splats;
-use crate::stream::cache::{Cache, CacheConfig};
 use crate::stream::catalog::{Level, TileCatalog};
 use crate::stream::geom::{Frustum, Intrinsics, ViewPose};
 use crate::stream::plan::{Candidate, PlanRequest, Planner, execute};
-use crate::stream::planner::PlanStepConfig;
-use crate::stream::predict::{ConstantVelocity, LinearExtrapolation, Oracle, Predictor, Reactive};
+use crate::stream::predict::Oracle;
 use crate::stream::rng::SplitMix64;
 use crate::stream::visibility::VisTest;
+use crate::tiling::TileKey;
 use anyhow::Context;
 use glam::{DMat4, DVec3};
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -54,9 +57,13 @@ pub struct SimulateArgs {
 /// A tiled real scene ready for simulation.
 struct Scene {
     name: String,
+    /// The tileset folder the client streams.
+    dir: PathBuf,
+    /// Tileset frame to world.
+    root: DMat4,
     cat: TileCatalog,
-    /// Per tile: the decoded content of each variant (Best, High, Medium, Low).
-    content: Vec<Option<Vec<(Splats, DMat4)>>>,
+    /// Per content tile: the decoded content of each variant (Best, High, Medium, Low).
+    content: BTreeMap<TileKey, Vec<(Splats, DMat4)>>,
 }
 
 fn load_scene(file: &Path, work: &Path, max_splats: u32) -> anyhow::Result<Scene> {
@@ -92,15 +99,15 @@ fn load_scene(file: &Path, work: &Path, max_splats: u32) -> anyhow::Result<Scene
             .map(|(k, (_, bytes, util))| (k, (bytes, util)))
             .collect(),
     );
-    let mut content = Vec::with_capacity(cat.tiles.len());
+    let mut content = BTreeMap::new();
     for t in &cat.tiles {
         let lt = ts
             .tiles
             .iter()
             .find(|l| l.key == t.key)
             .expect("same tiles");
-        content.push(match (&lt.content, t.has_content) {
-            (Some(_), true) => {
+        if let (Some(_), true) = (&lt.content, t.has_content) {
+            {
                 let mut per_variant = Vec::with_capacity(crate::variants::ALL.len());
                 for v in crate::variants::ALL {
                     let p = ts
@@ -112,43 +119,48 @@ fn load_scene(file: &Path, work: &Path, max_splats: u32) -> anyhow::Result<Scene
                     let m = crate::render::cli::content_model(&ts, &node);
                     per_variant.push((splats, m));
                 }
-                Some(per_variant)
+                content.insert(t.key, per_variant);
             }
-            _ => None,
-        });
+        }
     }
-    Ok(Scene { name, cat, content })
+    Ok(Scene {
+        name,
+        dir: out,
+        root: ts.root_transform,
+        cat,
+        content,
+    })
 }
 
-const W: u32 = 160;
-const H: u32 = 120;
+/// SSIM render size: a quarter of the client's 1280x720 viewport per side.
+const W: u32 = 320;
+const H: u32 = 180;
 
-fn intrinsics() -> Intrinsics {
-    Intrinsics {
-        fov_y_deg: 50.0,
-        aspect: W as f64 / H as f64,
-        height_px: H as f64,
-        near: 0.01,
-        far: 1e4,
-    }
+/// The render camera of a pose (tileset frame) at `W` x `H`, the client's field of view.
+fn camera(s: &Scene, p: &ViewPose) -> Camera {
+    Camera::from_pose(W, H, 50.0, s.root * p.world_from_camera())
 }
 
-fn camera(p: &ViewPose) -> Camera {
-    Camera::from_pose(W, H, 50.0, p.world_from_camera())
-}
-
-/// Renders the tiles `level` selects, each with the content of the variant it names.
-fn render_tiles(s: &Scene, p: &ViewPose, level: impl Fn(usize) -> Option<Level>) -> Image {
-    let inst: Vec<(&Splats, DMat4)> = s
-        .content
-        .iter()
-        .enumerate()
-        .filter_map(|(i, c)| {
-            let (splats, m) = c.as_ref()?.get(level(i)?.index())?;
+/// Renders `tiles`, each with the content of the level it names.
+fn render_tiles(s: &Scene, p: &ViewPose, tiles: impl Iterator<Item = (TileKey, Level)>) -> Image {
+    let inst: Vec<(&Splats, DMat4)> = tiles
+        .filter_map(|(k, l)| {
+            let (splats, m) = s.content.get(&k)?.get(l.index())?;
             Some((splats, *m))
         })
         .collect();
-    render(&inst, &camera(p), &RenderOptions::default())
+    render(&inst, &camera(s, p), &RenderOptions::default())
+}
+
+/// SSIM of what the client drew at a tick against its view set fully resident at Best (None
+/// before the client has a view set: nothing to compare, not a perfect frame).
+fn tick_ssim(s: &Scene, t: &TickLog) -> Option<f64> {
+    if t.view_set.is_empty() {
+        return None;
+    }
+    let drawn = render_tiles(s, &t.pose, t.drawn.iter().map(|d| (d.0, d.1)));
+    let best = render_tiles(s, &t.pose, t.view_set.iter().map(|k| (*k, Level::Best)));
+    ssim(&drawn, &best).ok()
 }
 
 fn mbps(b: f64) -> f64 {
@@ -320,100 +332,111 @@ fn scene_traces(s: &Scene, seed: u64) -> Vec<Trace> {
     ]
 }
 
-fn sim_config(s: &Scene, mbps_: f64) -> SimConfig {
+/// Client settings of the experiments: 1280x720 at 50 degrees, 4 requests in flight, the
+/// App. C.5 fallback within 0.3 x the scene's diagonal.
+fn client_config(s: &Scene, predictor: PredictorKind) -> ClientConfig {
     let (lo, hi) = s.cat.bounds();
-    let diag = (hi - lo).length();
-    SimConfig {
-        net: NetModel::constant(mbps_, 0.04),
-        cache: CacheConfig {
-            capacity_bytes: 1 << 30,
-            far_m: 0.5 * diag,
-            hold_s: 5.0,
-        },
-        plan: PlanStepConfig {
-            intrinsics: intrinsics(),
-            ..PlanStepConfig::default()
-        },
-        fallback_radius: 0.3 * diag,
-        ..SimConfig::default()
+    ClientConfig {
+        max_concurrent: 4,
+        predictor,
+        fallback_radius_m: 0.3 * (hi - lo).length(),
+        ..ClientConfig::default()
     }
 }
 
-fn predictors(trace: &Trace) -> Vec<Box<dyn Predictor>> {
-    vec![
-        Box::new(Reactive),
-        Box::new(ConstantVelocity::default()),
-        Box::new(LinearExtrapolation::default()),
-        Box::new(Oracle {
-            trace: trace.poses.clone(),
+/// The predictors compared: the client's three kinds and the oracle of the trace.
+const PREDICTORS: [&str; 4] = ["reactive", "constant-velocity", "linear", "oracle"];
+
+/// One session of `predictor` (a [`PREDICTORS`] name) on `tr` over `net`.
+fn session(s: &Scene, tr: &Trace, predictor: &str, net: &NetModel) -> SessionLog {
+    let (kind, oracle) = match predictor {
+        "reactive" => (PredictorKind::Reactive, false),
+        "constant-velocity" => (PredictorKind::ConstantVelocity, false),
+        "linear" => (PredictorKind::Linear, false),
+        _ => (PredictorKind::Reactive, true),
+    };
+    let opts = SessionOptions {
+        predictor: oracle.then(|| {
+            Box::new(Oracle {
+                trace: tr.poses.clone(),
+            }) as Box<dyn crate::stream::predict::Predictor + Send>
         }),
-    ]
+        record_inputs: false,
+    };
+    run_session(&s.dir, client_config(s, kind), &tr.poses, net, opts)
 }
 
-/// TileSplat Table 4: predictors in the full client loop, SSIM against the full view.
+/// One table row's inputs: a session, its summary and its SSIM samples `(t, ssim)` at 1 Hz.
+struct Row {
+    sum: Summary,
+    ssim: Vec<(f64, f64)>,
+    bytes: Vec<(f64, f64)>,
+    aborts: u64,
+    resumes: u64,
+}
+
+/// TileSplat Table 4: predictors driving the real client over the simulated link.
 fn table4(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<String> {
     let bw = 4.0;
+    let net = NetModel::constant(bw, 0.04);
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "### TileSplat Table 4: prediction in the client loop\n\nShared scenes tiled at {} splats/tile, {bw} Mbps, 40 ms RTT, 400 B/request, 4 concurrent requests, DC-DP (0.1 s step, 30 s horizon), replanning every 2.5 s or on a >20% speed change or a missing visible tile; traces: SGSS orbital (80 s) + 2 walks (60 s) per scene, all at 12 Hz; SSIM of the resident view against the full view at {W}x{H}, 1 frame/s. Mean over scenes and traces. Variant sizes and utilities: {} (the SSIM render draws each resident tile with the variant it holds, decoded from its file).\n\n| predictor | CHR | TGQ (s) | WD (tiles) | WD (bytes) | miss % | mean SSIM | mean quality | MB |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "### TileSplat Table 4: prediction in the client loop\n\nThe shipped client (`client::StreamClient`, 1280x720, 50 deg, 4 requests in flight, replan every 2.5 s, on a view-set change, a >20% speed change or an unwanted view tile; the App. C.5 fallback for every predictor: 5 s, radius 0.3 x scene diagonal, Medium) over the simulated transport: shared scenes tiled at {} splats/tile, {bw} Mbps, 40 ms RTT, 400 B/request, 16 KiB chunks; traces: SGSS orbital (80 s) + 2 walks (60 s) per scene, 12 Hz. CHR over first-time view-set entries after the first view (re-entries apart); WD = completed downloads whose tile is never in the view set afterwards; SSIM of the drawn tiles against the same view set at Best, {W}x{H}, 1 Hz (0 until the client has a view set); TGQ = first sample with SSIM >= 0.9, from the trace start. Mean over scenes and traces.\n\n| predictor | CHR | re-entry hits | TGQ (s) | WD (tiles) | WD (bytes) | mean SSIM | MB | aborts | resumes |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         args.max_splats,
-        scenes.first().map_or("none", |s| s.cat.source.label())
     );
-    let mut rows: Vec<(String, Vec<SimResult>)> = vec![];
+    let mut rows: Vec<Vec<Row>> = (0..PREDICTORS.len()).map(|_| vec![]).collect();
     let mut plot_q: Vec<Series> = vec![];
     let mut plot_b: Vec<Series> = vec![];
     for s in scenes {
         for (ti, tr) in scene_traces(s, args.seed).iter().enumerate() {
-            let cfg = sim_config(s, bw);
-            let mut full: Vec<Image> = vec![];
-            for (pi, mut p) in predictors(tr).into_iter().enumerate() {
-                let name = p.name().to_string();
-                let r = run_session(
-                    &s.cat,
-                    &tr.poses,
-                    p.as_mut(),
-                    &cfg,
-                    |k, pose, cache: &Cache| {
-                        if full.len() <= k {
-                            full.push(render_tiles(s, pose, |_| Some(Level::Best)));
-                        }
-                        let img = render_tiles(s, pose, |i| cache.level(i));
-                        ssim(&img, &full[k]).ok()
-                    },
-                );
+            for (pi, name) in PREDICTORS.iter().enumerate() {
+                let log = session(s, tr, name, &net);
+                let t0 = tr.poses.first().map_or(0.0, |p| p.t);
+                let mut next = t0;
+                let mut ssim_s = vec![];
+                let mut bytes_s = vec![];
+                for t in &log.ticks {
+                    if t.t + 1e-9 >= next {
+                        next += 1.0;
+                        ssim_s.push((t.t - t0, tick_ssim(s, t).unwrap_or(0.0)));
+                        bytes_s.push((t.t - t0, t.bytes_down as f64 / 1e6));
+                    }
+                }
                 if s.name == "plant" && ti == 1 {
-                    plot_q.push((
-                        name.clone(),
-                        r.frames
-                            .iter()
-                            .map(|f| (f.t, f.ssim.unwrap_or(0.0)))
-                            .collect(),
-                    ));
-                    plot_b.push((
-                        name.clone(),
-                        r.frames
-                            .iter()
-                            .map(|f| (f.t, f.bytes as f64 / 1e6))
-                            .collect(),
-                    ));
+                    plot_q.push((name.to_string(), ssim_s.clone()));
+                    plot_b.push((name.to_string(), bytes_s.clone()));
                 }
-                if rows.len() <= pi {
-                    rows.push((name, vec![]));
-                }
-                rows[pi].1.push(r);
+                rows[pi].push(Row {
+                    sum: summarize(&log),
+                    ssim: ssim_s,
+                    bytes: bytes_s,
+                    aborts: log.aborts,
+                    resumes: log.resumes,
+                });
             }
             eprintln!("simulate: table4 {} trace {ti} done", s.name);
         }
     }
-    for (name, rs) in &rows {
-        let n = rs.len() as f64;
-        let m = |f: &dyn Fn(&SimResult) -> f64| rs.iter().map(f).sum::<f64>() / n;
-        let tgq: Vec<f64> = rs.iter().filter_map(|r| r.tgq).collect();
+    for (name, rs) in PREDICTORS.iter().zip(&rows) {
+        let n = rs.len().max(1) as f64;
+        let m = |f: &dyn Fn(&Row) -> f64| rs.iter().map(f).sum::<f64>() / n;
+        let tgq: Vec<f64> = rs
+            .iter()
+            .filter_map(|r| r.ssim.iter().find(|q| q.1 >= 0.9).map(|q| q.0))
+            .collect();
+        let (re, re_hits) = rs.iter().fold((0, 0), |a, r| {
+            (a.0 + r.sum.reentries, a.1 + r.sum.reentry_hits)
+        });
         let _ = writeln!(
             md,
-            "| {name} | {:.1}% | {} | {:.1}% | {:.1}% | {:.1} | {:.3} | {:.3} | {:.1} |",
-            100.0 * m(&|r| r.chr),
+            "| {name} | {:.1}% | {} | {} | {:.1}% | {:.1}% | {:.3} | {:.2} | {:.1} | {:.1} |",
+            100.0 * m(&|r| r.sum.chr()),
+            if re == 0 {
+                "-".to_string()
+            } else {
+                format!("{:.1}% of {re}", 100.0 * re_hits as f64 / re as f64)
+            },
             if tgq.is_empty() {
                 "-".to_string()
             } else {
@@ -421,24 +444,24 @@ fn table4(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<String> {
                     "{:.1}{}",
                     tgq.iter().sum::<f64>() / tgq.len() as f64,
                     if tgq.len() < rs.len() {
-                        " (some never)"
+                        format!(" ({} of {} sessions)", tgq.len(), rs.len())
                     } else {
-                        ""
+                        String::new()
                     }
                 )
             },
-            100.0 * m(&|r| r.wd),
-            100.0 * m(&|r| r.wd_bytes),
-            100.0 * m(&|r| r.miss_rate),
-            m(&|r| r.ssim.unwrap_or(0.0)),
-            m(&|r| r.quality),
-            m(&|r| r.bytes as f64 / 1e6),
+            100.0 * m(&|r| r.sum.wd_tiles()),
+            100.0 * m(&|r| r.sum.wd_bytes()),
+            m(&|r| r.ssim.iter().map(|q| q.1).sum::<f64>() / r.ssim.len().max(1) as f64),
+            m(&|r| r.bytes.last().map_or(0.0, |b| b.1)),
+            m(&|r| r.aborts as f64),
+            m(&|r| r.resumes as f64),
         );
     }
     std::fs::write(
         args.plots.join("stream_quality.svg"),
         line_chart(
-            "plant, walk 1, 4 Mbps: SSIM vs full view",
+            "plant, walk 1, 4 Mbps: SSIM of the drawn tiles vs the view set at Best",
             "time (s)",
             "SSIM",
             &plot_q,
@@ -464,23 +487,17 @@ fn dolly_table(seed: u64, scenes: &[Scene]) -> String {
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "### SGSS Table 3: data downloaded on 20 s dolly traces (200 Mbps)\n\nFull = every tile at Best (the real content bytes). Streamed = bytes received by the client in 20 s (overheads included), reactive and linear predictors.\n\n| scene | full download | reactive | linear | oracle |\n|---|---:|---:|---:|---:|"
+        "### SGSS Table 3: data downloaded on 20 s dolly traces (200 Mbps)\n\nFull = every tile at Best (the real content bytes). Streamed = body bytes the client received in 20 s over the simulated transport (40 ms RTT), per predictor.\n\n| scene | full download | reactive | linear | oracle |\n|---|---:|---:|---:|---:|"
     );
+    let net = NetModel::constant(200.0, 0.04);
     for s in scenes {
         let (lo, hi) = s.cat.bounds();
         let tr = trace::dolly(&s.name, lo, hi, seed, "test");
         let full = s.cat.total_bytes(Level::Best) as f64 / 1e6;
-        let cfg = sim_config(s, 200.0);
         let mut cells = vec![];
-        for mut p in [
-            Box::new(Reactive) as Box<dyn Predictor>,
-            Box::new(LinearExtrapolation::default()),
-            Box::new(Oracle {
-                trace: tr.poses.clone(),
-            }),
-        ] {
-            let r = run_session(&s.cat, &tr.poses, p.as_mut(), &cfg, |_, _, _| None);
-            let mb = r.bytes as f64 / 1e6;
+        for p in ["reactive", "linear", "oracle"] {
+            let log = session(s, &tr, p, &net);
+            let mb = log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
             cells.push(format!("{mb:.2} MB ({:+.1}%)", 100.0 * (mb / full - 1.0)));
         }
         let _ = writeln!(md, "| {} | {full:.2} MB | {} |", s.name, cells.join(" | "));

@@ -13,6 +13,7 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 
+use super::timeline::Input;
 use super::{
     Action, ClientConfig, ClientStats, FetchRequest, RequestId, SceneUpdate, StreamClient,
 };
@@ -54,6 +55,16 @@ pub struct Driver {
     events: Receiver<Event>,
     cancels: HashMap<RequestId, Arc<AtomicBool>>,
     workers: Vec<JoinHandle<()>>,
+    recording: Option<Recording>,
+}
+
+/// What a recording driver saw: the client's inputs in order and the actions of each update.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Recording {
+    /// Every call made on the client, in order.
+    pub inputs: Vec<Input>,
+    /// The actions each `Update` input returned.
+    pub actions: Vec<Vec<Action>>,
 }
 
 impl std::fmt::Debug for Driver {
@@ -86,35 +97,71 @@ impl Driver {
             events: rx,
             cancels: HashMap::new(),
             workers,
+            recording: None,
         }
+    }
+
+    /// Records every client input and the actions of each update from now on (replayable with
+    /// [`super::timeline::replay`]).
+    pub fn record(&mut self) {
+        self.recording.get_or_insert_with(Recording::default);
+    }
+
+    /// Takes what was recorded since [`Self::record`] (recording goes on).
+    pub fn take_recording(&mut self) -> Option<Recording> {
+        self.recording.as_mut().map(std::mem::take)
     }
 
     /// One non-blocking step at time `now_s`: delivers what the workers received, updates the
     /// client with `camera`, starts and aborts transfers; returns the scene updates.
     pub fn tick(&mut self, now_s: f64, camera: &Camera) -> Vec<SceneUpdate> {
         while let Ok(ev) = self.events.try_recv() {
-            match ev {
+            let input = match ev {
                 Event::Response {
                     id,
                     status,
                     etag,
                     range_start,
                     total,
-                } => self
-                    .client
-                    .on_response(id, status, etag.as_deref(), range_start, total),
-                Event::Data(id, bytes) => self.client.on_data(id, &bytes, now_s),
+                } => Input::Response {
+                    id,
+                    status,
+                    etag,
+                    range_start,
+                    total,
+                },
+                Event::Data(id, bytes) => Input::Data {
+                    id,
+                    t: now_s,
+                    bytes,
+                },
                 Event::Done(id) => {
                     self.cancels.remove(&id);
-                    self.client.on_done(id, now_s);
+                    Input::Done { id, t: now_s }
                 }
-                Event::Error(id, msg) => {
+                Event::Error(id, message) => {
                     self.cancels.remove(&id);
-                    self.client.on_error(id, &msg, now_s);
+                    Input::Error {
+                        id,
+                        t: now_s,
+                        message,
+                    }
                 }
+            };
+            input.apply(&mut self.client);
+            if let Some(r) = self.recording.as_mut() {
+                r.inputs.push(input);
             }
         }
-        for a in self.client.update(now_s, camera) {
+        let actions = self.client.update(now_s, camera);
+        if let Some(r) = self.recording.as_mut() {
+            r.inputs.push(Input::Update {
+                t: now_s,
+                camera: *camera,
+            });
+            r.actions.push(actions.clone());
+        }
+        for a in actions {
             match a {
                 Action::Fetch(req) => {
                     let cancel = Arc::new(AtomicBool::new(false));

@@ -1,14 +1,17 @@
-//! Trace-driven streaming simulator: a clock-driven client over a network model, using the
-//! `stream` core, with the metrics of TileSplat Table 4 (CHR, TGQ, WD) and Table 5.
+//! Trace-driven streaming simulation: the real client over a simulated transport (bandwidth from
+//! a trace, RTT, overheads), camera traces, session logs and their summaries.
 
-pub mod client;
 pub mod eyenav;
 pub mod network;
 pub mod score;
+pub mod session;
 pub mod split;
 pub mod stream_city;
+pub mod summary;
 pub mod svg;
 pub mod trace;
+pub mod transport;
 
-pub use client::{NetModel, SimConfig, SimResult, run_session};
+pub use session::{SessionLog, SessionOptions, run_session};
 pub use trace::Trace;
+pub use transport::{NetModel, SimTransport};

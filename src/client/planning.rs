@@ -1,0 +1,245 @@
+//! Planning glue: one streaming step (pose history, view set, replan, downloads, scene) and the
+//! replan that turns predicted views into prioritised wants through the deadline planner.
+
+use super::*;
+
+impl StreamClient {
+    pub(super) fn stream_step(&mut self, camera: &Camera, actions: &mut Vec<Action>) {
+        let n = self.info.len();
+        // 1. Pose history (tileset frame) for the predictor.
+        let pose = self.pose_of(camera);
+        if self.history.last().is_some_and(|p| p.t >= pose.t) {
+            self.history.pop();
+        }
+        self.history.push(pose);
+        self.first_view.get_or_insert(pose.t);
+        let keep_from = self.now - 10.0;
+        let drop = self.history.iter().take_while(|p| p.t < keep_from).count();
+        self.history.drain(..drop);
+        // 2. View set.
+        let (view, wants) = self.select(camera);
+        self.request_subtrees(&wants, actions);
+        self.subtree_wants = wants;
+        let changed = view != self.view;
+        self.view = view;
+        self.in_view = vec![false; n];
+        for &i in &self.view {
+            self.in_view[i] = true;
+        }
+        self.cache.touch(&self.view, self.now);
+        // 3. Plan: periodically, on a change of the view set, of the speed, or of the state.
+        let speed = self.speed();
+        let speed_jump = (speed - self.plan_speed).abs()
+            > self.cfg.replan_speed_change * self.plan_speed.max(0.05);
+        if self.dirty
+            || changed
+            || speed_jump
+            || self.now - self.last_plan >= self.cfg.replan_s
+            || self.view_tile_unwanted()
+        {
+            self.plan_speed = speed;
+            self.replan(camera, &pose);
+        }
+        // 4. Downloads (subtrees the predicted views need, then tiles).
+        let predicted_subtrees = std::mem::take(&mut self.predicted_subtrees);
+        self.request_subtrees(&predicted_subtrees, actions);
+        self.predicted_subtrees = predicted_subtrees;
+        self.schedule(actions);
+        // 5. Memory, then the scene.
+        self.make_room(0);
+        self.reconcile_scene();
+    }
+
+    /// Mean camera speed over the last 0.5 s of history (tileset-frame metres per second).
+    fn speed(&self) -> f64 {
+        let Some(now) = self.history.last() else {
+            return 0.0;
+        };
+        let start = self
+            .history
+            .iter()
+            .rev()
+            .find(|p| now.t - p.t >= 0.5)
+            .unwrap_or(&self.history[0]);
+        let dt = now.t - start.t;
+        if dt > 1e-9 {
+            now.pos.distance(start.pos) / dt
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether a usable tile of the view set is neither resident nor wanted by the last plan.
+    fn view_tile_unwanted(&self) -> bool {
+        let mut wanted = vec![false; self.info.len()];
+        for w in &self.wanted {
+            wanted[w.tile] = true;
+        }
+        self.view
+            .iter()
+            .any(|&i| !wanted[i] && self.cache.level(i).is_none() && self.usable(i))
+    }
+
+    /// Whether the App. C.5 fallback rule replaces the predictor now.
+    fn in_fallback(&self) -> bool {
+        self.first_view
+            .is_none_or(|t0| self.now - t0 + 1e-9 < self.cfg.fallback_s)
+    }
+
+    pub(super) fn usable(&self, i: usize) -> bool {
+        let s = &self.state[i];
+        !s.given_up && self.info[i].urls.iter().any(|u| u.is_some())
+    }
+
+    /// The usable level nearest to `want`: the best one not better than it, else the worst
+    /// usable one better than it.
+    pub(super) fn usable_level(&self, i: usize, want: Level) -> Option<Level> {
+        let urls = &self.info[i].urls;
+        (want.index()..LEVELS)
+            .find(|&j| urls[j].is_some())
+            .or_else(|| (0..want.index()).rev().find(|&j| urls[j].is_some()))
+            .map(Level::from_index)
+    }
+
+    pub(super) fn replan(&mut self, camera: &Camera, pose: &ViewPose) {
+        self.last_plan = self.now;
+        self.stats.plans += 1;
+        self.dirty = false;
+        self.predicted_subtrees.clear();
+        let fallback = self.in_fallback();
+        let predicted = if fallback || needs_fallback(self.predictor.as_ref(), &self.history) {
+            vec![]
+        } else {
+            self.predictor.predict(
+                &self.history,
+                self.cfg.predict_horizon_s,
+                self.cfg.predict_step_s,
+            )
+        };
+        let mut first = vec![f64::INFINITY; self.info.len()];
+        for &i in &self.view {
+            first[i] = 0.0;
+        }
+        for p in &predicted {
+            let cam = Camera {
+                world_from_camera: self.root_transform * p.world_from_camera(),
+                ..*camera
+            };
+            let dt = (p.t - self.now).max(0.0);
+            let (vis, wants) = self.select(&cam);
+            for i in vis {
+                first[i] = first[i].min(dt);
+            }
+            for k in wants {
+                if !self.predicted_subtrees.contains(&k) {
+                    self.predicted_subtrees.push(k);
+                }
+            }
+        }
+        let firsts: Vec<(usize, f64)> = first
+            .iter()
+            .enumerate()
+            .filter(|(i, t)| t.is_finite() && self.usable(*i))
+            .map(|(i, t)| (i, *t))
+            .collect();
+        let pinned: u64 = self
+            .cache
+            .resident()
+            .filter(|(i, _)| self.in_view[*i] || self.drawn[*i])
+            .map(|(_, e)| e.bytes)
+            .sum();
+        let budget = self
+            .cfg
+            .memory_budget_bytes
+            .saturating_sub(pinned)
+            .saturating_sub(self.partial_bytes());
+        let (cands, plan) = plan_visible(
+            &self.catalog,
+            pose.pos,
+            &firsts,
+            &self.cfg.plan,
+            self.bw.estimate(),
+            |i| self.cache.level(i),
+            budget,
+        );
+        let frustum = Frustum::new(pose, &self.cfg.plan.intrinsics);
+        let mut wanted: Vec<Want> = vec![];
+        let mut seen = HashSet::new();
+        for f in &plan.fetches {
+            let c = &cands[f.candidate];
+            let Some(level) = self.usable_level(c.tile, f.level) else {
+                continue;
+            };
+            if seen.insert(c.tile) {
+                wanted.push(self.want(c.tile, level, c.deadline, &frustum));
+            }
+        }
+        // Every tile of the view set is needed whatever the plan says.
+        for i in self.view.clone() {
+            if self.usable(i)
+                && self.cache.level(i).is_none()
+                && !seen.contains(&i)
+                && let Some(level) = self.usable_level(i, Level::Low)
+            {
+                seen.insert(i);
+                wanted.push(self.want(i, level, 0.0, &frustum));
+            }
+        }
+        // App. C.5 fallback: the tiles within the radius at Medium, nearest first, while the
+        // memory budget holds them.
+        if fallback && self.cfg.fallback_radius_m > 0.0 {
+            let mut room = budget;
+            let near = radius_tiles(&self.catalog, pose.pos, self.cfg.fallback_radius_m);
+            let n = near.len().max(1) as f64;
+            for (k, i) in near.into_iter().enumerate() {
+                if seen.contains(&i) || !self.usable(i) || self.cache.level(i).is_some() {
+                    continue;
+                }
+                let Some(level) = self.usable_level(i, Level::Medium) else {
+                    continue;
+                };
+                let bytes = self.catalog.tiles[i].variants[level.index()].bytes;
+                if bytes > room {
+                    break;
+                }
+                room -= bytes;
+                seen.insert(i);
+                let deadline = self.cfg.fallback_s * k as f64 / n;
+                wanted.push(self.want(i, level, deadline, &frustum));
+            }
+        }
+        // Tiles in view first, by priority; then prefetches in plan (deadline) order.
+        wanted.sort_by(|a, b| {
+            b.in_view.cmp(&a.in_view).then(if a.in_view {
+                b.priority.total_cmp(&a.priority)
+            } else {
+                std::cmp::Ordering::Equal
+            })
+        });
+        self.wanted = wanted;
+    }
+
+    pub(super) fn want(&self, tile: usize, level: Level, deadline: f64, f: &Frustum) -> Want {
+        let in_view = self.in_view[tile];
+        let t = &self.catalog.tiles[tile];
+        let priority = if in_view {
+            // SGSS eq. 10: P >= 1 is high priority; squash into 0.5..1.
+            let p = priority(f, &t.bbox, self.info[tile].splats.max(1));
+            let s = if p.is_finite() {
+                1.0 / (1.0 + (-(p - 1.0)).exp())
+            } else {
+                0.0
+            };
+            0.5 + 0.5 * s
+        } else {
+            let h = self.cfg.predict_horizon_s.max(1e-3);
+            0.49 * (-deadline.max(0.0) / h).exp()
+        };
+        Want {
+            tile,
+            level,
+            priority: priority as f32,
+            in_view,
+        }
+    }
+}

@@ -1,0 +1,518 @@
+//! Transfers: starting, pausing (keeping bytes) and resuming downloads with Range + If-Range,
+//! response handling, retries with backoff, and freeing memory for the budget.
+
+use super::*;
+
+impl StreamClient {
+    pub(super) fn pause(&mut self, tile: usize, actions: &mut Vec<Action>) {
+        let Some(d) = self.state[tile].download.as_mut() else {
+            return;
+        };
+        let Some(req) = d.req.take() else {
+            return;
+        };
+        self.requests.remove(&req);
+        actions.push(Action::Abort { id: req });
+        self.stats.aborts += 1;
+        if !d.resumable {
+            // No validator: bytes cannot be resumed safely.
+            self.drop_download(tile);
+        }
+    }
+
+    pub(super) fn drop_download(&mut self, tile: usize) {
+        if let Some(d) = self.state[tile].download.take() {
+            if let Some(r) = d.req {
+                self.requests.remove(&r);
+                self.pending_actions.push(Action::Abort { id: r });
+            }
+            if d.shown {
+                self.remove_object(d.id);
+            }
+        }
+    }
+
+    pub(super) fn schedule(&mut self, actions: &mut Vec<Action>) {
+        let wanted: HashMap<usize, Level> = self.wanted.iter().map(|w| (w.tile, w.level)).collect();
+        // Pause downloads no longer wanted (or wanted at another level).
+        for i in 0..self.state.len() {
+            let Some(d) = &self.state[i].download else {
+                continue;
+            };
+            if d.req.is_some() && wanted.get(&i) != Some(&d.level) {
+                self.pause(i, actions);
+            }
+        }
+        let wants = self.wanted.clone();
+        for w in wants {
+            let s = &self.state[w.tile];
+            if s.given_up || self.now < s.retry_at {
+                continue;
+            }
+            if self.cache.level(w.tile).is_some_and(|l| l <= w.level) {
+                continue;
+            }
+            if s.download.as_ref().is_some_and(|d| d.req.is_some()) {
+                continue;
+            }
+            if self.requests.len() >= self.cfg.max_concurrent {
+                if !w.in_view {
+                    break;
+                }
+                // Out-prioritised: pause the in-flight prefetch with the lowest priority.
+                let victim = self
+                    .wanted
+                    .iter()
+                    .filter(|v| !v.in_view)
+                    .filter(|v| {
+                        self.state[v.tile]
+                            .download
+                            .as_ref()
+                            .is_some_and(|d| d.req.is_some())
+                    })
+                    .min_by(|a, b| a.priority.total_cmp(&b.priority))
+                    .map(|v| v.tile);
+                match victim {
+                    Some(v) => self.pause(v, actions),
+                    None => break,
+                }
+            }
+            self.start(w, actions);
+        }
+    }
+
+    pub(super) fn start(&mut self, w: Want, actions: &mut Vec<Action>) {
+        let Some(url) = self.info[w.tile].urls[w.level.index()].clone() else {
+            return;
+        };
+        if self.state[w.tile]
+            .download
+            .as_ref()
+            .is_some_and(|d| d.level != w.level)
+        {
+            self.drop_download(w.tile);
+        }
+        let id = self.new_request(ReqKind::Content(w.tile));
+        let progressive = self.progressive[w.level.index()];
+        let fresh_scene = self.next_scene;
+        let st = &mut self.state[w.tile];
+        let d = st.download.get_or_insert_with(|| Download {
+            level: w.level,
+            id: fresh_scene,
+            req: None,
+            bytes: vec![],
+            etag: None,
+            total: None,
+            stream: progressive.then(PrefixStream::new),
+            shown: false,
+            resumable: false,
+        });
+        if d.id == fresh_scene {
+            self.next_scene += 1;
+        }
+        d.req = Some(id);
+        let resume = !d.bytes.is_empty() && d.etag.is_some();
+        if !resume {
+            d.bytes.clear();
+            d.stream = progressive.then(PrefixStream::new);
+        } else {
+            self.stats.resumes += 1;
+        }
+        actions.push(Action::Fetch(FetchRequest {
+            id,
+            url,
+            range_start: if resume { d.bytes.len() as u64 } else { 0 },
+            if_range: if resume { d.etag.clone() } else { None },
+            priority: w.priority,
+        }));
+    }
+
+    /// The response head of a request: status, `ETag`, the start of `Content-Range` (206) and
+    /// the full length of the resource when known.
+    pub fn on_response(
+        &mut self,
+        id: RequestId,
+        status: u16,
+        etag: Option<&str>,
+        content_range_start: Option<u64>,
+        total_len: Option<u64>,
+    ) {
+        let Some(req) = self.requests.get_mut(&id) else {
+            return;
+        };
+        req.responded = true;
+        let kind = req.kind;
+        let ok = status == 200 || (status == 206 && content_range_start.unwrap_or(0) == 0);
+        match kind {
+            ReqKind::Tileset | ReqKind::Subtree(_) => {
+                if !ok {
+                    self.requests.remove(&id);
+                    self.pending_actions.push(Action::Abort { id });
+                    self.boot_failed(kind, format!("HTTP {status}"));
+                }
+            }
+            ReqKind::Content(tile) => {
+                let Some(d) = self.state[tile].download.as_mut() else {
+                    return;
+                };
+                match status {
+                    200 => {
+                        if !d.bytes.is_empty() {
+                            // Validator changed (or no range support): restart cleanly.
+                            self.stats.restarts += 1;
+                            d.bytes.clear();
+                            d.stream = d.stream.as_ref().map(|_| PrefixStream::new());
+                            if d.shown {
+                                d.shown = false;
+                                let old = d.id;
+                                d.id = self.next_scene;
+                                self.next_scene += 1;
+                                self.remove_object(old);
+                            }
+                        }
+                        let d = self.state[tile].download.as_mut().expect("checked above");
+                        d.total = total_len;
+                        d.etag = etag.map(str::to_string);
+                        d.resumable = d.etag.is_some();
+                    }
+                    206 if content_range_start == Some(d.bytes.len() as u64) => {
+                        d.total = total_len;
+                        if let Some(e) = etag {
+                            d.etag = Some(e.to_string());
+                        }
+                    }
+                    _ => {
+                        let url = self.info[tile].urls[d.level.index()].clone();
+                        let msg = format!(
+                            "HTTP {status} for {}{}",
+                            url.unwrap_or_default(),
+                            if status == 206 {
+                                " (Content-Range does not start where asked)"
+                            } else {
+                                ""
+                            }
+                        );
+                        self.requests.remove(&id);
+                        self.pending_actions.push(Action::Abort { id });
+                        if let Some(d) = self.state[tile].download.as_mut() {
+                            d.req = None;
+                        }
+                        self.content_failed(tile, msg, true);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The next chunk of a response body (chunks arrive in order).
+    pub fn on_data(&mut self, id: RequestId, chunk: &[u8], now_s: f64) {
+        self.advance(now_s);
+        let Some(req) = self.requests.get_mut(&id) else {
+            return;
+        };
+        self.stats.bytes_received += chunk.len() as u64;
+        self.bw.record(chunk.len() as f64, 0.0);
+        match req.kind {
+            ReqKind::Tileset | ReqKind::Subtree(_) => {
+                if req.body.len() + chunk.len() > MAX_BOOTSTRAP_BYTES {
+                    let kind = req.kind;
+                    self.requests.remove(&id);
+                    self.pending_actions.push(Action::Abort { id });
+                    self.boot_failed(kind, "body too large".into());
+                } else {
+                    req.body.extend_from_slice(chunk);
+                }
+            }
+            ReqKind::Content(tile) => self.content_data(id, tile, chunk),
+        }
+    }
+
+    pub(super) fn content_data(&mut self, id: RequestId, tile: usize, chunk: &[u8]) {
+        let Some(d) = self.state[tile].download.as_mut() else {
+            return;
+        };
+        if d.req != Some(id) {
+            return;
+        }
+        d.bytes.extend_from_slice(chunk);
+        if let Some(total) = d.total
+            && d.bytes.len() as u64 > total
+        {
+            let msg = format!("tile {:?}: body longer than announced", self.info[tile].key);
+            self.abort_failed(tile, id, msg);
+            return;
+        }
+        let pushed = d.stream.as_mut().map(|s| s.push(chunk));
+        match pushed {
+            Some(Err(e)) => {
+                let msg = format!("tile {:?}: bad glb: {e}", self.info[tile].key);
+                self.abort_failed(tile, id, msg);
+                return;
+            }
+            Some(Ok(new)) if !new.is_empty() => {
+                if d.shown {
+                    let sid = d.id;
+                    *self.scene_splats.entry(sid).or_default() += new.len() as u64;
+                    self.updates.push(SceneUpdate::Append {
+                        tile: sid,
+                        splats: new,
+                    });
+                } else if self.in_view[tile] && self.cache.level(tile).is_none() {
+                    self.show_partial(tile);
+                }
+            }
+            _ => {}
+        }
+        if self.held_bytes() > self.cfg.memory_budget_bytes && !self.make_room(0) {
+            self.stats.rejected += 1;
+            let msg = format!(
+                "tile {:?}: memory budget exceeded while downloading",
+                self.info[tile].key
+            );
+            self.requests.remove(&id);
+            self.pending_actions.push(Action::Abort { id });
+            self.drop_download(tile);
+            self.retry_later(tile, msg);
+        }
+    }
+
+    /// Memory could not hold a tile: retry after a replan period (not a failure).
+    pub(super) fn retry_later(&mut self, tile: usize, msg: String) {
+        if self.stats.last_errors.len() >= KEPT_ERRORS {
+            self.stats.last_errors.remove(0);
+        }
+        self.stats.last_errors.push(msg);
+        self.state[tile].retry_at = self.now + self.cfg.replan_s.max(0.1);
+        self.dirty = true;
+    }
+
+    pub(super) fn abort_failed(&mut self, tile: usize, id: RequestId, msg: String) {
+        self.requests.remove(&id);
+        self.pending_actions.push(Action::Abort { id });
+        if let Some(d) = self.state[tile].download.as_mut() {
+            d.req = None;
+        }
+        self.content_failed(tile, msg, true);
+    }
+
+    /// A content download failed: error, bytes dropped, retry with backoff.
+    pub(super) fn content_failed(&mut self, tile: usize, msg: String, count_error: bool) {
+        self.drop_download(tile);
+        self.backoff(tile, msg, count_error);
+    }
+
+    pub(super) fn backoff(&mut self, tile: usize, msg: String, count_error: bool) {
+        if count_error {
+            self.error(msg);
+        }
+        let s = &mut self.state[tile];
+        s.failures += 1;
+        if s.failures > self.cfg.max_retries {
+            s.given_up = true;
+        } else {
+            s.retry_at = self.now + self.cfg.retry_base_s * f64::powi(2.0, s.failures as i32 - 1);
+        }
+        self.dirty = true;
+    }
+
+    /// The body of a request is complete.
+    pub fn on_done(&mut self, id: RequestId, now_s: f64) {
+        self.advance(now_s);
+        let Some(req) = self.requests.remove(&id) else {
+            return;
+        };
+        match req.kind {
+            ReqKind::Tileset => match parse_tileset_json(&req.body) {
+                Ok(root) => self.init_root(root),
+                Err(e) => self.boot_failed(ReqKind::Tileset, format!("bad tileset.json: {e}")),
+            },
+            ReqKind::Subtree(k) => {
+                let Some(root) = self.root.as_ref() else {
+                    return;
+                };
+                match parse_subtree_tiles(root, k, &req.body) {
+                    Ok(p) => self.subtree_loaded(k, p),
+                    Err(e) => self.subtree_failed(k, format!("bad subtree: {e}")),
+                }
+            }
+            ReqKind::Content(tile) => self.content_done(id, tile),
+        }
+    }
+
+    pub(super) fn content_done(&mut self, id: RequestId, tile: usize) {
+        let Some(d) = self.state[tile].download.as_mut() else {
+            return;
+        };
+        if d.req != Some(id) {
+            return;
+        }
+        d.req = None;
+        let key = self.info[tile].key;
+        if let Some(total) = d.total
+            && (d.bytes.len() as u64) < total
+        {
+            let msg = format!(
+                "tile {key:?}: truncated body ({} of {total} bytes)",
+                d.bytes.len()
+            );
+            if d.resumable {
+                // Keep the bytes: the retry resumes with a Range request.
+                self.backoff(tile, msg, true);
+            } else {
+                self.content_failed(tile, msg, true);
+            }
+            return;
+        }
+        // Check the content decodes (progressive: every splat arrived).
+        let check = match &d.stream {
+            Some(s) if s.is_complete() => Ok(()),
+            Some(s) => Err(format!(
+                "truncated or malformed tile ({} of {:?} splats)",
+                s.decoded(),
+                s.total()
+            )),
+            None => crate::variants::decode_variant(&d.bytes)
+                .map(|_| ())
+                .map_err(|e| e.to_string()),
+        };
+        if let Err(e) = check {
+            self.content_failed(tile, format!("tile {key:?}: {e}"), true);
+            return;
+        }
+        let Some(d) = self.state[tile].download.take() else {
+            return;
+        };
+        let bytes = d.bytes.len() as u64;
+        let visible: Vec<bool> = (0..self.info.len())
+            .map(|i| self.in_view[i] || self.drawn[i])
+            .collect();
+        // Room for the tile among the other partial downloads.
+        self.cache.config.capacity_bytes = self
+            .cfg
+            .memory_budget_bytes
+            .saturating_sub(self.partial_bytes());
+        let pos = self.history.last().map_or(DVec3::ZERO, |p| p.pos);
+        let ctx = EvictContext {
+            catalog: &self.catalog,
+            pos,
+            now: self.now,
+            visible: &visible,
+        };
+        let res = self.cache.insert(tile, d.level, bytes, &ctx);
+        self.dirty = true;
+        match res {
+            Inserted::Stored(victims) => {
+                for v in victims {
+                    self.state[v].content = None;
+                    if let Some((sid, _)) = self.state[v].shown.take() {
+                        self.remove_object(sid);
+                    }
+                }
+                let st = &mut self.state[tile];
+                st.content = Some(d.bytes);
+                st.failures = 0;
+                if d.shown {
+                    let old = st.shown.replace((d.id, d.level));
+                    if let Some((sid, _)) = old {
+                        self.remove_object(sid);
+                    }
+                }
+            }
+            Inserted::Kept => {
+                if d.shown {
+                    self.remove_object(d.id);
+                }
+            }
+            Inserted::Rejected => {
+                if d.shown {
+                    self.remove_object(d.id);
+                }
+                self.stats.rejected += 1;
+                self.retry_later(tile, format!("tile {key:?}: memory budget"));
+            }
+        }
+    }
+
+    /// The request failed in transport (connection reset, timeout, CORS...).
+    pub fn on_error(&mut self, id: RequestId, message: &str, now_s: f64) {
+        self.advance(now_s);
+        let Some(req) = self.requests.remove(&id) else {
+            return;
+        };
+        match req.kind {
+            ReqKind::Tileset | ReqKind::Subtree(_) => self.boot_failed(req.kind, message.into()),
+            ReqKind::Content(tile) => {
+                let key = self.info[tile].key;
+                let Some(d) = self.state[tile].download.as_mut() else {
+                    return;
+                };
+                if d.req != Some(id) {
+                    return;
+                }
+                d.req = None;
+                let msg = format!("tile {key:?}: {message}");
+                if d.resumable {
+                    self.backoff(tile, msg, true);
+                } else {
+                    self.content_failed(tile, msg, true);
+                }
+            }
+        }
+    }
+
+    /// Frees held bytes until `need` more fit the budget: paused downloads first (largest
+    /// first), then resident tiles neither drawn nor in view (farthest first, no resident
+    /// descendant). Returns whether they fit.
+    pub(super) fn make_room(&mut self, need: u64) -> bool {
+        let budget = self.cfg.memory_budget_bytes;
+        while self.held_bytes() + need > budget {
+            let paused = (0..self.state.len())
+                .filter(|&i| {
+                    self.state[i]
+                        .download
+                        .as_ref()
+                        .is_some_and(|d| d.req.is_none() && !d.bytes.is_empty())
+                })
+                .max_by_key(|&i| self.state[i].download.as_ref().map_or(0, |d| d.bytes.len()));
+            if let Some(i) = paused {
+                self.drop_download(i);
+                continue;
+            }
+            let pos = self.history.last().map_or(DVec3::ZERO, |p| p.pos);
+            let victim = self
+                .cache
+                .resident()
+                .map(|(i, _)| i)
+                .filter(|&i| !self.in_view[i] && !self.drawn[i])
+                .filter(|&i| !self.has_resident_descendant(i))
+                .max_by(|&a, &b| {
+                    let da = self.catalog.tiles[a].bbox.distance(pos);
+                    let db = self.catalog.tiles[b].bbox.distance(pos);
+                    da.total_cmp(&db)
+                });
+            match victim {
+                Some(v) => {
+                    self.cache.remove(&self.catalog, v);
+                    self.cache.evictions += 1;
+                    self.state[v].content = None;
+                    if let Some((sid, _)) = self.state[v].shown.take() {
+                        self.remove_object(sid);
+                    }
+                }
+                None => return false,
+            }
+        }
+        true
+    }
+
+    pub(super) fn has_resident_descendant(&self, tile: usize) -> bool {
+        let mut stack = self.catalog.tiles[tile].children.clone();
+        while let Some(c) = stack.pop() {
+            if self.cache.level(c).is_some() {
+                return true;
+            }
+            stack.extend(self.catalog.tiles[c].children.iter().copied());
+        }
+        false
+    }
+}
