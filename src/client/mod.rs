@@ -302,6 +302,8 @@ struct TileState {
     /// Drawable of the complete content: scene id and level.
     shown: Option<(u64, Level)>,
     failures: u32,
+    /// Downloads refused by the memory budget since the tile was last stored.
+    refusals: u32,
     retry_at: f64,
     given_up: bool,
 }
