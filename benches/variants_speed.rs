@@ -2,7 +2,8 @@
 //! same input: generated SH3 trainer PLYs of 1M and 5M splats, release CLI binary, one process
 //! per conversion. Inputs and outputs live under `target/tmp-big/` and are deleted afterwards.
 //!
-//! Run: `cargo bench --bench variants_speed` (`VARIANTS_SPEED_SIZES=1000000` to pick sizes).
+//! Run: `cargo bench --bench variants_speed` (`VARIANTS_SPEED_SIZES=1000000` to pick sizes,
+//! `VARIANTS_SPEED_RUNS=3` for the runs per size, `VARIANTS_SPEED_KEEP=1` to keep the inputs).
 
 mod common;
 use common::{generate_sh3_ply, release_binary};
@@ -30,6 +31,14 @@ fn convert(bin: &Path, input: &Path, out: &Path, extra: &[&str]) -> (f64, u64, f
     )
 }
 
+/// The 1-minute load average (`/proc/loadavg`), or NaN where it cannot be read.
+fn load_average() -> f64 {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().and_then(|v| v.parse().ok()))
+        .unwrap_or(f64::NAN)
+}
+
 fn main() {
     let bin = release_binary();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -40,23 +49,39 @@ fn main() {
         .split(',')
         .map(|s| s.trim().parse().unwrap())
         .collect();
+    let runs: usize = std::env::var("VARIANTS_SPEED_RUNS")
+        .ok()
+        .and_then(|s| s.trim().parse().ok())
+        .unwrap_or(3)
+        .max(1);
+    let keep = std::env::var_os("VARIANTS_SPEED_KEEP").is_some();
     println!(
-        "| splats | content tiles | Best only s | all variants s | ratio | all, no utility s | output MB (all) |"
+        "| run | splats | content tiles | Best only s | all variants s | ratio | all, no utility s | output MB (all) | load average (1 min) before / after |"
     );
-    println!("|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---|");
     for n in sizes {
         let input = dir.join(format!("generated_{n}_sh3.ply"));
-        generate_sh3_ply(&input, n);
+        if !input.exists() {
+            generate_sh3_ply(&input, n);
+        }
         let out = dir.join("out");
-        let (best, tiles, _) = convert(&bin, &input, &out, &[]);
-        let (all, _, bytes) = convert(&bin, &input, &out, &["--variants", "all"]);
-        let (no_u, _, _) = convert(&bin, &input, &out, &["--variants", "all", "--no-utility"]);
-        std::fs::remove_file(&input).unwrap();
-        println!(
-            "| {n} | {tiles} | {best:.2} | {all:.2} | {:.2} | {no_u:.2} | {:.0} |",
-            all / best,
-            bytes / 1e6
-        );
+        for run in 1..=runs {
+            let before = load_average();
+            let (best, tiles, _) = convert(&bin, &input, &out, &[]);
+            let (all, _, bytes) = convert(&bin, &input, &out, &["--variants", "all"]);
+            let (no_u, _, _) = convert(&bin, &input, &out, &["--variants", "all", "--no-utility"]);
+            println!(
+                "| {run} | {n} | {tiles} | {best:.2} | {all:.2} | {:.2} | {no_u:.2} | {:.0} | {before:.2} / {:.2} |",
+                all / best,
+                bytes / 1e6,
+                load_average()
+            );
+        }
+        if !keep {
+            std::fs::remove_file(&input).unwrap();
+        }
     }
-    let _ = std::fs::remove_dir(&dir);
+    if !keep {
+        let _ = std::fs::remove_dir(&dir);
+    }
 }
