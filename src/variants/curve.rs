@@ -111,21 +111,20 @@ fn frame() -> f64 {
 /// What one candidate splat differs from the reference splat by, independent of the distance.
 #[derive(Clone, Copy)]
 struct Diff {
-    /// View-averaged squared colour difference, per channel.
-    colour: f64,
-    /// Squared opacity difference.
-    opacity: f64,
-    /// Squared centre displacement.
+    /// Weighted colour and opacity terms (view-averaged squared colour difference per channel,
+    /// squared opacity difference): independent of the distance.
+    fixed: f64,
+    /// Weighted squared centre displacement (over the on-screen variance at a distance).
     position: f64,
     /// Scale differences per axis.
     scale: [f64; 3],
-    /// Rotation angle, radians.
-    angle: f64,
+    /// Weighted squared rotation angle (times the squared anisotropy at a distance).
+    rotation: f64,
 }
 
 /// The sums of every candidate against `reference` (tile-relative Best, viewed with `up`;
 /// candidates in [`super::ALL`] order, `None` where not written) at [`CURVE_DISTANCES`], with
-/// the same per-splat arithmetic as [`super::estimate::features`], so that a grid distance
+/// the per-splat quantities of [`super::estimate::features`] (summed in another order), so that a grid distance
 /// gives its estimate. `None` when the reference has no splats.
 pub fn loss_curve(
     reference: &Splats,
@@ -154,16 +153,15 @@ pub fn loss_curve(
         .filter_map(|(v, c)| c.filter(|c| c.len() == n).map(|c| (v, c)))
         .collect();
     let g = grid.len();
-    // acc[(candidate * g + grid) * 5 + feature], coverage per grid distance.
-    let mut acc = vec![0.0f64; compared.len() * g * 5];
+    // acc[candidate * g + grid]: the weighted sums; coverage per grid distance.
+    let mut acc = vec![0.0f64; compared.len() * g];
     let mut coverage = vec![0.0f64; g];
     let mut diffs = vec![
         Diff {
-            colour: 0.0,
-            opacity: 0.0,
+            fixed: 0.0,
             position: 0.0,
             scale: [0.0; 3],
-            angle: 0.0,
+            rotation: 0.0,
         };
         compared.len()
     ];
@@ -196,18 +194,20 @@ pub fn loss_curve(
             let dp =
                 DVec3::from_array(reference.positions[i]) - DVec3::from_array(cand.positions[i]);
             let sc = cand.scales[i].map(|v| (v as f64).abs());
+            let angle = quat(reference.rotations[i]).angle_between(quat(cand.rotations[i]));
             *diff = Diff {
-                colour: c2,
-                opacity: da * da,
-                position: dp.length_squared(),
+                fixed: WEIGHTS[0] * (c2 * inv_4pi / 3.0) + WEIGHTS[1] * (da * da),
+                position: WEIGHTS[2] * dp.length_squared(),
                 scale: [0, 1, 2].map(|a| s[a] - sc[a]),
-                angle: quat(reference.rotations[i]).angle_between(quat(cand.rotations[i])),
+                rotation: WEIGHTS[4] * angle * angle,
             };
         }
+        // Adding the same dilation to every axis keeps their order: sort once per splat.
+        let mut sorted_s2 = s.map(|v| v * v);
+        sorted_s2.sort_by(f64::total_cmp);
         for (j, &(pixel, dilation, window)) in grid.iter().enumerate() {
             let var = s.map(|v| v * v + dilation);
-            let mut sorted = var;
-            sorted.sort_by(f64::total_cmp);
+            let sorted = sorted_s2.map(|v| v + dilation);
             let area =
                 2.0 * std::f64::consts::PI * (sorted[1] * sorted[2]).sqrt() / (pixel * pixel);
             let w = alpha * area.min(window);
@@ -217,31 +217,24 @@ pub fn loss_curve(
             coverage[j] += w;
             let mean_var = (var[0] + var[1] + var[2]) / 3.0;
             let aniso = (sorted[2].sqrt() - sorted[0].sqrt()) / sorted[2].sqrt();
+            let aniso2 = aniso * aniso;
             for (c, diff) in diffs.iter().enumerate() {
-                let a = &mut acc[(c * g + j) * 5..(c * g + j) * 5 + 5];
-                a[0] += w * diff.colour * inv_4pi / 3.0;
-                a[1] += w * diff.opacity;
-                a[2] += w * diff.position / mean_var;
+                // The features' weighted sum (`predicted_loss` before normalisation).
+                let mut sum = diff.fixed + diff.position / mean_var + diff.rotation * aniso2;
                 if WEIGHTS[3] != 0.0 {
                     let mut ds = 0.0;
                     for (d, v) in diff.scale.iter().zip(var) {
                         ds += d * d / v;
                     }
-                    a[3] += w * ds / 3.0;
+                    sum += WEIGHTS[3] * ds / 3.0;
                 }
-                a[4] += w * (diff.angle * aniso).powi(2);
+                acc[c * g + j] += w * sum;
             }
         }
     }
     let mut weighted: [Option<Vec<f64>>; 4] = Default::default();
     for (c, &(v, _)) in compared.iter().enumerate() {
-        let sums = (0..g)
-            .map(|j| {
-                let f = &acc[(c * g + j) * 5..(c * g + j) * 5 + 5];
-                f.iter().zip(&WEIGHTS).map(|(a, w)| w * a).sum()
-            })
-            .collect();
-        weighted[v] = Some(sums);
+        weighted[v] = Some(acc[c * g..(c + 1) * g].to_vec());
     }
     Some(LossCurve {
         lo,

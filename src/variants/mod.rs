@@ -19,7 +19,9 @@ use crate::encode::gltf::EXT_MESHOPT_COMPRESSION;
 use crate::encode::meshopt::{
     HIGH, MEDIUM, decompress_meshopt_glb, write_meshopt_glb, write_meshopt_glb_and_plain,
 };
-use crate::encode::spz2::{SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb};
+use crate::encode::spz2::{
+    SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
+};
 use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
 use crate::splat::Splats;
 use crate::tiling::load::{
@@ -104,9 +106,12 @@ impl Variant {
         let level = match self {
             Variant::High => &HIGH,
             Variant::Medium => &MEDIUM,
-            Variant::Best | Variant::Low => {
+            Variant::Low => {
+                return write_spz2_glb_and_decoded(splats, centre, node_matrix, &LOW_SPZ);
+            }
+            Variant::Best => {
                 let glb = self.encode(splats, centre, node_matrix)?;
-                let decoded = decode_variant(&glb)?.0;
+                let decoded = read_tile_glb(&glb)?.splats;
                 return Ok((glb, decoded));
             }
         };
