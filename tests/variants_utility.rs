@@ -12,6 +12,7 @@ use splat2tiles::render::{Camera, Image, render_splats, ssim};
 use splat2tiles::splat::Splats;
 use splat2tiles::splat::sh::SH_C0;
 use splat2tiles::tiling::load::load_tileset;
+use splat2tiles::variants::curve::loss_curve;
 use splat2tiles::variants::estimate::{estimated_utilities, features};
 use splat2tiles::variants::utility::{BACKGROUND, ViewSetup, render_options, scores};
 use splat2tiles::variants::{Variant, VariantOptions, content_uri, decode_variant, up_in_source};
@@ -233,9 +234,9 @@ fn correlation_table() {
         "scene,level,key,splats,error,radius,variant,bytes,utility,full_ssim,win_ssim_true,win_rmse_true,estimate,f_colour,f_opacity,f_position,f_scale,f_rotation\n",
     );
     let mut table = String::from(
-        "| scene | tiles | Spearman (utility vs 1280x720 SSIM) | tiles in order (utility) | tiles in order (1280x720 SSIM) | Spearman (estimate vs 1280x720 SSIM) | tiles in order (estimate) | median error / radius | B/splat per 0.01 utility: High->Best, Medium->High, Low->Medium |\n|---|---:|---:|---:|---:|---:|---:|---:|---|\n",
+        "| scene | tiles | Spearman (utility vs 1280x720 SSIM) | tiles in order (utility) | tiles in order (1280x720 SSIM) | Spearman (estimate vs 1280x720 SSIM) | tiles in order (estimate) | Spearman (stored estimate, interpolated, vs 1280x720 SSIM) | tiles in order (interpolated) | median error / radius | B/splat per 0.01 utility: High->Best, Medium->High, Low->Medium |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
     );
-    let (mut all_u, mut all_s, mut all_e) = (vec![], vec![], vec![]);
+    let (mut all_u, mut all_s, mut all_e, mut all_c) = (vec![], vec![], vec![], vec![]);
     let mut failures: Vec<String> = vec![];
     let (mut all_tiles, mut all_in_order) = (0, 0);
     let mut all_ratios: Vec<f64> = vec![];
@@ -260,6 +261,7 @@ fn correlation_table() {
             .collect();
         let (mut us, mut ss, mut es, mut ratios) = (vec![], vec![], vec![], vec![]);
         let (mut in_order_u, mut in_order_s, mut in_order_e, mut tiles) = (0, 0, 0, 0);
+        let (mut cs, mut in_order_c) = (vec![], 0);
         let mut steps = [(0.0, 0.0); 3];
         for t in ts.tiles.iter().filter(|t| t.content.is_some()) {
             let decoded: Vec<(Splats, [f64; 16])> = ALL
@@ -303,6 +305,17 @@ fn correlation_table() {
                 .collect();
             es.extend(&est);
             in_order_e += est.windows(2).all(|w| w[0] >= w[1]) as usize;
+            // What `convert` stores by default: the estimate interpolated from the writer's
+            // curve over viewing distances (`variants::curve`).
+            let curve = loss_curve(
+                best,
+                setup.up,
+                &[None, Some(cands[0]), Some(cands[1]), Some(cands[2])],
+            )
+            .unwrap();
+            let interp: Vec<f64> = (1..4).map(|i| curve.utility(i, error).unwrap()).collect();
+            cs.extend(&interp);
+            in_order_c += interp.windows(2).all(|w| w[0] >= w[1]) as usize;
             let win = scores(best, &cands, &setup.windows());
             let (count, bytes, util) = meta[&t.key];
             let mut full4 = vec![1.0];
@@ -348,7 +361,14 @@ fn correlation_table() {
         ratios.sort_by(f64::total_cmp);
         let rho = spearman(&us, &ss);
         let rho_e = spearman(&es, &ss);
+        let rho_c = spearman(&cs, &ss);
         all_e.extend(&es);
+        all_c.extend(&cs);
+        if rho_c < 0.9 {
+            failures.push(format!(
+                "{name}: interpolated estimate's Spearman {rho_c:.3} < 0.9"
+            ));
+        }
         if rho < 0.9 {
             failures.push(format!("{name}: Spearman {rho:.3} < 0.9"));
         }
@@ -365,7 +385,7 @@ fn correlation_table() {
         };
         writeln!(
             table,
-            "| {name} | {tiles} | {rho:.3} | {in_order_u} / {tiles} | {in_order_s} / {tiles} | {rho_e:.3} | {in_order_e} / {tiles} | {:.3} | {}, {}, {} |",
+            "| {name} | {tiles} | {rho:.3} | {in_order_u} / {tiles} | {in_order_s} / {tiles} | {rho_e:.3} | {in_order_e} / {tiles} | {rho_c:.3} | {in_order_c} / {tiles} | {:.3} | {}, {}, {} |",
             ratios.get(ratios.len() / 2).copied().unwrap_or(f64::NAN),
             per_point(0),
             per_point(1),
@@ -375,10 +395,11 @@ fn correlation_table() {
     }
     let rho = spearman(&all_u, &all_s);
     let rho_e = spearman(&all_e, &all_s);
+    let rho_c = spearman(&all_c, &all_s);
     all_ratios.sort_by(f64::total_cmp);
     writeln!(
         table,
-        "| all | {all_tiles} | {rho:.3} | {all_in_order} / {all_tiles} | | {rho_e:.3} | | {:.3} | |",
+        "| all | {all_tiles} | {rho:.3} | {all_in_order} / {all_tiles} | | {rho_e:.3} | | {rho_c:.3} | | {:.3} | |",
         all_ratios.get(all_ratios.len() / 2).copied().unwrap_or(f64::NAN),
     )
     .unwrap();

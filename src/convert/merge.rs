@@ -243,18 +243,20 @@ pub fn merge_parts(
     if opts.variants.deferred_utility() {
         // The parts measured their tiles; left: the tiles above them and unit roots that are
         // leaves (viewed at their parent's error, known only now).
-        let tiles: Vec<(TileKey, f64)> = tree
+        let tiles: Vec<_> = tree
             .iter()
             .filter(|(k, t)| {
-                t.facts.is_some()
-                    && (top_keys.contains(k)
-                        || (t.is_leaf && unit_roots.iter().any(|(u, _)| u == *k)))
+                top_keys.contains(k) || (t.is_leaf && unit_roots.iter().any(|(u, _)| u == *k))
             })
-            .map(|(k, _)| (*k, view_error(&tree, *k)))
+            .filter_map(|(k, t)| {
+                let curve = t.facts.as_ref()?.utility_curve.as_ref();
+                Some((*k, view_error(&tree, *k), curve))
+            })
             .collect();
         let us = crate::variants::measure::measure_utilities(&dir, scheme, &tiles, &opts.variants)
             .map_err(|e| relocate(e.into()))?;
-        for ((k, _), u) in tiles.iter().zip(us) {
+        let keys: Vec<TileKey> = tiles.iter().map(|t| t.0).collect();
+        for (k, u) in keys.iter().zip(us) {
             if let Some(f) = tree.get_mut(k).and_then(|t| t.facts.as_mut()) {
                 f.variant_utility = u;
             }

@@ -19,6 +19,7 @@ use super::{Budget, ConvertError, SPACING_SAMPLES, SPILL_DIR, default_radius, io
 use crate::output::Staging;
 use crate::tiling::TileKey;
 use crate::variants::ContentFacts;
+use crate::variants::curve::{CURVE_DISTANCES, LossCurve};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -116,6 +117,61 @@ pub(super) struct TileRec {
     pub(super) variant_bytes: [u32; 4],
     pub(super) variant_utility: [F; 4],
     pub(super) bytes: u64,
+    /// The writer's estimated-utility curve (`variants::curve`), for the tiles the merge
+    /// measures; absent where none was made (the merge then reads the tile back).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(super) utility_curve: Option<CurveRec>,
+}
+
+/// A [`LossCurve`] stored exactly.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub(super) struct CurveRec {
+    lo: [F; 3],
+    hi: [F; 3],
+    up: [F; 3],
+    coverage: Vec<F>,
+    weighted: [Option<Vec<F>>; 4],
+}
+
+impl CurveRec {
+    fn new(c: &LossCurve) -> Self {
+        let f = |v: [f64; 3]| v.map(F);
+        CurveRec {
+            lo: f(c.lo),
+            hi: f(c.hi),
+            up: f(c.up),
+            coverage: c.coverage.iter().copied().map(F).collect(),
+            weighted: c
+                .weighted
+                .clone()
+                .map(|l| l.map(|l| l.into_iter().map(F).collect())),
+        }
+    }
+
+    /// The curve; `None` when its grid is not this build's (the tile is then read back).
+    fn curve(&self) -> Option<LossCurve> {
+        let f = |v: [F; 3]| v.map(|x| x.0);
+        if self.coverage.len() != CURVE_DISTANCES.len() {
+            return None;
+        }
+        let mut weighted: [Option<Vec<f64>>; 4] = Default::default();
+        for (out, l) in weighted.iter_mut().zip(&self.weighted) {
+            if let Some(l) = l {
+                if l.len() != CURVE_DISTANCES.len() {
+                    return None;
+                }
+                *out = Some(l.iter().map(|x| x.0).collect());
+            }
+        }
+        Some(LossCurve {
+            lo: f(self.lo),
+            hi: f(self.hi),
+            up: f(self.up),
+            coverage: self.coverage.iter().map(|x| x.0).collect(),
+            weighted,
+        })
+    }
 }
 
 impl TileRec {
@@ -129,6 +185,7 @@ impl TileRec {
             variant_bytes: f.variant_bytes,
             variant_utility: f.variant_utility.map(|u| F(u as f64)),
             bytes: f.bytes,
+            utility_curve: f.utility_curve.as_ref().map(CurveRec::new),
         }
     }
 
@@ -140,6 +197,7 @@ impl TileRec {
             variant_utility: self.variant_utility.map(|u| u.0 as f32),
             encode_seconds: [0.0; 4],
             bytes: self.bytes,
+            utility_curve: self.utility_curve.as_ref().and_then(CurveRec::curve),
         }
     }
 
@@ -387,20 +445,17 @@ pub fn convert_part(
     // measures it).
     if opts.variants.deferred_utility() {
         finish_tree(&mut tree);
-        let tiles: Vec<(TileKey, f64)> = leaf_recs
+        let tiles: Vec<(TileKey, f64, Option<LossCurve>)> = leaf_recs
             .iter()
             .chain(&parent_recs)
-            .map(|t| key_of(t.key))
-            .filter(|k| !(unit_set.contains(k) && tree[k].is_leaf))
-            .map(|k| (k, view_error(&tree, k)))
+            .map(|t| (key_of(t.key), t.utility_curve.as_ref()))
+            .filter(|(k, _)| !(unit_set.contains(k) && tree[k].is_leaf))
+            .map(|(k, c)| (k, view_error(&tree, k), c.and_then(CurveRec::curve)))
             .collect();
-        let us = crate::variants::measure::measure_utilities(
-            &dir,
-            layout.scheme,
-            &tiles,
-            &opts.variants,
-        )
-        .map_err(|e| relocate(e.into()))?;
+        let refs: Vec<_> = tiles.iter().map(|(k, e, c)| (*k, *e, c.as_ref())).collect();
+        let us =
+            crate::variants::measure::measure_utilities(&dir, layout.scheme, &refs, &opts.variants)
+                .map_err(|e| relocate(e.into()))?;
         let by_key: HashMap<TileKey, [f32; 4]> = tiles.iter().map(|t| t.0).zip(us).collect();
         for t in leaf_recs.iter_mut().chain(parent_recs.iter_mut()) {
             if let Some(u) = by_key.get(&key_of(t.key)) {

@@ -119,10 +119,15 @@ pub(super) fn measure_utilities(
         return Ok(());
     }
     check_interrupt()?;
-    let tiles: Vec<(TileKey, f64)> = tree
+    let tiles: Vec<_> = tree
         .iter()
-        .filter(|(_, t)| t.facts.is_some())
-        .map(|(k, _)| (*k, view_error(tree, *k)))
+        .filter_map(|(k, t)| {
+            Some((
+                *k,
+                view_error(tree, *k),
+                t.facts.as_ref()?.utility_curve.as_ref(),
+            ))
+        })
         .collect();
     let us = variants::measure::measure_utilities(dir, scheme, &tiles, opts)?;
     let by_key: HashMap<TileKey, [f32; 4]> = tiles.iter().map(|t| t.0).zip(us).collect();

@@ -13,8 +13,8 @@ use super::gltf::{
     KHR_GAUSSIAN_SPLATTING, TARGET_ARRAY_BUFFER,
 };
 use super::tile::{
-    ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, check_writable, columns,
-    sh_attribute, splat_document,
+    ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, check_writable,
+    color_bytes, sh_attribute, splat_document,
 };
 use crate::splat::Splats;
 #[cfg(feature = "native")]
@@ -99,15 +99,17 @@ fn spec(semantic: String, kind: AccessorType, component: ComponentType, offset: 
 
 #[cfg(feature = "native")]
 fn words<const N: usize>(v: &[[u32; N]]) -> Vec<u8> {
-    v.iter().flatten().flat_map(|w| w.to_le_bytes()).collect()
+    let mut out = Vec::with_capacity(v.len() * N * 4);
+    for w in v.iter().flatten() {
+        out.extend_from_slice(&w.to_le_bytes());
+    }
+    out
 }
 
 #[cfg(feature = "native")]
-/// Encodes floats with the EXPONENTIAL filter; returns the filtered bytes and decoded values.
-fn exp3(v: &[[f32; 3]], bits: i32, mode: EncodeExpMode) -> (Vec<u8>, Vec<f32>) {
-    let enc = meshopt::encode_filter_exp::<3>(v, bits, mode);
-    let bytes = words(&enc);
-    (bytes.clone(), unfilter_exp(bytes))
+/// Encodes floats with the EXPONENTIAL filter; returns the filtered bytes.
+fn exp3(v: &[[f32; 3]], bits: i32, mode: EncodeExpMode) -> Vec<u8> {
+    words(&meshopt::encode_filter_exp::<3>(v, bits, mode))
 }
 
 #[cfg(feature = "native")]
@@ -198,27 +200,27 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
         .iter()
         .map(|p| [0, 1, 2].map(|a| (p[a] - centre[a]) as f32))
         .collect();
-    let (pos_bytes, pos_dec) = exp3(&rel, level.position_bits, EncodeExpMode::SharedVector);
+    let pos_bytes = exp3(&rel, level.position_bits, EncodeExpMode::SharedVector);
+    let pos_dec = unfilter_exp(pos_bytes.clone());
     let mut pos = spec(ATTR_POSITION.into(), Vec3, F32, 0);
     pos.min_max = Some(min_max3(&pos_dec));
 
     let quats = meshopt::encode_filter_quat(&splats.rotations, level.rotation_bits);
-    let rot_bytes: Vec<u8> = quats
-        .iter()
-        .flatten()
-        .flat_map(|v| v.to_le_bytes())
-        .collect();
+    let mut rot_bytes = Vec::with_capacity(quats.len() * 8);
+    for v in quats.iter().flatten() {
+        rot_bytes.extend_from_slice(&v.to_le_bytes());
+    }
     let mut rot = spec(ATTR_ROTATION.into(), Vec4, I16, 0);
     rot.normalized = true;
 
-    let (scale_bytes, _) = exp3(&splats.scales, level.scale_bits, EncodeExpMode::Separate);
+    let scale_bytes = exp3(&splats.scales, level.scale_bits, EncodeExpMode::Separate);
     let op: Vec<[f32; 1]> = splats.opacities.iter().map(|&a| [a]).collect();
     let op_bytes = words(&meshopt::encode_filter_exp::<1>(
         &op,
         level.opacity_bits,
         EncodeExpMode::Separate,
     ));
-    let (sh0_bytes, _) = exp3(&splats.sh0, level.sh0_bits, EncodeExpMode::SharedVector);
+    let sh0_bytes = exp3(&splats.sh0, level.sh0_bits, EncodeExpMode::SharedVector);
 
     let mut out = vec![
         Stream {
@@ -259,7 +261,7 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
         let kept: Vec<[f32; 3]> = (0..n)
             .flat_map(|i| splats.sh_rest[i * k_in..i * k_in + k].iter().copied())
             .collect();
-        let (bytes, _) = exp3(&kept, level.sh_rest_bits, EncodeExpMode::SharedVector);
+        let bytes = exp3(&kept, level.sh_rest_bits, EncodeExpMode::SharedVector);
         let mut accs = vec![];
         for l in 1..=degree {
             for c in 0..=2 * l {
@@ -274,14 +276,10 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
             accessors: accs,
         });
     }
-    let color = columns(splats, centre)
-        .into_iter()
-        .find(|c| c.semantic == ATTR_COLOR_0)
-        .expect("columns always hold COLOR_0");
     let mut c = spec(ATTR_COLOR_0.into(), Vec4, U8, 0);
     c.normalized = true;
     out.push(Stream {
-        data: color.data,
+        data: color_bytes(splats),
         stride: 4,
         filter: "NONE",
         accessors: vec![c],
@@ -303,6 +301,17 @@ pub fn write_meshopt_glb(
     ))
 }
 
+/// Without the native codecs meshopt tiles cannot be written.
+#[cfg(not(feature = "native"))]
+pub fn write_meshopt_glb_and_plain(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    level: &MeshoptLevel,
+) -> Result<(Vec<u8>, Vec<u8>), GlbError> {
+    write_meshopt_glb(splats, centre, node_matrix, level).map(|g| (g, vec![]))
+}
+
 /// Writes a splat tile compressed with `EXT_meshopt_compression` (required; the uncompressed
 /// layout lives in a fallback buffer without data) at the bit depths of `level`.
 #[cfg(feature = "native")]
@@ -312,6 +321,31 @@ pub fn write_meshopt_glb(
     node_matrix: [f64; 16],
     level: &MeshoptLevel,
 ) -> Result<Vec<u8>, GlbError> {
+    Ok(encode_meshopt(splats, centre, node_matrix, level)?.0)
+}
+
+/// [`write_meshopt_glb`] and what [`decompress_meshopt_glb`] makes of it, without running the
+/// (lossless) vertex codec's decoder: the filtered streams are unfiltered where they were made.
+#[cfg(feature = "native")]
+pub fn write_meshopt_glb_and_plain(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    level: &MeshoptLevel,
+) -> Result<(Vec<u8>, Vec<u8>), GlbError> {
+    let (glb, filtered) = encode_meshopt(splats, centre, node_matrix, level)?;
+    let plain = decompress_with(&glb, Some(filtered))?;
+    Ok((glb, plain))
+}
+
+/// The meshopt glb and each compressed bufferView's filtered bytes (before the vertex codec).
+#[cfg(feature = "native")]
+fn encode_meshopt(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    level: &MeshoptLevel,
+) -> Result<(Vec<u8>, Vec<Vec<u8>>), GlbError> {
     check_writable(splats, centre)?;
     let n = splats.len();
     let mut bin = Vec::new();
@@ -319,6 +353,7 @@ pub fn write_meshopt_glb(
     let mut accessors = Vec::new();
     let mut attributes = BTreeMap::new();
     let mut fallback_len = 0u64;
+    let mut filtered = Vec::new();
     for (vi, s) in streams(splats, centre, level).into_iter().enumerate() {
         let compressed = encode_attributes(&s.data, s.stride);
         bin.resize(bin.len().next_multiple_of(4), 0);
@@ -357,6 +392,7 @@ pub fn write_meshopt_glb(
                 name: None,
             });
         }
+        filtered.push(s.data);
     }
     bin.resize(bin.len().next_multiple_of(4), 0);
     let mut fallback = Map::new();
@@ -385,13 +421,19 @@ pub fn write_meshopt_glb(
         ],
         vec![EXT_MESHOPT_COMPRESSION.into()],
     );
-    write_gltf_glb(&doc, Some(&bin))
+    Ok((write_gltf_glb(&doc, Some(&bin))?, filtered))
 }
 
 /// Reference decoder: turns an `EXT_meshopt_compression` glb into a plain glb (every compressed
 /// bufferView decoded and unfiltered into one BIN chunk) that [`super::read_tile_glb`] reads.
 /// A glb without the extension is returned unchanged.
 pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
+    decompress_with(bytes, None)
+}
+
+/// [`decompress_meshopt_glb`]; with `filtered`, bufferView `i`'s compressed stream is taken as
+/// decoded to `filtered[i]` (what its encoder compressed) instead of being decoded.
+fn decompress_with(bytes: &[u8], mut filtered: Option<Vec<Vec<u8>>>) -> Result<Vec<u8>, GlbError> {
     let chunks = read_glb(bytes)?;
     let mut doc: Gltf = parse_json(&chunks)?;
     if !doc
@@ -439,8 +481,16 @@ pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
                         "count * byteStride is implausible",
                     ));
                 }
-                let mut data = decode_attributes(src, count as usize, stride as usize)
-                    .ok_or_else(|| GlbError::invalid(&path, NO_DECODE))?;
+                let known = filtered
+                    .as_mut()
+                    .and_then(|f| f.get_mut(i))
+                    .map(std::mem::take)
+                    .filter(|d| d.len() as u64 == count * stride);
+                let mut data = match known {
+                    Some(d) => d,
+                    None => decode_attributes(src, count as usize, stride as usize)
+                        .ok_or_else(|| GlbError::invalid(&path, NO_DECODE))?,
+                };
                 let filter = ext.get("filter").and_then(Value::as_str).unwrap_or("NONE");
                 if !filter_in_place(&mut data, stride as usize, filter) {
                     return Err(GlbError::invalid(

@@ -156,18 +156,31 @@ pub fn write_spz2_glb(
     node_matrix: [f64; 16],
     opts: &SpzOptions,
 ) -> Result<Vec<u8>, GlbError> {
+    Ok(write_spz2_glb_and_decoded(splats, centre, node_matrix, opts)?.0)
+}
+
+/// [`write_spz2_glb`] and the splats its payload decodes to (what [`read_spz2_glb`] reads),
+/// decoded from the payload before it is gzipped.
+pub fn write_spz2_glb_and_decoded(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    opts: &SpzOptions,
+) -> Result<(Vec<u8>, Splats), GlbError> {
     check_writable(splats, centre)?;
     let n = splats.len();
     let raw = encode_spz_v2_raw(splats, centre, opts);
+    // The uncompressed SPZ v2 stream reads as the gzipped one does (same bytes, no inflate).
+    let decoded = crate::io::read_bytes("tile.spz", &raw)
+        .map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))?
+        .splats;
     let payload = gzip(&raw);
+    drop(raw);
     if payload.len() as u64 > u32::MAX as u64 {
         return Err(GlbError::TooLarge {
             bytes: payload.len() as u64,
         });
     }
-    let decoded = crate::io::read_bytes("tile.spz", &payload)
-        .map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))?
-        .splats;
     let (lo, hi) = decoded.bounds().expect("at least one splat");
     let degree = decoded.sh_degree;
     let mut accessors = vec![];
@@ -221,7 +234,7 @@ pub fn write_spz2_glb(
         exts.clone(),
         exts,
     );
-    write_gltf_glb(&doc, Some(&bin))
+    Ok((write_gltf_glb(&doc, Some(&bin))?, decoded))
 }
 
 /// The SPZ payload of a `KHR_gaussian_splatting_compression_spz_2` glb, if it is one.
@@ -326,6 +339,23 @@ mod tests {
             },
         );
         assert_eq!(low.len(), 16 + 50 * (19 + 9));
+    }
+
+    #[test]
+    fn the_decoded_splats_are_the_readers() {
+        let s = scene();
+        let opts = SpzOptions {
+            max_sh_degree: 1,
+            ..SpzOptions::default()
+        };
+        let (glb, decoded) =
+            write_spz2_glb_and_decoded(&s, [10.0, 0.0, 2.0], IDENTITY, &opts).unwrap();
+        let (read, _) = read_spz2_glb(&glb).unwrap();
+        assert_eq!(decoded, read);
+        assert_eq!(
+            glb,
+            write_spz2_glb(&s, [10.0, 0.0, 2.0], IDENTITY, &opts).unwrap()
+        );
     }
 
     #[test]

@@ -163,7 +163,21 @@ pub(crate) fn columns(splats: &Splats, centre: [f64; 3]) -> Vec<Column> {
             ));
         }
     }
-    let mut color = Vec::with_capacity(n * 4);
+    cols.push(Column {
+        semantic: ATTR_COLOR_0.into(),
+        kind: AccessorType::Vec4,
+        component: ComponentType::U8,
+        normalized: true,
+        data: color_bytes(splats),
+        min_max: None,
+    });
+    cols
+}
+
+/// The `COLOR_0` column's bytes (linear DC colour and opacity as unorm8 RGBA), on its own for
+/// the encoders that quantise every other column themselves (meshopt).
+pub(crate) fn color_bytes(splats: &Splats) -> Vec<u8> {
+    let mut color = Vec::with_capacity(splats.len() * 4);
     for (sh0, &a) in splats.sh0.iter().zip(&splats.opacities) {
         let c = dc_color(*sh0).map(srgb_to_linear);
         color.extend_from_slice(&[
@@ -173,15 +187,7 @@ pub(crate) fn columns(splats: &Splats, centre: [f64; 3]) -> Vec<Column> {
             round_unorm8(a),
         ]);
     }
-    cols.push(Column {
-        semantic: ATTR_COLOR_0.into(),
-        kind: AccessorType::Vec4,
-        component: ComponentType::U8,
-        normalized: true,
-        data: color,
-        min_max: None,
-    });
-    cols
+    color
 }
 
 /// Lays the columns out one bufferView each; returns the views, accessors and buffer bytes.

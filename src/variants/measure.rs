@@ -5,6 +5,7 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
+use super::curve::LossCurve;
 use super::utility::{ViewSetup, utilities};
 use super::{ALL, ContentError, Variant, VariantOptions, content_uri, decode_variant, estimate};
 use crate::splat::Splats;
@@ -27,13 +28,15 @@ fn read_variant(
 }
 
 /// The utility of each variant of one tile (in [`ALL`] order; 1 for Best, -1 for a variant not
-/// written), its variants read from `dir` and viewed at geometric error `error` (the tile's own,
-/// a leaf's parent's; not positive: unknown).
+/// written), viewed at geometric error `error` (the tile's own, a leaf's parent's; not
+/// positive: unknown): estimated from `curve` when the writer made one (and utilities are not
+/// rendered), else from its variants read back from `dir`.
 pub fn tile_utilities(
     dir: &Path,
     scheme: Scheme,
     key: TileKey,
     error: f64,
+    curve: Option<&LossCurve>,
     opts: &VariantOptions,
 ) -> Result<[f32; 4], ContentError> {
     let mut out = [-1.0f32; 4];
@@ -44,6 +47,13 @@ pub fn tile_utilities(
         .filter(|v| *v != Variant::Best && written.contains(v))
         .collect();
     if others.is_empty() {
+        return Ok(out);
+    }
+    if let Some(curve) = curve.filter(|_| !opts.utility_renders) {
+        for v in others {
+            // Not compared: not the same splats as Best, as `estimated_utilities` scores it.
+            out[v.index()] = curve.utility(v.index(), error).unwrap_or(0.0) as f32;
+        }
         return Ok(out);
     }
     let (best, node) = read_variant(dir, scheme, key, Variant::Best)?;
@@ -63,15 +73,15 @@ pub fn tile_utilities(
     Ok(out)
 }
 
-/// [`tile_utilities`] of every `(key, error)` in `tiles` (in parallel), in that order.
+/// [`tile_utilities`] of every `(key, error, curve)` in `tiles` (in parallel), in that order.
 pub fn measure_utilities(
     dir: &Path,
     scheme: Scheme,
-    tiles: &[(TileKey, f64)],
+    tiles: &[(TileKey, f64, Option<&LossCurve>)],
     opts: &VariantOptions,
 ) -> Result<Vec<[f32; 4]>, ContentError> {
     tiles
         .par_iter()
-        .map(|&(key, error)| tile_utilities(dir, scheme, key, error, opts))
+        .map(|&(key, error, curve)| tile_utilities(dir, scheme, key, error, curve, opts))
         .collect()
 }

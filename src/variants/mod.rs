@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use glam::{DMat3, DMat4, DVec3};
 
+pub mod curve;
 pub mod estimate;
 pub mod measure;
 pub mod utility;
@@ -15,8 +16,12 @@ pub use utility::utilities;
 
 use crate::encode::GlbError;
 use crate::encode::gltf::EXT_MESHOPT_COMPRESSION;
-use crate::encode::meshopt::{HIGH, MEDIUM, decompress_meshopt_glb, write_meshopt_glb};
-use crate::encode::spz2::{SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb};
+use crate::encode::meshopt::{
+    HIGH, MEDIUM, decompress_meshopt_glb, write_meshopt_glb, write_meshopt_glb_and_plain,
+};
+use crate::encode::spz2::{
+    SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
+};
 use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
 use crate::splat::Splats;
 use crate::tiling::load::{
@@ -88,6 +93,31 @@ impl Variant {
             Variant::Medium => write_meshopt_glb(splats, centre, node_matrix, &MEDIUM),
             Variant::Low => write_spz2_glb(splats, centre, node_matrix, &LOW_SPZ),
         }
+    }
+
+    /// [`Self::encode`] and the tile-relative splats a reader decodes from the glb
+    /// ([`decode_variant`]), the meshopt ones without decoding the vertex codec.
+    pub fn encode_decoded(
+        self,
+        splats: &Splats,
+        centre: [f64; 3],
+        node_matrix: [f64; 16],
+    ) -> Result<(Vec<u8>, Splats), GlbError> {
+        let level = match self {
+            Variant::High => &HIGH,
+            Variant::Medium => &MEDIUM,
+            Variant::Low => {
+                return write_spz2_glb_and_decoded(splats, centre, node_matrix, &LOW_SPZ);
+            }
+            Variant::Best => {
+                let glb = self.encode(splats, centre, node_matrix)?;
+                let decoded = read_tile_glb(&glb)?.splats;
+                return Ok((glb, decoded));
+            }
+        };
+        let (glb, plain) = write_meshopt_glb_and_plain(splats, centre, node_matrix, level)?;
+        let decoded = read_tile_glb(&plain)?.splats;
+        Ok((glb, decoded))
     }
 }
 
@@ -168,6 +198,9 @@ pub struct ContentFacts {
     pub encode_seconds: [f64; 4],
     /// Bytes of all files written for the tile.
     pub bytes: u64,
+    /// The estimated utilities' losses at a grid of viewing distances, when they are estimated
+    /// after the tree is built ([`curve::loss_curve`]; `None`: read the files back instead).
+    pub utility_curve: Option<curve::LossCurve>,
 }
 
 /// Why a tile's contents could not be written.
@@ -225,17 +258,26 @@ pub fn write_tile_contents(
         variant_utility: [-1.0; 4],
         encode_seconds: [0.0; 4],
         bytes: 0,
+        utility_curve: None,
     };
     let mut decoded: Vec<(Variant, Splats)> = vec![];
+    // Deferred estimates: every written variant decoded here, Best as the reference.
+    let curve = opts.deferred_utility() && !opts.utility_renders;
+    let mut written: [Option<Splats>; 4] = Default::default();
     for v in opts.written() {
         let t = Instant::now();
-        let glb =
-            v.encode(splats, centre_s, node_matrix)
-                .map_err(|source| ContentError::Encode {
-                    key,
-                    variant: v.name(),
-                    source,
-                })?;
+        let encoded = if curve {
+            v.encode_decoded(splats, centre_s, node_matrix)
+                .map(|(g, d)| (g, Some(d)))
+        } else {
+            v.encode(splats, centre_s, node_matrix).map(|g| (g, None))
+        };
+        let (glb, dec) = encoded.map_err(|source| ContentError::Encode {
+            key,
+            variant: v.name(),
+            source,
+        })?;
+        written[v.index()] = dec;
         facts.encode_seconds[v.index()] = t.elapsed().as_secs_f64();
         let path = dir.join(content_uri(scheme, key, v));
         if let Some(parent) = path.parent() {
@@ -260,6 +302,13 @@ pub fn write_tile_contents(
                 .0;
             decoded.push((v, s));
         }
+    }
+    if let Some(best) = written[Variant::Best.index()].take() {
+        let mut candidates: [Option<&Splats>; 4] = [None; 4];
+        for (c, w) in candidates.iter_mut().zip(&written).skip(1) {
+            *c = w.as_ref();
+        }
+        facts.utility_curve = curve::loss_curve(&best, up_in_source(node_matrix), &candidates);
     }
     if opts.measure_utility {
         facts.variant_utility[Variant::Best.index()] = 1.0;

@@ -61,12 +61,22 @@ impl ViewSetup {
     /// reference has no splats.
     pub fn around(reference: &Splats, up: DVec3, error: f64) -> Option<Self> {
         let (lo, hi) = reference.bounds()?;
-        let s = ViewSetup::estimated(DVec3::from_array(lo), DVec3::from_array(hi), up);
-        Some(if error > 0.0 && error.is_finite() {
+        Some(ViewSetup::from_box(
+            DVec3::from_array(lo),
+            DVec3::from_array(hi),
+            up,
+            error,
+        ))
+    }
+
+    /// [`Self::around`] a splat-centre box `lo..hi` known already.
+    pub fn from_box(lo: DVec3, hi: DVec3, up: DVec3, error: f64) -> Self {
+        let s = ViewSetup::estimated(lo, hi, up);
+        if error > 0.0 && error.is_finite() {
             ViewSetup { error, ..s }
         } else {
             s
-        })
+        }
     }
 
     /// Distance of the eye from the box centre: the switching distance (from the bounding
