@@ -282,7 +282,8 @@ fn a_speed_change_replans() {
     assert!(c.plans > b.plans, "no replan on the speed change");
 }
 
-/// A view that needs more than the memory budget: each refused tile is retried after a delay
+/// A view that needs more than the memory budget: a tile that cannot fit is not fetched, and each
+/// refused tile is retried after a delay
 /// that doubles per refusal (up to 8 replan periods), not every replan period (which re-downloaded
 /// the same tiles over and over: 2,235 downloads for 9 tiles held on the 50M city walk).
 #[test]

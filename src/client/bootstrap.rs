@@ -223,16 +223,9 @@ impl StreamClient {
                 };
                 urls[j] = url;
             }
-            let sphere = st.bounding_box.map(|b| {
-                let corners = crate::render::cli::box_corners(&b)
-                    .map(|c| self.root_transform.transform_point3(c));
-                let centre = corners.iter().copied().sum::<DVec3>() / 8.0;
-                let radius = corners
-                    .iter()
-                    .map(|c| c.distance(centre))
-                    .fold(0.0, f64::max);
-                (centre, radius)
-            });
+            let sphere = st
+                .bounding_box
+                .map(|b| crate::stream::select::box_sphere(&b, &self.root_transform));
             let me = self.catalog.tiles.len();
             let splats = st.splat_count.unwrap_or(0) as u64;
             self.catalog.tiles.push(CatalogTile {

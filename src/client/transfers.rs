@@ -95,6 +95,22 @@ impl StreamClient {
         {
             self.drop_download(w.tile);
         }
+        // A download that cannot fit the budget (its size is in the subtree's metadata) is not
+        // started: it would be refused on arrival and its bytes thrown away.
+        let size = self.catalog.tiles[w.tile].variants[w.level.index()].bytes;
+        let kept = self.state[w.tile]
+            .download
+            .as_ref()
+            .map_or(0, |d| d.bytes.len() as u64);
+        if size > 0 && !self.make_room(size.saturating_sub(kept)) {
+            self.stats.rejected += 1;
+            let msg = format!(
+                "tile {:?}: does not fit the memory budget, not fetched",
+                self.info[w.tile].key
+            );
+            self.retry_later(w.tile, msg);
+            return;
+        }
         let id = self.new_request(ReqKind::Content(w.tile));
         let progressive = self.progressive[w.level.index()];
         let fresh_scene = self.next_scene;

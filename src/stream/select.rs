@@ -19,8 +19,9 @@ pub trait CutTree {
 }
 
 /// The cut for `cam`: a tile is refined when `geometricError * fy / (distance to its sphere)`
-/// exceeds `max_sse`, it has children and `may_refine(i)` agrees (the client says no while the
-/// subtree files below it are unread); otherwise it is selected if it has content. With
+/// exceeds `max_sse`, `may_refine(i)` agrees (asked for every such tile, leaves included; the
+/// client says no while subtree files below it are unread) and it has children; otherwise it is
+/// selected if it has content. With
 /// `frustum_cull`, tiles whose sphere misses the camera's viewing pyramid are skipped. Tiles come
 /// out in depth-first order.
 pub fn select_cut(
@@ -46,7 +47,10 @@ pub fn select_cut(
         };
         let sse = tree.geometric_error(i) * cam.fy / distance;
         let kids = tree.children(i);
-        if sse > max_sse && !kids.is_empty() && may_refine(i) {
+        // Asked for every tile over the limit, leaves too (the client collects the unread
+        // subtree files below a leaf of the tiles it has read).
+        let refine = sse > max_sse && may_refine(i);
+        if refine && !kids.is_empty() {
             stack.extend(kids.iter().rev().copied());
         } else if tree.has_content(i) {
             out.push(i);
