@@ -1,0 +1,130 @@
+//! Issue 19's ordering check on a small generated city (`sim::stream_city`, the shared scenes of
+//! `../shared/scenes/README.md` as blocks): the real client over the simulated transport at
+//! 10 Mbit/s along synthetic street walks; cache hits over first-time entries into the needed cut
+//! (`sim::score`, from the whole tileset) must be clearly higher with the oracle than reactive.
+
+mod common;
+
+use splat2tiles::client::{ClientConfig, PredictorKind};
+use splat2tiles::render::Camera;
+use splat2tiles::sim::score::{Ratio, TickView, Truth, cache_hits};
+use splat2tiles::sim::session::{SessionOptions, run_session};
+use splat2tiles::sim::stream_city::{CitySpec, StreetGrid, build_city, street_walk};
+use splat2tiles::sim::transport::NetModel;
+use splat2tiles::stream::predict::Oracle;
+use splat2tiles::tiling::TileKey;
+
+fn chr(
+    truth: &Truth,
+    cfg: &ClientConfig,
+    dir: &std::path::Path,
+    oracle: bool,
+    grid: &StreetGrid,
+) -> Ratio {
+    let mut total = Ratio::default();
+    for seed in [17u64, 18, 19] {
+        let trace = street_walk(grid, seed, 40.0);
+        let opts = SessionOptions {
+            predictor: oracle.then(|| {
+                Box::new(Oracle {
+                    trace: trace.poses.clone(),
+                }) as Box<dyn splat2tiles::stream::predict::Predictor + Send>
+            }),
+            ..SessionOptions::default()
+        };
+        let log = run_session(
+            dir,
+            cfg.clone(),
+            &trace.poses,
+            &NetModel::constant(10.0, 0.04),
+            opts,
+        );
+        let root = truth.root_transform();
+        let needed: Vec<Vec<TileKey>> = log
+            .ticks
+            .iter()
+            .map(|t| {
+                let cam = Camera::from_pose(
+                    cfg.width,
+                    cfg.height,
+                    cfg.fov_y_deg,
+                    root * t.pose.world_from_camera(),
+                );
+                truth.needed(&cam, cfg.max_sse)
+            })
+            .collect();
+        let resident: Vec<Vec<TileKey>> = log
+            .ticks
+            .iter()
+            .map(|t| t.resident.iter().map(|r| r.0).collect())
+            .collect();
+        let views: Vec<TickView> = log
+            .ticks
+            .iter()
+            .zip(needed.iter().zip(&resident))
+            .map(|(t, (n, r))| TickView {
+                t: t.t,
+                needed: n,
+                resident: r,
+            })
+            .collect();
+        let c = cache_hits(&views);
+        total.hits += c.first.hits;
+        total.n += c.first.n;
+    }
+    total
+}
+
+#[test]
+fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
+    let scenes = common::scenes();
+    let tmp = tempfile::tempdir().unwrap();
+    let spec = CitySpec {
+        splats: 200_000,
+        stride: 16,
+        seed: 3,
+        max_splats_per_tile: 4096,
+    };
+    let city = build_city(&scenes, &tmp.path().join("city"), &spec, None).unwrap();
+    let truth = Truth::load(&city.dir.join("tileset.json")).unwrap();
+    let cfg = |p| ClientConfig {
+        max_concurrent: 4,
+        predictor: p,
+        memory_budget_bytes: 256 << 20,
+        width: 1280,
+        height: 720,
+        ..ClientConfig::default()
+    };
+    let reactive = chr(
+        &truth,
+        &cfg(PredictorKind::Reactive),
+        &city.dir,
+        false,
+        &city.grid,
+    );
+    let oracle = chr(
+        &truth,
+        &cfg(PredictorKind::Reactive),
+        &city.dir,
+        true,
+        &city.grid,
+    );
+    eprintln!(
+        "first-time entries: reactive {}/{} = {:?}, oracle {}/{} = {:?}",
+        reactive.hits,
+        reactive.n,
+        reactive.rate(),
+        oracle.hits,
+        oracle.n,
+        oracle.rate()
+    );
+    assert!(
+        reactive.n >= 20 && oracle.n >= 20,
+        "too few entries to compare"
+    );
+    let (r, o) = (reactive.rate().unwrap(), oracle.rate().unwrap());
+    assert!(
+        o >= r + 0.2,
+        "oracle {o:.3} not clearly above reactive {r:.3}"
+    );
+}
