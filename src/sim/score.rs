@@ -6,15 +6,15 @@
 //! - **needed cut**: [`crate::stream::select::select_cut`] over every available tile at the
 //!   camera's viewport (the client's own rule, given all subtrees).
 //! - **CHR**: a tile *enters* when it is in the needed cut and was not at the previous tick. An
-//!   entry is a hit when the client holds the tile (any variant) at that tick. Entries at the
-//!   first tick (empty cache), first-time entries and re-entries are counted apart.
+//!   entry is a hit when the client holds the tile (any variant) at that tick. Entries of the
+//!   first non-empty cut (the cold start), first-time entries and re-entries are counted apart.
 //! - **quality**: SSIM of the client's drawn tiles (the variants it holds, parents standing in
 //!   for missing children) against the needed cut at Best, rendered at a reduced viewport.
 //! - **events**: the first tick, and every tick where at least `new_fraction` of the needed cut
 //!   was never needed before (a new street) or the view turned by `turn_deg` within 1 s; events
 //!   closer than `min_gap_s` to the previous one are merged into it.
 //! - **TGQ**: seconds from an event to the first quality sample >= the threshold (0.90).
-//! - **WD**: content downloads completed for tiles never in a needed cut during the session.
+//! - **WD**: content downloads completed for tiles in no needed cut from the download's end on.
 
 use crate::render::{Camera, Image, RenderOptions, render, ssim};
 use crate::splat::Splats;
@@ -206,7 +206,7 @@ impl Ratio {
 /// Cache hits, counted apart by kind of entry.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Chr {
-    /// Entries at the first tick (empty cache).
+    /// Entries of the first non-empty cut (the cold start).
     pub initial: Ratio,
     /// First-time entries after the first tick: the CHR the papers mean.
     pub first: Ratio,
@@ -230,14 +230,15 @@ pub fn cache_hits(ticks: &[TickView]) -> Chr {
     let mut out = Chr::default();
     let mut ever: HashSet<TileKey> = HashSet::new();
     let mut prev: HashSet<TileKey> = HashSet::new();
-    for (k, tick) in ticks.iter().enumerate() {
+    let mut started = false;
+    for tick in ticks {
         let held: HashSet<TileKey> = tick.resident.iter().copied().collect();
         let now: HashSet<TileKey> = tick.needed.iter().copied().collect();
         for key in &now {
             if prev.contains(key) {
                 continue;
             }
-            let r = if k == 0 {
+            let r = if !started {
                 &mut out.initial
             } else if ever.contains(key) {
                 &mut out.reentry
@@ -247,6 +248,7 @@ pub fn cache_hits(ticks: &[TickView]) -> Chr {
             r.n += 1;
             r.hits += held.contains(key) as u64;
         }
+        started |= !now.is_empty();
         ever.extend(now.iter().copied());
         prev = now;
     }
@@ -334,17 +336,20 @@ pub struct Waste {
     pub wasted_bytes: u64,
 }
 
-/// WD over completed downloads `(tile, bytes)` given every tile needed during the session.
-pub fn wasted(downloads: &[(TileKey, u64)], ticks: &[TickView]) -> Waste {
-    let needed: HashSet<TileKey> = ticks
-        .iter()
-        .flat_map(|t| t.needed.iter().copied())
-        .collect();
+/// WD over completed downloads `(tile, bytes, end time)`: wasted when the tile is in no needed
+/// cut at or after the end.
+pub fn wasted(downloads: &[(TileKey, u64, f64)], ticks: &[TickView]) -> Waste {
+    let mut last: HashMap<TileKey, f64> = HashMap::new();
+    for t in ticks {
+        for k in t.needed {
+            last.insert(*k, t.t);
+        }
+    }
     let mut w = Waste::default();
-    for &(k, b) in downloads {
+    for &(k, b, end) in downloads {
         w.tiles += 1;
         w.bytes += b;
-        if !needed.contains(&k) {
+        if last.get(&k).is_none_or(|&t| t < end) {
             w.wasted_tiles += 1;
             w.wasted_bytes += b;
         }
@@ -437,17 +442,21 @@ mod tests {
     }
 
     #[test]
-    fn waste_counts_downloads_of_tiles_never_needed() {
+    fn waste_counts_downloads_of_tiles_not_needed_after_they_arrive() {
         let a = [key(0)];
         let ticks = [TickView {
             t: 0.0,
             needed: &a,
             resident: &[],
         }];
-        let w = wasted(&[(key(0), 100), (key(5), 40)], &ticks);
+        // key(5) is never needed; key(0) arrives after its last tick in view.
+        let w = wasted(
+            &[(key(0), 100, 0.0), (key(5), 40, 0.0), (key(0), 7, 1.0)],
+            &ticks,
+        );
         assert_eq!(
             (w.tiles, w.bytes, w.wasted_tiles, w.wasted_bytes),
-            (2, 140, 1, 40)
+            (3, 147, 2, 47)
         );
     }
 }

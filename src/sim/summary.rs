@@ -1,8 +1,7 @@
 //! Summaries of a [`SessionLog`]: cache hits over first-time view entries and wasted downloads,
 //! read from what the real client needed, held and fetched (the tables of `simulate`).
 
-use std::collections::{BTreeMap, BTreeSet};
-
+use super::score::{TickView, cache_hits, wasted};
 use super::session::SessionLog;
 use super::transport::Outcome;
 use crate::tiling::TileKey;
@@ -60,47 +59,44 @@ fn ratio(a: usize, b: usize) -> f64 {
     if b == 0 { 1.0 } else { a as f64 / b as f64 }
 }
 
-/// Summarises a session (see [`Summary`]).
+/// Summarises a session (see [`Summary`]) against the client's own view sets, with the rules of
+/// [`super::score`].
 pub fn summarize(log: &SessionLog) -> Summary {
-    let mut s = Summary::default();
-    let mut seen: BTreeSet<TileKey> = BTreeSet::new();
-    let mut prev: BTreeSet<TileKey> = BTreeSet::new();
-    let mut started = false;
-    // Last tick time each tile is in the view set.
-    let mut last_in_view: BTreeMap<TileKey, f64> = BTreeMap::new();
-    for tick in &log.ticks {
-        let resident: BTreeSet<TileKey> = tick.resident.iter().map(|r| r.0).collect();
-        let now: BTreeSet<TileKey> = tick.view_set.iter().copied().collect();
-        for k in &now {
-            last_in_view.insert(*k, tick.t);
-            if prev.contains(k) {
-                continue;
-            }
-            if !started {
-                s.first_view_tiles += 1;
-            } else if seen.contains(k) {
-                s.reentries += 1;
-                s.reentry_hits += resident.contains(k) as usize;
-            } else {
-                s.entries += 1;
-                s.hits += resident.contains(k) as usize;
-            }
-        }
-        started |= !now.is_empty();
-        seen.extend(now.iter().copied());
-        prev = now;
+    let resident: Vec<Vec<TileKey>> = log
+        .ticks
+        .iter()
+        .map(|t| t.resident.iter().map(|r| r.0).collect())
+        .collect();
+    let views: Vec<TickView> = log
+        .ticks
+        .iter()
+        .zip(&resident)
+        .map(|(t, r)| TickView {
+            t: t.t,
+            needed: &t.view_set,
+            resident: r,
+        })
+        .collect();
+    let c = cache_hits(&views);
+    let downloads: Vec<(TileKey, u64, f64)> = log
+        .requests
+        .iter()
+        .filter_map(|r| match (r.key, r.outcome, r.end_s) {
+            (Some(k), Outcome::Done, Some(end)) => Some((k, r.bytes, end)),
+            _ => None,
+        })
+        .collect();
+    let w = wasted(&downloads, &views);
+    Summary {
+        entries: c.first.n as usize,
+        hits: c.first.hits as usize,
+        first_view_tiles: c.initial.n as usize,
+        reentries: c.reentry.n as usize,
+        reentry_hits: c.reentry.hits as usize,
+        fetched: w.tiles as usize,
+        wasted: w.wasted_tiles as usize,
+        fetched_bytes: w.bytes,
+        wasted_bytes: w.wasted_bytes,
+        bytes_down: log.ticks.last().map_or(0, |t| t.bytes_down),
     }
-    for r in &log.requests {
-        let (Some(key), Outcome::Done, Some(end)) = (r.key, r.outcome, r.end_s) else {
-            continue;
-        };
-        s.fetched += 1;
-        s.fetched_bytes += r.bytes;
-        if last_in_view.get(&key).is_none_or(|&t| t < end) {
-            s.wasted += 1;
-            s.wasted_bytes += r.bytes;
-        }
-    }
-    s.bytes_down = log.ticks.last().map_or(0, |t| t.bytes_down);
-    s
 }
