@@ -92,6 +92,17 @@ fn run(cmd: &mut Command) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// The JSON object a harness script printed (panics with its output when there is none).
+fn json_of(o: &std::process::Output, what: &str) -> Value {
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    serde_json::from_str(&stdout).unwrap_or_else(|e| {
+        panic!(
+            "{what} printed no JSON ({e}):\n{stdout}\n{}",
+            String::from_utf8_lossy(&o.stderr)
+        )
+    })
+}
+
 fn u(v: &Value) -> u64 {
     v.as_u64()
         .unwrap_or_else(|| panic!("not an unsigned number: {v}"))
@@ -133,13 +144,7 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
         .args(["--width", &w.to_string(), "--height", &h.to_string()])
         .output()
         .expect("cannot run `node` (install Node >= 20)");
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let v: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| {
-        panic!(
-            "web_viewer.mjs printed no JSON ({e}):\n{stdout}\n{}",
-            String::from_utf8_lossy(&o.stderr)
-        )
-    });
+    let v = json_of(&o, "web_viewer.mjs");
     drop(viewing);
     assert!(o.status.success() && v["ok"] == true, "run failed: {v:#}");
     assert_eq!(
@@ -219,13 +224,7 @@ fn web_viewer_starts_requests_between_frames() {
         .output()
         .expect("cannot run `node` (install Node >= 20)");
     drop(viewing);
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let v: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| {
-        panic!(
-            "web_viewer.mjs printed no JSON ({e}):\n{stdout}\n{}",
-            String::from_utf8_lossy(&o.stderr)
-        )
-    });
+    let v = json_of(&o, "web_viewer.mjs");
     assert!(o.status.success() && v["ok"] == true, "run failed: {v:#}");
     let fin = &v["final"];
     let frames = u(&fin["frames"]);
@@ -295,13 +294,7 @@ fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
             .args(["--levels", level])
             .output()
             .expect("cannot run `node` (install Node >= 20)");
-        let stdout = String::from_utf8_lossy(&o.stdout);
-        let v: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| {
-            panic!(
-                "web_viewer.mjs printed no JSON ({e}):\n{stdout}\n{}",
-                String::from_utf8_lossy(&o.stderr)
-            )
-        });
+        let v = json_of(&o, "web_viewer.mjs");
         drop(viewing);
         assert!(
             o.status.success() && v["ok"] == true,
@@ -416,13 +409,7 @@ fn web_vs_reference(dir: &Path, how: &[&str], max_sse: f64, name: &str) -> (f64,
         .output()
         .expect("cannot run `node` (install Node >= 20)");
     drop(viewing);
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let v: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| {
-        panic!(
-            "{name}: web_viewer.mjs printed no JSON ({e}):\n{stdout}\n{}",
-            String::from_utf8_lossy(&o.stderr)
-        )
-    });
+    let v = json_of(&o, &format!("{name}: web_viewer.mjs"));
     assert!(
         o.status.success() && v["ok"] == true,
         "{name}: run failed: {v:#}"
@@ -550,13 +537,7 @@ fn web_viewer_walks_a_city_trace_within_its_budget() {
         .output()
         .expect("cannot run `node` (install Node >= 20)");
     drop(viewing);
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let v: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| {
-        panic!(
-            "city_walk.mjs printed no JSON ({e}):\n{stdout}\n{}",
-            String::from_utf8_lossy(&o.stderr)
-        )
-    });
+    let v = json_of(&o, "city_walk.mjs");
     assert!(o.status.success() && v["ok"] == true, "walk failed: {v:#}");
     assert_eq!(v["crashed"], false, "{v:#}");
     assert_eq!(

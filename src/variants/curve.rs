@@ -3,7 +3,7 @@
 
 use glam::{DQuat, DVec3};
 
-use super::estimate::WEIGHTS;
+use super::estimate::{WEIGHTS, colour_diff2};
 use super::utility::{MIN_WINDOW, ViewSetup};
 use crate::lod::eval::{VIEWER_HEIGHT, viewer_focal};
 use crate::render::camera::{DEFAULT_WIDTH, box_radius};
@@ -146,7 +146,6 @@ pub fn loss_curve(
         })
         .collect();
     let inv_4pi = 1.0 / (4.0 * std::f64::consts::PI);
-    let rest_ref = sh_rest_len(reference);
     let compared: Vec<(usize, &Splats)> = candidates
         .iter()
         .enumerate()
@@ -169,27 +168,7 @@ pub fn loss_curve(
         let s = reference.scales[i].map(|v| (v as f64).abs());
         let alpha = reference.opacities[i].clamp(0.0, 1.0) as f64;
         for (diff, (_, cand)) in diffs.iter_mut().zip(&compared) {
-            let rest_cand = sh_rest_len(cand);
-            let mut c2 = 0.0;
-            for ch in 0..3 {
-                let d = (reference.sh0[i][ch] - cand.sh0[i][ch]) as f64;
-                c2 += d * d;
-            }
-            for k in 0..rest_ref.max(rest_cand) {
-                for ch in 0..3 {
-                    let a = if k < rest_ref {
-                        reference.sh_rest[i * rest_ref + k][ch] as f64
-                    } else {
-                        0.0
-                    };
-                    let b = if k < rest_cand {
-                        cand.sh_rest[i * rest_cand + k][ch] as f64
-                    } else {
-                        0.0
-                    };
-                    c2 += (a - b) * (a - b);
-                }
-            }
+            let c2 = colour_diff2(reference, cand, i);
             let da = alpha - cand.opacities[i].clamp(0.0, 1.0) as f64;
             let dp =
                 DVec3::from_array(reference.positions[i]) - DVec3::from_array(cand.positions[i]);
@@ -256,11 +235,6 @@ fn window_side(r: f64, d: f64) -> u32 {
         u32::MAX
     };
     side.clamp(MIN_WINDOW, VIEWER_HEIGHT)
-}
-
-/// Higher SH triples per splat.
-fn sh_rest_len(s: &Splats) -> usize {
-    s.sh_rest.len() / s.len().max(1)
 }
 
 /// A normalised quaternion (identity for a degenerate one).

@@ -70,8 +70,6 @@ pub fn features(reference: &Splats, candidate: &Splats, setup: &ViewSetup) -> Op
     let side = setup.window_side() as f64;
     let window = side * side;
     let dilation = LOW_PASS * pixel * pixel;
-    let rest_ref = sh_rest_len(reference);
-    let rest_cand = sh_rest_len(candidate);
     let inv_4pi = 1.0 / (4.0 * std::f64::consts::PI);
     let mut acc = [0.0f64; 5];
     let mut coverage = 0.0f64;
@@ -92,26 +90,7 @@ pub fn features(reference: &Splats, candidate: &Splats, setup: &ViewSetup) -> Op
         coverage += w;
         // Colour: the mean over view directions of the squared colour difference (the SH
         // basis is orthonormal over the sphere), averaged over channels.
-        let mut c2 = 0.0;
-        for ch in 0..3 {
-            let d = (reference.sh0[i][ch] - candidate.sh0[i][ch]) as f64;
-            c2 += d * d;
-        }
-        for k in 0..rest_ref.max(rest_cand) {
-            for ch in 0..3 {
-                let a = if k < rest_ref {
-                    reference.sh_rest[i * rest_ref + k][ch] as f64
-                } else {
-                    0.0
-                };
-                let b = if k < rest_cand {
-                    candidate.sh_rest[i * rest_cand + k][ch] as f64
-                } else {
-                    0.0
-                };
-                c2 += (a - b) * (a - b);
-            }
-        }
+        let c2 = colour_diff2(reference, candidate, i);
         acc[0] += w * c2 * inv_4pi / 3.0;
         let da = alpha - candidate.opacities[i].clamp(0.0, 1.0) as f64;
         acc[1] += w * da * da;
@@ -142,6 +121,34 @@ pub fn features(reference: &Splats, candidate: &Splats, setup: &ViewSetup) -> Op
         scale: f[3],
         rotation: f[4],
     })
+}
+
+/// Squared colour difference of splat `i` between two versions of a tile, summed over the SH
+/// coefficients (missing bands count as zero) and channels: over the view sphere the SH basis is
+/// orthonormal, so this is the mean squared colour difference up to a constant.
+pub(super) fn colour_diff2(reference: &Splats, candidate: &Splats, i: usize) -> f64 {
+    let (rest_ref, rest_cand) = (sh_rest_len(reference), sh_rest_len(candidate));
+    let mut c2 = 0.0;
+    for ch in 0..3 {
+        let d = (reference.sh0[i][ch] - candidate.sh0[i][ch]) as f64;
+        c2 += d * d;
+    }
+    for k in 0..rest_ref.max(rest_cand) {
+        for ch in 0..3 {
+            let a = if k < rest_ref {
+                reference.sh_rest[i * rest_ref + k][ch] as f64
+            } else {
+                0.0
+            };
+            let b = if k < rest_cand {
+                candidate.sh_rest[i * rest_cand + k][ch] as f64
+            } else {
+                0.0
+            };
+            c2 += (a - b) * (a - b);
+        }
+    }
+    c2
 }
 
 /// Higher SH triples per splat.
