@@ -49,24 +49,7 @@ fn run() -> Result<(), String> {
     )?;
     let origin = Geodetic::parse(&origin)?;
     let c = build_city(&scenes, &out, &spec, Some(origin)).map_err(|e| e.to_string())?;
-    let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
-    println!(
-        "{}: {} splats, {}x{} blocks (24 m grid), {} content tiles; Best {:.1} MiB, High {:.1} \
-         MiB, Medium {:.1} MiB, Low {:.1} MiB, all files {:.1} MiB; generated in {:.1} s, \
-         converted in {:.1} s",
-        out.display(),
-        c.splats,
-        c.grid.side,
-        c.grid.side,
-        c.content_tiles,
-        mib(c.variant_bytes[0]),
-        mib(c.variant_bytes[1]),
-        mib(c.variant_bytes[2]),
-        mib(c.variant_bytes[3]),
-        mib(c.bytes),
-        c.generate_s,
-        c.convert_s
-    );
+    println!("{}: {}", out.display(), c.summary());
     Ok(())
 }
 

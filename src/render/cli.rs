@@ -304,12 +304,7 @@ pub fn select_tiles(
             .bounding_box
             .as_ref()
             .map(|b| {
-                let corners = box_corners(b).map(|c| ts.root_transform.transform_point3(c));
-                let centre = corners.iter().copied().sum::<DVec3>() / 8.0;
-                let radius = corners
-                    .iter()
-                    .map(|c| c.distance(centre))
-                    .fold(0.0, f64::max);
+                let (centre, radius) = crate::stream::select::box_sphere(b, &ts.root_transform);
                 (centre.distance(eye) - radius).max(1e-9)
             })
             .unwrap_or(1e-9);

@@ -104,6 +104,14 @@ pub struct StreetGrid {
 }
 
 impl StreetGrid {
+    /// The streets of the city `layout` makes of `sources`.
+    pub fn of(sources: &[Splats], layout: &CityLayout) -> StreetGrid {
+        StreetGrid {
+            spacing: layout.spacing,
+            side: grid_side(sources, layout),
+        }
+    }
+
     /// Position of intersection `(i, j)`, `0..=side` each.
     pub fn node(&self, i: usize, j: usize) -> DVec2 {
         DVec2::new(
@@ -157,6 +165,30 @@ pub struct BuiltCity {
     pub convert_s: f64,
 }
 
+impl BuiltCity {
+    /// One line: splats, blocks, content tiles, bytes per variant and in all, seconds.
+    pub fn summary(&self) -> String {
+        let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
+        format!(
+            "{} splats, {}x{} blocks ({} m grid), {} content tiles; Best {:.1} MiB, High {:.1} \
+             MiB, Medium {:.1} MiB, Low {:.1} MiB, all files {:.1} MiB; generated in {:.1} s, \
+             converted in {:.1} s",
+            self.splats,
+            self.grid.side,
+            self.grid.side,
+            self.grid.spacing,
+            self.content_tiles,
+            mib(self.variant_bytes[0]),
+            mib(self.variant_bytes[1]),
+            mib(self.variant_bytes[2]),
+            mib(self.variant_bytes[3]),
+            mib(self.bytes),
+            self.generate_s,
+            self.convert_s
+        )
+    }
+}
+
 /// Generates the city of `spec` from `scenes_dir` and converts it into `out` (must not exist as
 /// anything but an earlier conversion), georeferenced at `origin`, with all four variants.
 pub fn build_city(
@@ -168,10 +200,7 @@ pub fn build_city(
     let t = std::time::Instant::now();
     let sources = city_sources(scenes_dir, spec.stride)?;
     let layout = spec.layout();
-    let grid = StreetGrid {
-        spacing: layout.spacing,
-        side: grid_side(&sources, &layout),
-    };
+    let grid = StreetGrid::of(&sources, &layout);
     let splats = generate_city(&sources, &layout);
     let n = splats.len();
     let generate_s = t.elapsed().as_secs_f64();
