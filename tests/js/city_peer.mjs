@@ -17,7 +17,7 @@ import fs from 'node:fs';
 import http from 'node:http';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { launch, problems, parseArgs } from './interop_harness.mjs';
+import { finish, launch, problems, parseArgs } from './interop_harness.mjs';
 import { browserMemory, machineLoad } from './browser_memory.mjs';
 import { readTrace, placeTrace, cityFrame } from './trace_place.mjs';
 
@@ -225,5 +225,4 @@ try {
   await Promise.race([browser.close().catch(() => {}), new Promise((ok) => setTimeout(ok, 30000))]);
   server.close();
 }
-console.log(JSON.stringify(out, null, 1));
-process.exit(0);
+finish(out, 0);

@@ -13,7 +13,7 @@
 // (default: the lowest z of the root box). Exit 0 when the walk ran to its end (the caller judges
 // the numbers), 1 when it did not (crash, page error, no viewer), 2 on bad arguments.
 import fs from 'node:fs';
-import { launch, problems, parseArgs } from './interop_harness.mjs';
+import { finish, launch, problems, parseArgs } from './interop_harness.mjs';
 import { browserMemory, machineLoad } from './browser_memory.mjs';
 import { readTrace, placeTrace, pathLength, cityFrame } from './trace_place.mjs';
 
@@ -194,5 +194,4 @@ try {
   await browser.close().catch(() => {});
 }
 if (out.crashed) out.ok = false;
-console.log(JSON.stringify(out, null, 1));
-process.exit(out.ok ? 0 : 1);
+finish(out, out.ok ? 0 : 1);

@@ -10,7 +10,7 @@
 import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { serve, launch, problems, parseArgs, foreground } from './interop_harness.mjs';
+import { finish, serve, launch, problems, parseArgs, foreground } from './interop_harness.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const { pos, opt } = parseArgs(process.argv.slice(2));
@@ -52,5 +52,4 @@ try {
   await browser.close();
   await srv.close();
 }
-console.log(JSON.stringify(out, null, 1));
-process.exit(out.ok ? 0 : 1);
+finish(out, out.ok ? 0 : 1);

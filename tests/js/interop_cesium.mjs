@@ -9,7 +9,7 @@
 // Exit 0 when the page finished (whatever it measured; the caller judges), 1 when it did not.
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { serve, launch, problems, parseArgs } from './interop_harness.mjs';
+import { finish, serve, launch, problems, parseArgs } from './interop_harness.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const { pos, opt } = parseArgs(process.argv.slice(2));
@@ -52,5 +52,4 @@ try {
   await browser.close();
   await srv.close();
 }
-console.log(JSON.stringify(out, null, 1));
-process.exit(out.ok ? 0 : 1);
+finish(out, out.ok ? 0 : 1);

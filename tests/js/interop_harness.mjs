@@ -156,3 +156,9 @@ export async function foreground(page, png, bg, threshold) {
     { b64: png.toString('base64'), bg, threshold },
   );
 }
+
+// Prints `out` as JSON and exits with `code` once stdout has taken all of it: `process.exit`
+// straight after `console.log` cuts a piped stdout at 64 KiB.
+export function finish(out, code) {
+  process.stdout.write(JSON.stringify(out, null, 1) + '\n', () => process.exit(code));
+}

@@ -43,4 +43,5 @@ for (const file of files) {
     status = 2;
   }
 }
-process.exit(status);
+// Exit when stdout has drained: process.exit here could cut a piped report.
+process.exitCode = status;

@@ -12,7 +12,7 @@
 // frame): what the client fetches between frames then shows in the responses.
 // Exit 0 when the run finished (the caller judges what it measured), 1 when it did not.
 import fs from 'node:fs';
-import { launch, problems, parseArgs } from './interop_harness.mjs';
+import { finish, launch, problems, parseArgs } from './interop_harness.mjs';
 
 const { pos, opt } = parseArgs(process.argv.slice(2));
 if (pos.length !== 1 || !opt.shot) {
@@ -115,5 +115,4 @@ try {
   out.logs = browser.logs.slice(0, 60);
   await browser.close();
 }
-console.log(JSON.stringify(out, null, 1));
-process.exit(out.ok ? 0 : 1);
+finish(out, out.ok ? 0 : 1);
