@@ -86,8 +86,15 @@ try {
   if (title.startsWith('error')) throw new Error(title);
 
   if (!opt.still) {
-  // 1. Some splats arrive while tile bodies are still in flight.
-  await waitFor('first splats, tiles in flight', (s) => s.residentSplats > 0 && s.pending > 0, timeoutMs);
+  // 1. Some tiles are complete while others are still in flight. Two complete tiles mean the
+  //    root's subtree file has been read, so what is in flight belongs to the view's refined cut
+  //    and is needed again after the turn back (a root paused before the subtree arrived is not:
+  //    on a loaded CI machine that left nothing to resume).
+  await waitFor(
+    'tiles complete, tiles in flight',
+    (s) => s.residentTiles >= 2 && s.pending > 0,
+    timeoutMs,
+  );
   // 2. Look the other way: the tiles that left the view are paused (their fetches aborted).
   await page.evaluate(() => window.splat2tiles.turn(180, 0));
   await waitFor('paused after turning away', (s) => s.paused > 0, 30000);
