@@ -51,7 +51,7 @@ use crate::stream::catalog::{
     CatalogTile, LEVELS, Level, STAND_IN_UTILITY, TileCatalog, Variant, stand_in_variants,
 };
 use crate::stream::geom::{Frustum, Obb, ViewPose};
-use crate::stream::planner::{PlanStepConfig, plan_visible};
+use crate::stream::planner::{LinkForecast, PlanStepConfig, plan_visible_link};
 use crate::stream::predict::{
     ConstantVelocity, LinearExtrapolation, Predictor, Reactive, needs_fallback, radius_tiles,
 };

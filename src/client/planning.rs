@@ -162,12 +162,36 @@ impl StreamClient {
             .memory_budget_bytes
             .saturating_sub(pinned)
             .saturating_sub(self.partial_bytes());
-        let (cands, plan) = plan_visible(
+        // The link as the planner needs it (issue 19 item 4): the estimator's forecast as
+        // pieces, the bytes still to arrive for requests in flight first, and the round trip
+        // shared by the requests that run at once.
+        let in_flight_bytes: u64 = self
+            .state
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| {
+                let d = s.download.as_ref()?;
+                d.req?;
+                let size = d
+                    .total
+                    .unwrap_or(self.catalog.tiles[i].variants[d.level.index()].bytes);
+                Some(size.saturating_sub(d.bytes.len() as u64))
+            })
+            .sum();
+        let link = LinkForecast {
+            pieces: self.bw.forecast(self.cfg.plan.horizon_s),
+            in_flight_bytes,
+        };
+        let step = PlanStepConfig {
+            concurrency: self.cfg.max_concurrent,
+            ..self.cfg.plan.clone()
+        };
+        let (cands, plan) = plan_visible_link(
             &self.catalog,
             pose.pos,
             &firsts,
-            &self.cfg.plan,
-            self.bw.estimate(),
+            &step,
+            &link,
             |i| self.cache.level(i),
             budget,
         );
