@@ -184,7 +184,7 @@ impl StreamClient {
         };
         let step = PlanStepConfig {
             concurrency: self.cfg.max_concurrent,
-            ..self.cfg.plan.clone()
+            ..self.cfg.plan
         };
         let (cands, plan) = plan_visible_link(
             &self.catalog,
