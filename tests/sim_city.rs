@@ -146,3 +146,94 @@ fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
         "oracle missed {late} entries after the first 5 s"
     );
 }
+
+/// The full-city measurement behind BENCHMARKS "Streaming city (issue 19)": why the oracle
+/// misses first-time entries there (`STREAM_CITY_DIR` = a city built by
+/// `cargo run --release --example stream_city -- DIR`; the first street walk and flight of the
+/// test split, 60 s, 10 Mbit/s, 64 MiB budget).
+#[test]
+#[ignore = "needs STREAM_CITY_DIR (a 241 MiB generated city); a measurement, no assertion"]
+fn oracle_misses_on_the_full_city() {
+    use splat2tiles::sim::stream_city::{flight, street_walk};
+    let dir = std::env::var("STREAM_CITY_DIR").expect("STREAM_CITY_DIR");
+    let dir = std::path::PathBuf::from(dir);
+    let scenes = common::scenes();
+    let spec = CitySpec::default();
+    let sources = splat2tiles::sim::stream_city::city_sources(&scenes, spec.stride).unwrap();
+    let grid = StreetGrid::of(&sources, &spec.layout());
+    let truth = Truth::load(&dir.join("tileset.json")).unwrap();
+    for budget in [64u64 << 20, 1 << 30] {
+        let cfg = ClientConfig {
+            max_concurrent: 4,
+            predictor: PredictorKind::Reactive,
+            memory_budget_bytes: budget,
+            ..ClientConfig::default()
+        };
+        for trace in [street_walk(&grid, 18, 60.0), flight(&grid, 37, 60.0)] {
+            let opts = SessionOptions {
+                predictor: Some(Box::new(Oracle {
+                    trace: trace.poses.clone(),
+                })),
+                ..SessionOptions::default()
+            };
+            let log = run_session(
+                &dir,
+                cfg.clone(),
+                &trace.poses,
+                &NetModel::constant(10.0, 0.04),
+                opts,
+            );
+            let needed: Vec<Vec<TileKey>> = log
+                .ticks
+                .iter()
+                .map(|t| {
+                    let cam = Camera::from_pose(
+                        cfg.width,
+                        cfg.height,
+                        cfg.fov_y_deg,
+                        truth.root_transform() * t.pose.world_from_camera(),
+                    );
+                    truth.needed(&cam, cfg.max_sse)
+                })
+                .collect();
+            let resident: Vec<Vec<TileKey>> = log
+                .ticks
+                .iter()
+                .map(|t| t.resident.iter().map(|r| r.0).collect())
+                .collect();
+            let views: Vec<TickView> = log
+                .ticks
+                .iter()
+                .zip(needed.iter().zip(&resident))
+                .map(|(t, (n, r))| TickView {
+                    t: t.t,
+                    needed: n,
+                    resident: r,
+                })
+                .collect();
+            let w = breakdown(&log, &views);
+            assert!(w.entries > 0 && w.misses <= w.entries, "{w:?}");
+            let lead =
+                w.in_flight_lead_s.iter().sum::<f64>() / w.in_flight_lead_s.len().max(1) as f64;
+            let mb = log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
+            eprintln!(
+                "budget {} MiB, {}: {} misses of {}: evicted {}, in flight {} (mean lead {lead:.2} s), refused {}, late {}, never {}; outside the client's view {}, ancestor held {}; first 5 s {}; {mb:.1} MB, {} evictions, {} aborts, {} requests",
+                budget >> 20,
+                trace.header("kind").unwrap_or("?"),
+                w.misses,
+                w.entries,
+                w.evicted,
+                w.in_flight,
+                w.refused,
+                w.late,
+                w.never,
+                w.outside_client_view,
+                w.ancestor_held,
+                w.at_s.iter().filter(|&&t| t < 5.0).count(),
+                log.evictions,
+                log.aborts,
+                log.requests.len()
+            );
+        }
+    }
+}
