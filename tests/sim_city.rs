@@ -213,6 +213,27 @@ fn oracle_misses_on_the_full_city() {
                 .collect();
             let w = breakdown(&log, &views);
             assert!(w.entries > 0 && w.misses <= w.entries, "{w:?}");
+            // Repeated downloads: requests per (tile, level), bytes of completed ones.
+            let mut per: std::collections::HashMap<_, (u32, u32, u64)> =
+                std::collections::HashMap::new();
+            for r in &log.requests {
+                if let (Some(k), Some(l)) = (r.key, r.level) {
+                    let e = per.entry((k, l)).or_default();
+                    e.0 += 1;
+                    e.1 += (r.outcome == splat2tiles::sim::transport::Outcome::Done) as u32;
+                    e.2 += r.bytes;
+                }
+            }
+            let tiles: std::collections::HashSet<_> = per.keys().map(|(k, _)| *k).collect();
+            let resumed = log.requests.iter().filter(|r| r.range_start > 0).count();
+            eprintln!(
+                "  {} (tile, level) pairs over {} tiles; {} requested more than once, {} completed \
+                 more than once; {resumed} resumed requests",
+                per.len(),
+                tiles.len(),
+                per.values().filter(|v| v.0 > 1).count(),
+                per.values().filter(|v| v.1 > 1).count()
+            );
             let lead =
                 w.in_flight_lead_s.iter().sum::<f64>() / w.in_flight_lead_s.len().max(1) as f64;
             let mb = log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
