@@ -49,8 +49,8 @@ pub struct SimulateArgs {
     /// local ENU frame there.
     #[arg(long, default_value = "8.5417,47.3769,408")]
     pub origin: String,
-    /// EyeNavGS traces (experiment `city`; `../shared/navigation-traces/README.md`).
-    #[arg(long, default_value = "../shared/navigation-traces")]
+    /// Human navigation traces (experiment `city`; read only through `sim::split`).
+    #[arg(long, default_value = crate::sim::stream_city::NAVIGATION_DIR)]
     pub navigation: PathBuf,
     /// HSDPA and FCC throughput logs (experiment `city`; `../shared/network-traces/README.md`).
     #[arg(long, default_value = "../shared/network-traces")]
