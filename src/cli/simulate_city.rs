@@ -39,7 +39,7 @@ pub const TRACE_S: f64 = 60.0;
 /// Every this many human test sessions one is used.
 pub const HUMAN_EVERY: usize = 22;
 /// Traces of each kind (human, walk, flight) at most.
-const PER_KIND: usize = 2;
+pub const PER_KIND: usize = 2;
 /// Seconds of each trace in Table 5 (20 sessions per trace).
 const TABLE5_S: f64 = 30.0;
 /// Quality samples per second on the quality trace (TGQ and the plot).
