@@ -7,6 +7,7 @@ mod common;
 
 use splat2tiles::client::{ClientConfig, PredictorKind};
 use splat2tiles::render::Camera;
+use splat2tiles::sim::misses::{MissBreakdown, breakdown};
 use splat2tiles::sim::score::{Ratio, TickView, Truth, cache_hits};
 use splat2tiles::sim::session::{SessionOptions, run_session};
 use splat2tiles::sim::stream_city::{CitySpec, StreetGrid, build_city, street_walk};
@@ -20,8 +21,9 @@ fn chr(
     dir: &std::path::Path,
     oracle: bool,
     grid: &StreetGrid,
-) -> Ratio {
+) -> (Ratio, MissBreakdown) {
     let mut total = Ratio::default();
+    let mut why = MissBreakdown::default();
     for seed in [17u64, 18, 19] {
         let trace = street_walk(grid, seed, 40.0);
         let opts = SessionOptions {
@@ -71,8 +73,9 @@ fn chr(
         let c = cache_hits(&views);
         total.hits += c.first.hits;
         total.n += c.first.n;
+        why.add(&breakdown(&log, &views));
     }
-    total
+    (total, why)
 }
 
 #[test]
@@ -109,22 +112,149 @@ fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
         true,
         &city.grid,
     );
-    eprintln!(
-        "first-time entries: reactive {}/{} = {:?}, oracle {}/{} = {:?}",
-        reactive.hits,
-        reactive.n,
-        reactive.rate(),
-        oracle.hits,
-        oracle.n,
-        oracle.rate()
-    );
+    let ((reactive, why_r), (oracle, why_o)) = (reactive, oracle);
+    for (name, w) in [("reactive", &why_r), ("oracle", &why_o)] {
+        eprintln!(
+            "{name}: {} misses of {} first-time entries: evicted {}, in flight {}, refused {}, \
+             late {}, never requested {}; outside the client's view {}, ancestor held {}; \
+             in the first 5 s {}",
+            w.misses,
+            w.entries,
+            w.evicted,
+            w.in_flight,
+            w.refused,
+            w.late,
+            w.never,
+            w.outside_client_view,
+            w.ancestor_held,
+            w.at_s.iter().filter(|&&t| t < 5.0).count()
+        );
+    }
     assert!(
-        reactive.n >= 20 && oracle.n >= 20,
+        reactive.n >= 200 && oracle.n >= 200,
         "too few entries to compare"
     );
     let (r, o) = (reactive.rate().unwrap(), oracle.rate().unwrap());
+    // The oracle needs no pose history, so it never falls back to reactive (it did for 5 s and
+    // scored 192/262 = 0.73 with every miss in those 5 s); what it misses now is the cold start
+    // (the link still busy with the first view), nothing later.
+    assert!(o >= 0.9, "oracle {o:.3} below 0.9");
+    assert!(r <= 0.1, "reactive {r:.3} above 0.1");
+    let late = why_o.at_s.iter().filter(|&&t| t >= 5.0).count();
     assert!(
-        o >= r + 0.2,
-        "oracle {o:.3} not clearly above reactive {r:.3}"
+        late <= 2,
+        "oracle missed {late} entries after the first 5 s"
     );
+}
+
+/// The full-city measurement behind BENCHMARKS "Streaming city (issue 19)": why the oracle
+/// misses first-time entries there (`STREAM_CITY_DIR` = a city built by
+/// `cargo run --release --example stream_city -- DIR`; the first street walk and flight of the
+/// test split, 60 s, 10 Mbit/s, 64 MiB budget).
+#[test]
+#[ignore = "needs STREAM_CITY_DIR (a 241 MiB generated city); a measurement, no assertion"]
+fn oracle_misses_on_the_full_city() {
+    use splat2tiles::sim::stream_city::{flight, street_walk};
+    let dir = std::env::var("STREAM_CITY_DIR").expect("STREAM_CITY_DIR");
+    let dir = std::path::PathBuf::from(dir);
+    let scenes = common::scenes();
+    let spec = CitySpec::default();
+    let sources = splat2tiles::sim::stream_city::city_sources(&scenes, spec.stride).unwrap();
+    let grid = StreetGrid::of(&sources, &spec.layout());
+    let truth = Truth::load(&dir.join("tileset.json")).unwrap();
+    for budget in [64u64 << 20, 1 << 30] {
+        let cfg = ClientConfig {
+            max_concurrent: 4,
+            predictor: PredictorKind::Reactive,
+            memory_budget_bytes: budget,
+            ..ClientConfig::default()
+        };
+        for trace in [street_walk(&grid, 18, 60.0), flight(&grid, 37, 60.0)] {
+            let opts = SessionOptions {
+                predictor: Some(Box::new(Oracle {
+                    trace: trace.poses.clone(),
+                })),
+                ..SessionOptions::default()
+            };
+            let log = run_session(
+                &dir,
+                cfg.clone(),
+                &trace.poses,
+                &NetModel::constant(10.0, 0.04),
+                opts,
+            );
+            let needed: Vec<Vec<TileKey>> = log
+                .ticks
+                .iter()
+                .map(|t| {
+                    let cam = Camera::from_pose(
+                        cfg.width,
+                        cfg.height,
+                        cfg.fov_y_deg,
+                        truth.root_transform() * t.pose.world_from_camera(),
+                    );
+                    truth.needed(&cam, cfg.max_sse)
+                })
+                .collect();
+            let resident: Vec<Vec<TileKey>> = log
+                .ticks
+                .iter()
+                .map(|t| t.resident.iter().map(|r| r.0).collect())
+                .collect();
+            let views: Vec<TickView> = log
+                .ticks
+                .iter()
+                .zip(needed.iter().zip(&resident))
+                .map(|(t, (n, r))| TickView {
+                    t: t.t,
+                    needed: n,
+                    resident: r,
+                })
+                .collect();
+            let w = breakdown(&log, &views);
+            assert!(w.entries > 0 && w.misses <= w.entries, "{w:?}");
+            // Repeated downloads: requests per (tile, level), bytes of completed ones.
+            let mut per: std::collections::HashMap<_, (u32, u32, u64)> =
+                std::collections::HashMap::new();
+            for r in &log.requests {
+                if let (Some(k), Some(l)) = (r.key, r.level) {
+                    let e = per.entry((k, l)).or_default();
+                    e.0 += 1;
+                    e.1 += (r.outcome == splat2tiles::sim::transport::Outcome::Done) as u32;
+                    e.2 += r.bytes;
+                }
+            }
+            let tiles: std::collections::HashSet<_> = per.keys().map(|(k, _)| *k).collect();
+            let resumed = log.requests.iter().filter(|r| r.range_start > 0).count();
+            eprintln!(
+                "  {} (tile, level) pairs over {} tiles; {} requested more than once, {} completed \
+                 more than once; {resumed} resumed requests",
+                per.len(),
+                tiles.len(),
+                per.values().filter(|v| v.0 > 1).count(),
+                per.values().filter(|v| v.1 > 1).count()
+            );
+            let lead =
+                w.in_flight_lead_s.iter().sum::<f64>() / w.in_flight_lead_s.len().max(1) as f64;
+            let mb = log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
+            eprintln!(
+                "budget {} MiB, {}: {} misses of {}: evicted {}, in flight {} (mean lead {lead:.2} s), refused {}, late {}, never {}; outside the client's view {}, ancestor held {}; first 5 s {}; {mb:.1} MB, {} evictions, {} aborts, {} requests",
+                budget >> 20,
+                trace.header("kind").unwrap_or("?"),
+                w.misses,
+                w.entries,
+                w.evicted,
+                w.in_flight,
+                w.refused,
+                w.late,
+                w.never,
+                w.outside_client_view,
+                w.ancestor_held,
+                w.at_s.iter().filter(|&&t| t < 5.0).count(),
+                log.evictions,
+                log.aborts,
+                log.requests.len()
+            );
+        }
+    }
 }

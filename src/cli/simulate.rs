@@ -27,7 +27,7 @@ use std::time::Instant;
 /// Arguments of `simulate`.
 #[derive(Debug, clap::Args)]
 pub struct SimulateArgs {
-    /// Which experiment: table5, table4, dolly, visibility, traces or all.
+    /// Which experiment: table5, table4, dolly, visibility, traces, city or all (all but city).
     #[arg(long, default_value = "all")]
     pub experiment: String,
     /// Folder of the shared scenes (plant.splat, donut_fused_sh0.ply, biker.spz).
@@ -49,6 +49,12 @@ pub struct SimulateArgs {
     /// local ENU frame there.
     #[arg(long, default_value = "8.5417,47.3769,408")]
     pub origin: String,
+    /// Human navigation traces (experiment `city`; read only through `sim::split`).
+    #[arg(long, default_value = crate::sim::stream_city::NAVIGATION_DIR)]
+    pub navigation: PathBuf,
+    /// HSDPA and FCC throughput logs (experiment `city`; `../shared/network-traces/README.md`).
+    #[arg(long, default_value = "../shared/network-traces")]
+    pub networks: PathBuf,
     /// Splats per tile when tiling the shared scenes.
     #[arg(long, default_value_t = 4096)]
     pub max_splats: u32,
@@ -204,6 +210,9 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     }
     if want("traces") {
         write_traces(args, &scenes)?;
+    }
+    if args.experiment == "city" {
+        md.push_str(&super::simulate_city::city(args)?);
     }
     let path = args.out.join("streaming.md");
     std::fs::write(&path, &md)?;

@@ -51,7 +51,7 @@ use crate::stream::catalog::{
     CatalogTile, LEVELS, Level, STAND_IN_UTILITY, TileCatalog, Variant, stand_in_variants,
 };
 use crate::stream::geom::{Frustum, Obb, ViewPose};
-use crate::stream::planner::{PlanStepConfig, plan_visible};
+use crate::stream::planner::{LinkForecast, PlanStepConfig, plan_visible_link};
 use crate::stream::predict::{
     ConstantVelocity, LinearExtrapolation, Predictor, Reactive, needs_fallback, radius_tiles,
 };
@@ -111,9 +111,11 @@ pub struct ClientConfig {
     pub replan_s: f64,
     /// Relative change of the camera speed (over 0.5 s) since the last plan that replans (0.2).
     pub replan_speed_change: f64,
-    /// Seconds from the first view during which every predictor is replaced by the fallback
-    /// rule of TileSplat App. C.5 (the view set, plus the tiles within
-    /// [`Self::fallback_radius_m`] at Medium); 5 s.
+    /// Seconds from the first view during which a predictor that needs pose history is replaced
+    /// by the fallback rule of TileSplat App. C.5 (the view set, plus the tiles within
+    /// [`Self::fallback_radius_m`] at Medium); 5 s. Predictors that need no history (reactive,
+    /// an oracle) never fall back, as the paper's rule reads ("if the prediction model has not
+    /// yet accumulated sufficient history").
     pub fallback_s: f64,
     /// Radius of the fallback rule in tileset-frame metres (TileSplat: 100 m; 0: view set only).
     pub fallback_radius_m: f64,
@@ -475,7 +477,7 @@ impl StreamClient {
     }
 
     /// A client whose planner uses `predictor` instead of [`ClientConfig::predictor`] (an
-    /// oracle in simulation, a learned model): the fallback rule applies to it all the same.
+    /// oracle in simulation, a learned model): the fallback rule applies to it when it needs pose history.
     pub fn with_predictor(
         tileset_url: &str,
         cfg: ClientConfig,

@@ -2,6 +2,7 @@
 //! a trace, RTT, overheads), camera traces, session logs and their summaries.
 
 pub mod eyenav;
+pub mod misses;
 pub mod network;
 pub mod score;
 pub mod session;

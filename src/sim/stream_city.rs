@@ -48,6 +48,8 @@ pub const FLIGHT_SPEED: f64 = 8.0;
 pub const FLIGHT_ALTITUDE: f64 = 40.0;
 /// Where the experiments' city is georeferenced (`lon,lat,height`; Berlin, Alexanderplatz).
 pub const DEFAULT_ORIGIN: &str = "13.4132,52.5219,34";
+/// Default folder of the EyeNavGS sessions (`../shared/navigation-traces/README.md`).
+pub const NAVIGATION_DIR: &str = "../shared/navigation-traces";
 /// Synthetic walks per 20 seeds (seeds `0..20`, split 14/3/3 by [`synthetic_split`]).
 pub const WALK_SEEDS: std::ops::Range<u64> = 0..20;
 /// Synthetic flights (seeds `20..40`, split 14/3/3).
