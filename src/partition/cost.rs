@@ -1,8 +1,8 @@
 //! SGSS's partition cost (sec. 3.1, eqs. 2-6): visibility tests R_vtest = C_d / C_dmax plus the
 //! probability-weighted waste sum_v p_v (splats downloaded for v) / C_v, additive over cuboids.
 //!
-//! d_v (eq. 2) marks the cuboids holding at least one basic cuboid that view v needs; C_v is the
-//! splats in those basic cuboids (the least v can download). A view that needs no splat (C_v = 0)
+//! d_v (eq. 2) marks the cuboids holding at least one non-empty basic cuboid that view v needs
+//! (an empty one renders nothing); C_v is the splats in those basic cuboids (the least v can download). A view that needs no splat (C_v = 0)
 //! has no defined waste ratio and is left out; the other views' probabilities are renormalised.
 
 use super::grid::{Cuboid, Grid};
@@ -64,6 +64,8 @@ impl CostModel {
             }
             v.cells.sort_unstable();
             v.cells.dedup();
+            // An empty basic cuboid is not needed to render anything.
+            v.cells.retain(|&c| grid.counts[c as usize] > 0);
             let need: u64 = v.cells.iter().map(|&c| grid.counts[c as usize]).sum();
             if need == 0 || v.weight == 0.0 {
                 dropped += 1;
