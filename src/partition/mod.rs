@@ -6,6 +6,7 @@
 
 pub mod cost;
 pub mod grid;
+pub mod plan;
 pub mod tree;
 pub mod views;
 
