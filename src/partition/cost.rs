@@ -167,6 +167,14 @@ impl CostModel {
             .sum()
     }
 
+    /// The objective of the basic cuboids without enumerating them: R_vtest = 1 and every view
+    /// downloads exactly C_v, so sum_v R_waste = 1 (0 for terms without non-empty cells / views).
+    pub fn basic_objective(&self) -> f64 {
+        let vtest = if self.c_dmax > 0 { 1.0 } else { 0.0 };
+        let waste = if self.views.is_empty() { 0.0 } else { 1.0 };
+        vtest + waste
+    }
+
     /// The partition into every basic cuboid (`x_base` of eq. 5).
     pub fn basic_partition(&self) -> Vec<Cuboid> {
         (0..self.grid.len())
@@ -214,6 +222,7 @@ mod tests {
         assert_eq!(s.vtests, 3);
         assert!((s.r_vtest - 1.0).abs() < 1e-12);
         assert!((s.r_waste - 1.0).abs() < 1e-12, "{s:?}");
+        assert!((s.objective - m.basic_objective()).abs() < 1e-12);
         // p = 0.75 needs 10, p = 0.25 needs 90.
         assert!((s.expected_splats - (0.75 * 10.0 + 0.25 * 90.0)).abs() < 1e-9);
     }

@@ -116,14 +116,21 @@ fn cell_of(u: [f64; 3], scheme: Scheme, depth: u32) -> [u32; 3] {
     ]
 }
 
-/// The cells of `boxes` (index, box) a camera needs: frustum (far = `k.far`) meets the box.
-fn needed(boxes: &[(u32, Obb, f64)], f: &Frustum) -> Vec<u32> {
-    boxes
+/// The cells of `boxes` (index, box, radius; sorted by centre x, the largest radius `r_max`) a
+/// camera needs: the frustum (far = `f.far`) meets the box. Only boxes whose centre x lies
+/// within `far + r_max` of the camera are looked at (a binary search), in cell order.
+fn needed(boxes: &[(u32, Obb, f64)], r_max: f64, f: &Frustum) -> Vec<u32> {
+    let reach = f.far + r_max;
+    let a = boxes.partition_point(|(_, b, _)| b.center.x < f.apex.x - reach);
+    let z = boxes.partition_point(|(_, b, _)| b.center.x <= f.apex.x + reach);
+    let mut out: Vec<u32> = boxes[a..z.max(a)]
         .iter()
         .filter(|(_, b, r)| (b.center - f.apex).length() <= f.far + r)
         .filter(|(_, b, _)| planes_test(f, b) && exact_test(f, b))
         .map(|(i, _, _)| *i)
-        .collect()
+        .collect();
+    out.sort_unstable();
+    out
 }
 
 /// Plans the splits for splats at unit coordinates `unit` (root volume) and tileset-frame
@@ -155,7 +162,7 @@ pub fn split_plan(
         lo[i] = lo[i].min(*w);
         hi[i] = hi[i].max(*w);
     }
-    let boxes: Vec<(u32, Obb, f64)> = (0..cells)
+    let mut boxes: Vec<(u32, Obb, f64)> = (0..cells)
         .filter(|&i| counts[i] > 0)
         .map(|i| {
             let b = Obb::aabb(lo[i], hi[i]);
@@ -163,6 +170,8 @@ pub fn split_plan(
             (i as u32, b, r)
         })
         .collect();
+    boxes.sort_by(|a, b| a.1.center.x.total_cmp(&b.1.center.x).then(a.0.cmp(&b.0)));
+    let r_max = boxes.iter().map(|b| b.2).fold(0.0, f64::max);
     let grid = Grid::new(dims, counts)?;
     let mut views = Vec::new();
     for t in req.views.train().iter().chain(req.views.val()) {
@@ -179,13 +188,13 @@ pub fn split_plan(
         for p in super::views::sample_poses(std::slice::from_ref(t), req.every_s) {
             views.push(View {
                 weight: 1.0,
-                cells: needed(&boxes, &Frustum::new(&p, &k)),
+                cells: needed(&boxes, r_max, &Frustum::new(&p, &k)),
             });
         }
     }
     let model = CostModel::new(grid, views)?;
     let plan = optimise(&model, scheme, Some(max_unit))?;
-    let basic = model.score(&model.basic_partition())?.objective;
+    let basic = model.basic_objective();
     let mut must_split = BTreeSet::new();
     for u in &plan.units {
         let mut k = *u;
