@@ -143,6 +143,12 @@ pub fn split_plan(
     world: &[DVec3],
     max_unit: u64,
 ) -> Result<SplitPlan, String> {
+    if !(req.range_m.is_finite() && req.range_m > 0.0 && req.every_s.is_finite()) {
+        return Err(format!(
+            "range {} and sampling interval {} must be finite (range > 0)",
+            req.range_m, req.every_s
+        ));
+    }
     let depth = req
         .depth
         .unwrap_or(default_depth(scheme))
@@ -175,16 +181,11 @@ pub fn split_plan(
     let grid = Grid::new(dims, counts)?;
     let mut views = Vec::new();
     for t in req.views.train().iter().chain(req.views.val()) {
-        let mut k = Intrinsics {
+        let base = Intrinsics {
             far: req.range_m,
             ..Intrinsics::default()
         };
-        if let Some(f) = t.header("fov_y_deg").and_then(|s| s.parse::<f64>().ok()) {
-            k.fov_y_deg = f.clamp(1.0, 179.0);
-        }
-        if let Some(a) = t.header("aspect").and_then(|s| s.parse::<f64>().ok()) {
-            k.aspect = a.clamp(0.05, 20.0);
-        }
+        let k = super::views::trace_intrinsics(t, &base);
         for p in super::views::sample_poses(std::slice::from_ref(t), req.every_s) {
             views.push(View {
                 weight: 1.0,

@@ -97,6 +97,18 @@ pub fn sample_poses(traces: &[Trace], every_s: f64) -> Vec<ViewPose> {
     out
 }
 
+/// `k` with a trace's `fov_y_deg` / `aspect` headers applied (clamped to sane ranges).
+pub fn trace_intrinsics(t: &Trace, k: &Intrinsics) -> Intrinsics {
+    let mut kt = *k;
+    if let Some(f) = t.header("fov_y_deg").and_then(|s| s.parse::<f64>().ok()) {
+        kt.fov_y_deg = f.clamp(1.0, 179.0);
+    }
+    if let Some(a) = t.header("aspect").and_then(|s| s.parse::<f64>().ok()) {
+        kt.aspect = a.clamp(0.05, 20.0);
+    }
+    kt
+}
+
 /// The views of a tuning set's train and val traces, sampled every `every_s` seconds; each
 /// trace's intrinsics come from its `fov_y_deg` / `aspect` headers when present.
 pub fn views_of_tuning_set(
@@ -108,13 +120,7 @@ pub fn views_of_tuning_set(
 ) -> Vec<View> {
     let mut out = Vec::new();
     for t in set.train().iter().chain(set.val()) {
-        let mut kt = *k;
-        if let Some(f) = t.header("fov_y_deg").and_then(|s| s.parse::<f64>().ok()) {
-            kt.fov_y_deg = f.clamp(1.0, 179.0);
-        }
-        if let Some(a) = t.header("aspect").and_then(|s| s.parse::<f64>().ok()) {
-            kt.aspect = a.clamp(0.05, 20.0);
-        }
+        let kt = trace_intrinsics(t, k);
         let poses = sample_poses(std::slice::from_ref(t), every_s);
         out.extend(views_of_poses(grid, gb, &poses, &kt));
     }
