@@ -11,6 +11,7 @@ pub mod io;
 pub mod limits;
 pub mod lod;
 pub mod output;
+pub mod partition;
 pub mod render;
 #[cfg(feature = "native")]
 pub mod serve;

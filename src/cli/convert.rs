@@ -91,6 +91,17 @@ pub struct ConvertArgs {
     /// refused before anything is allocated [default: half the RAM, at most 4GiB].
     #[arg(long, value_parser = MemoryLimit::parse)]
     pub memory_limit: Option<MemoryLimit>,
+    /// View-optimised leaf levels (SGSS sec. 3.1): `views:DIR` reads the train/val `*.csv` camera
+    /// traces in DIR (a test-split trace is refused) and splits tiles further where the cost
+    /// model (visibility tests + wasted downloads) says so. Needs the scene to fit in memory.
+    #[arg(long, conflicts_with = "plan", value_parser = parse_partition)]
+    pub partition: Option<PathBuf>,
+    /// Tree depth of the basic cuboids of --partition [default: 10 quadtree, 6 octree].
+    #[arg(long, requires = "partition", value_parser = clap::value_parser!(u32).range(1..=12))]
+    pub partition_depth: Option<u32>,
+    /// Distance (scene units) within which a --partition view needs full detail.
+    #[arg(long, requires = "partition", default_value_t = 200.0, value_parser = positive_f64)]
+    pub partition_range: f64,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -127,7 +138,16 @@ fn options(args: &ConvertArgs) -> ConvertOptions {
             .memory_limit
             .unwrap_or_else(MemoryLimit::machine_default)
             .bytes(),
+        partition: None,
     }
+}
+
+/// `--partition views:DIR`: the trace folder.
+fn parse_partition(s: &str) -> Result<PathBuf, String> {
+    s.strip_prefix("views:")
+        .filter(|d| !d.is_empty())
+        .map(PathBuf::from)
+        .ok_or_else(|| format!("'{s}': expected views:DIR (a folder of camera traces)"))
 }
 
 /// Runs `convert`; returns the process exit code.
@@ -136,7 +156,23 @@ pub fn run(args: ConvertArgs) -> i32 {
         eprintln!("splat2tiles: --heading must be a finite number of degrees");
         return super::EXIT_FAILURE;
     }
-    let opts = options(&args);
+    let mut opts = options(&args);
+    if let Some(dir) = &args.partition {
+        match crate::partition::plan::load_trace_dir(dir) {
+            Ok(views) => {
+                opts.partition = Some(crate::partition::plan::PartitionRequest {
+                    views,
+                    depth: args.partition_depth,
+                    range_m: args.partition_range,
+                    every_s: 1.0,
+                })
+            }
+            Err(e) => {
+                eprintln!("splat2tiles: --partition: {e}");
+                return super::EXIT_FAILURE;
+            }
+        }
+    }
     if let Some(plan) = &args.plan {
         return super::shard::run(&args, plan, &opts);
     }
@@ -208,6 +244,12 @@ pub fn run(args: ConvertArgs) -> i32 {
                     r.bytes as f64 / 1e6,
                     r.seconds
                 );
+                if let Some(p) = &r.partition {
+                    println!(
+                        "  partition: {} units from {} views (objective {:.4}, basic cuboids {:.4})",
+                        p.units, p.views, p.objective, p.basic_objective
+                    );
+                }
                 if r.parent_splats > 0 {
                     println!(
                         "  LOD: {} splats in parent tiles (leaf radius {:.4}, {:.2} s)",

@@ -213,6 +213,7 @@ pub fn merge_parts(
             dir: &dir,
             nn_step: 1,
             write_leaves: true,
+            must_split: None,
         };
         let top = super::top::build_top(&roots, &store, degree, r, &diagonals, &cx, &|_| false)
             .map_err(relocate)?;

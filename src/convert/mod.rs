@@ -96,6 +96,9 @@ pub struct ConvertOptions {
     /// it (regions spilled to the staging folder when the scene does not fit); inputs only the
     /// whole-file readers take (ascii PLY, SPZ) are refused when estimated above it.
     pub memory_limit: u64,
+    /// View-optimised leaf levels (`--partition views:DIR`, SGSS sec. 3.1): tiles the tree DP
+    /// splits are split even under `max_splats_per_tile` (`partition::plan`).
+    pub partition: Option<crate::partition::plan::PartitionRequest>,
 }
 
 impl Default for ConvertOptions {
@@ -114,6 +117,7 @@ impl Default for ConvertOptions {
             lod: LodOptions::default(),
             variants: VariantOptions::default(),
             memory_limit: crate::limits::MemoryLimit::machine_default().bytes(),
+            partition: None,
         }
     }
 }
@@ -121,6 +125,8 @@ impl Default for ConvertOptions {
 /// What a conversion did.
 #[derive(Debug, Clone, Default)]
 pub struct ConvertReport {
+    /// The view-optimised plan (`--partition`), when asked for.
+    pub partition: Option<crate::partition::plan::SplitPlan>,
     /// Splats read.
     pub splats_in: usize,
     /// Splats written over all leaf tiles.
@@ -208,6 +214,14 @@ pub enum ConvertError {
         limit: String,
     },
     /// No splat is left to tile.
+    /// `--partition` could not be planned.
+    #[error("{file}: --partition: {why}")]
+    Partition {
+        /// Input file.
+        file: String,
+        /// Why.
+        why: String,
+    },
     #[error("{file}: no splats to convert{why}")]
     Empty {
         /// Input file.
@@ -448,6 +462,16 @@ fn run(
         budget.write_budget,
     );
     spiller.all_finite = counts.dropped == 0;
+    let mut split_plan: Option<crate::partition::plan::SplitPlan> = None;
+    if opts.partition.is_some() && counts.finite > budget.cap {
+        return Err(ConvertError::Partition {
+            file: name.to_string(),
+            why: format!(
+                "needs the scene in memory ({} splats; --memory-limit fits {})",
+                counts.finite, budget.cap
+            ),
+        });
+    }
     let groups = if counts.finite <= budget.cap {
         // The whole scene is one region in memory: the splats kept by the frame pass, or the
         // scene already read (moved, not copied, when every splat is finite).
@@ -461,6 +485,27 @@ fn run(
                 scene.splats.select(&finite)
             }
         };
+        if let Some(req) = &opts.partition {
+            let unit: Vec<[f64; 3]> = s.positions.par_iter().map(|p| layout.unit(*p)).collect();
+            let world: Vec<glam::DVec3> = s
+                .positions
+                .par_iter()
+                .map(|p| layout.to_tileset(*p))
+                .collect();
+            let plan = crate::partition::plan::split_plan(
+                req,
+                layout.scheme,
+                layout.depth(),
+                &unit,
+                &world,
+                opts.max_splats_per_tile as u64,
+            )
+            .map_err(|why| ConvertError::Partition {
+                file: name.to_string(),
+                why,
+            })?;
+            split_plan = Some(plan);
+        }
         vec![spill::whole(s, counts.finite)]
     } else {
         drop(held);
@@ -482,6 +527,7 @@ fn run(
         dir: &dir,
         nn_step: counts.finite.div_ceil(SPACING_SAMPLES).max(1) as usize,
         write_leaves: true,
+        must_split: split_plan.as_ref().map(|p| &p.must_split),
     };
     let leaf_bar = bar(opts.progress, groups.len() as u64, "writing leaves");
     let mut built: Vec<GroupLeaves> = Vec::with_capacity(groups.len());
@@ -619,6 +665,7 @@ fn run(
     if opts.keep_index_map {
         report.leaves = index_map;
     }
+    report.partition = split_plan;
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
 }

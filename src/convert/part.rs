@@ -288,6 +288,7 @@ pub fn convert_part(
         dir: &dir,
         nn_step: plan.file.input.finite.div_ceil(SPACING_SAMPLES).max(1) as usize,
         write_leaves: phase == PartPhase::Build,
+        must_split: None,
     };
     let mut built: Vec<GroupLeaves> = Vec::with_capacity(groups.len());
     let mut leaves: Vec<(TileKey, TreeTile)> = Vec::new();

@@ -18,7 +18,7 @@ use crate::splat::importance::sort_indices_by_importance;
 use crate::tiling::TileKey;
 use crate::tiling::extent::{reach, reach_bounds};
 use crate::tiling::levels::keeps_content;
-use crate::tiling::partition::partition_subtree;
+use crate::tiling::partition::partition_subtree_with;
 use crate::variants::{ContentFacts, write_tile_contents};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -45,6 +45,8 @@ pub(super) struct RegionCtx<'a> {
     /// Pass 1 writes the leaves (otherwise it only partitions and samples the spacing: the
     /// first phase of a sharded part, `part`).
     pub(super) write_leaves: bool,
+    /// Tiles a view-optimised plan splits (`--partition`; none in sharded conversions).
+    pub(super) must_split: Option<&'a std::collections::BTreeSet<TileKey>>,
 }
 
 /// One region after pass 1: its leaves in Morton order with their splat counts.
@@ -292,12 +294,13 @@ pub(super) fn build_leaves(
             .par_iter()
             .map(|&i| layout.unit(splats.positions[i]))
             .collect();
-        let part = partition_subtree(
+        let part = partition_subtree_with(
             &unit,
             layout.scheme,
             cx.opts.max_splats_per_tile,
             layout.max_depth,
             spec.key,
+            &|k| cx.must_split.is_some_and(|m| m.contains(&k)),
         );
         drop(unit);
         let mut leaves: Vec<(TileKey, Vec<usize>)> = part

@@ -173,6 +173,19 @@ pub fn partition_subtree(
     max_depth: u32,
     root: TileKey,
 ) -> Partition {
+    partition_subtree_with(unit, scheme, max_splats, max_depth, root, &|_| false)
+}
+
+/// [`partition_subtree`] that also splits every tile `must_split` names (a view-optimised plan,
+/// `partition::plan`), while it holds splats and is above the deepest level.
+pub fn partition_subtree_with(
+    unit: &[[f64; 3]],
+    scheme: Scheme,
+    max_splats: usize,
+    max_depth: u32,
+    root: TileKey,
+    must_split: &dyn Fn(TileKey) -> bool,
+) -> Partition {
     let depth = max_depth.min(scheme.max_depth());
     let code = codes(unit, scheme, depth);
     let mut order: Vec<usize> = (0..unit.len()).collect();
@@ -186,11 +199,12 @@ pub fn partition_subtree(
         if hi == lo {
             continue;
         }
-        if hi - lo <= max_splats.max(1) || level == depth {
-            let prefix = sorted[lo] >> (scheme.dims() * (depth - level));
-            let (x, y, z) = scheme.decode(prefix);
+        let prefix = sorted[lo] >> (scheme.dims() * (depth - level));
+        let (x, y, z) = scheme.decode(prefix);
+        let key = TileKey { level, x, y, z };
+        if (hi - lo <= max_splats.max(1) && !must_split(key)) || level == depth {
             leaves.push(Leaf {
-                key: TileKey { level, x, y, z },
+                key,
                 indices: order[lo..hi].to_vec(),
             });
             continue;
