@@ -11,7 +11,9 @@
 //! Run: `npm ci --prefix tests/js` once, then `cargo bench --bench peers` (writes
 //! `target/peers.md` and `docs/peers.svg`; `PEERS_SCENES=plant` runs one scene; `PEERS_TIMEOUT_S`
 //! bounds each splat-transform run, default 900 s; `PEERS_REPLOT=target/peers.md` only redraws
-//! the plot from a saved table).
+//! the plot from a saved table; `PEERS_REUSE=saved.md` takes the splat-transform rows (SPZ v3/v4,
+//! SOG: their encoders do not change with ours, and SOG's takes most of the time) of each scene
+//! from a saved table instead of running them again, at its printed precision).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -203,6 +205,18 @@ fn main() {
     ));
     scenes.retain(|(n, ..)| only.is_empty() || n.contains(&only));
 
+    let reuse: Option<Vec<Point>> = std::env::var_os("PEERS_REUSE").map(|md| {
+        let len = std::fs::metadata(&md).map(|m| m.len()).unwrap_or(u64::MAX);
+        assert!(
+            len <= 1 << 20,
+            "{}: not a peers table",
+            md.to_string_lossy()
+        );
+        points_from_table(&std::fs::read_to_string(&md).unwrap())
+            .into_iter()
+            .filter(|p| p.codec.contains("splat-transform"))
+            .collect()
+    });
     let tmp = tempfile::tempdir().unwrap();
     let mut points: Vec<Point> = vec![];
     for (name, splats, up) in &scenes {
@@ -250,6 +264,17 @@ fn main() {
         let spz = encode_spz_v2(&rel, [0.0; 3], &SpzOptions::default());
         let dec = splat2tiles::io::read_bytes("v2.spz", &spz).unwrap().splats;
         add("SPZ", "v2 (ours)".into(), spz, &dec);
+        if let Some(saved) = &reuse {
+            let mine: Vec<&Point> = saved.iter().filter(|p| p.scene == *name).collect();
+            eprintln!("{name}: {} splat-transform rows reused", mine.len());
+            points.extend(mine.into_iter().map(|p| Point {
+                scene: p.scene.clone(),
+                codec: p.codec.clone(),
+                ..*p
+            }));
+            eprintln!("{name}: {n} splats, {:.0} s", t0.elapsed().as_secs_f64());
+            continue;
+        }
         let ply = tmp.path().join("scene.ply");
         write_ply(
             &rel,
