@@ -6,7 +6,8 @@
 //! splat-transform back to PLY), and rendered by the CPU reference renderer from the 8 automatic
 //! views at 1280x720 (mid-grey background) around the box holding 99% of the splat centres on each
 //! axis; the score is the mean SSIM against the float32 scene's renders. Bytes: the encoded file,
-//! and that file gzip -9 (what an HTTP server sends; SPZ and SOG are compressed already).
+//! and that file gzipped (`spz2::gzip`, zlib level 6, as an HTTP server sends it; SPZ and SOG are
+//! compressed already).
 //!
 //! Run: `npm ci --prefix tests/js` once, then `cargo bench --bench peers` (writes
 //! `target/peers.md` and `docs/peers.svg`; `PEERS_SCENES=plant` runs one scene; `PEERS_TIMEOUT_S`
@@ -328,7 +329,7 @@ fn ours_at(points: &[Point], scene: &str, s: [f64; 2]) -> Option<f64> {
 
 fn table(points: &[Point]) -> String {
     let mut s = String::from(
-        "| scene | codec | B/splat file | B/splat gzip -9 | mean SSIM, framed | mean SSIM, 4x zoom | our B/splat at >= both SSIMs | ours / theirs |\n|---|---|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | codec | B/splat file | B/splat gzip -6 | mean SSIM, framed | mean SSIM, 4x zoom | our B/splat at >= both SSIMs | ours / theirs |\n|---|---|---:|---:|---:|---:|---:|---:|\n",
     );
     for p in points {
         let per = |b: usize| b as f64 / p.splats as f64;
@@ -387,7 +388,7 @@ fn plot(points: &[Point]) -> String {
                 .collect();
             marked_chart(
                 scene,
-                "log10 B/splat sent (file or gzip -9, the smaller)",
+                "log10 B/splat sent (file or gzip -6, the smaller)",
                 "log10 (1 - SSIM), 4x zoom (lower is better)",
                 &series,
             )
