@@ -376,8 +376,8 @@ mod tests {
             .splats;
         let step = 0.5f64.powi(fb as i32);
         for i in 0..s.len() {
-            for k in 0..3 {
-                let e = (s.get(i).position[k] - centre[k] - d.get(i).position[k]).abs();
+            for (k, c) in centre.iter().enumerate() {
+                let e = (s.get(i).position[k] - c - d.get(i).position[k]).abs();
                 assert!(e <= step / 2.0 + 1e-9, "{i} {k}: {e} > {step}/2");
             }
         }
