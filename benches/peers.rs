@@ -6,12 +6,15 @@
 //! splat-transform back to PLY), and rendered by the CPU reference renderer from the 8 automatic
 //! views at 1280x720 (mid-grey background) around the box holding 99% of the splat centres on each
 //! axis; the score is the mean SSIM against the float32 scene's renders. Bytes: the encoded file,
-//! and that file gzip -9 (what an HTTP server sends; SPZ and SOG are compressed already).
+//! and that file gzipped (`spz2::gzip`, zlib level 6, as an HTTP server sends it; SPZ and SOG are
+//! compressed already).
 //!
 //! Run: `npm ci --prefix tests/js` once, then `cargo bench --bench peers` (writes
 //! `target/peers.md` and `docs/peers.svg`; `PEERS_SCENES=plant` runs one scene; `PEERS_TIMEOUT_S`
 //! bounds each splat-transform run, default 900 s; `PEERS_REPLOT=target/peers.md` only redraws
-//! the plot from a saved table).
+//! the plot from a saved table; `PEERS_REUSE=saved.md` takes the splat-transform rows (SPZ v3/v4,
+//! SOG: their encoders do not change with ours, and SOG's takes most of the time) of each scene
+//! from a saved table instead of running them again, at its printed precision).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -203,6 +206,18 @@ fn main() {
     ));
     scenes.retain(|(n, ..)| only.is_empty() || n.contains(&only));
 
+    let reuse: Option<Vec<Point>> = std::env::var_os("PEERS_REUSE").map(|md| {
+        let len = std::fs::metadata(&md).map(|m| m.len()).unwrap_or(u64::MAX);
+        assert!(
+            len <= 1 << 20,
+            "{}: not a peers table",
+            md.to_string_lossy()
+        );
+        points_from_table(&std::fs::read_to_string(&md).unwrap())
+            .into_iter()
+            .filter(|p| p.codec.contains("splat-transform"))
+            .collect()
+    });
     let tmp = tempfile::tempdir().unwrap();
     let mut points: Vec<Point> = vec![];
     for (name, splats, up) in &scenes {
@@ -250,6 +265,17 @@ fn main() {
         let spz = encode_spz_v2(&rel, [0.0; 3], &SpzOptions::default());
         let dec = splat2tiles::io::read_bytes("v2.spz", &spz).unwrap().splats;
         add("SPZ", "v2 (ours)".into(), spz, &dec);
+        if let Some(saved) = &reuse {
+            let mine: Vec<&Point> = saved.iter().filter(|p| p.scene == *name).collect();
+            eprintln!("{name}: {} splat-transform rows reused", mine.len());
+            points.extend(mine.into_iter().map(|p| Point {
+                scene: p.scene.clone(),
+                codec: p.codec.clone(),
+                ..*p
+            }));
+            eprintln!("{name}: {n} splats, {:.0} s", t0.elapsed().as_secs_f64());
+            continue;
+        }
         let ply = tmp.path().join("scene.ply");
         write_ply(
             &rel,
@@ -303,7 +329,7 @@ fn ours_at(points: &[Point], scene: &str, s: [f64; 2]) -> Option<f64> {
 
 fn table(points: &[Point]) -> String {
     let mut s = String::from(
-        "| scene | codec | B/splat file | B/splat gzip -9 | mean SSIM, framed | mean SSIM, 4x zoom | our B/splat at >= both SSIMs | ours / theirs |\n|---|---|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | codec | B/splat file | B/splat gzip -6 | mean SSIM, framed | mean SSIM, 4x zoom | our B/splat at >= both SSIMs | ours / theirs |\n|---|---|---:|---:|---:|---:|---:|---:|\n",
     );
     for p in points {
         let per = |b: usize| b as f64 / p.splats as f64;
@@ -362,7 +388,7 @@ fn plot(points: &[Point]) -> String {
                 .collect();
             marked_chart(
                 scene,
-                "log10 B/splat sent (file or gzip -9, the smaller)",
+                "log10 B/splat sent (file or gzip -6, the smaller)",
                 "log10 (1 - SSIM), 4x zoom (lower is better)",
                 &series,
             )

@@ -13,17 +13,20 @@ use super::gltf::{
     KHR_GAUSSIAN_SPLATTING, TARGET_ARRAY_BUFFER,
 };
 use super::tile::{
-    ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, check_writable,
-    color_bytes, sh_attribute, splat_document,
+    ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, check_writable, sh_attribute,
+    splat_document,
 };
 use crate::splat::Splats;
 #[cfg(feature = "native")]
 use meshopt::EncodeExpMode;
 
-/// Mantissa bits (EXPONENTIAL filter) and quaternion bits (QUATERNION filter) of one level.
+/// Bit depths of one level. Positions and DC colour are fixed point over the tile (the
+/// EXPONENTIAL filter with one exponent per component for the whole stream, as Table 6 quantises
+/// over the range); scales and opacity keep a mantissa of their own (relative precision); higher
+/// SH share an exponent per coefficient triple; rotations go through the QUATERNION filter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MeshoptLevel {
-    /// POSITION mantissa bits, exponent shared by the three components.
+    /// POSITION bits, sign included, over the largest |coordinate| of the tile per axis.
     pub position_bits: i32,
     /// ROTATION bits per component (4..=16), stored as normalized i16.
     pub rotation_bits: i32,
@@ -31,7 +34,7 @@ pub struct MeshoptLevel {
     pub scale_bits: i32,
     /// OPACITY mantissa bits.
     pub opacity_bits: i32,
-    /// SH degree 0 mantissa bits, exponent shared by RGB.
+    /// SH degree 0 bits, sign included, over the largest |value| of the tile per channel.
     pub sh0_bits: i32,
     /// Higher SH mantissa bits, exponent shared by RGB of each coefficient.
     pub sh_rest_bits: i32,
@@ -42,24 +45,24 @@ pub struct MeshoptLevel {
 /// Why a meshopt stream was refused.
 const NO_DECODE: &str = "meshopt stream does not decode";
 
-/// The High variant's bit depths.
+/// The High variant's bit depths: at least Table 6's Best where it counts on screen (its 24-bit
+/// positions over the whole scene are finer than 18 bits over a tile) for fewer bytes
+/// (BENCHMARKS.md, "Fidelity per byte against the peers").
 pub const HIGH: MeshoptLevel = MeshoptLevel {
-    position_bits: 16,
+    position_bits: 18,
     rotation_bits: 12,
-    scale_bits: 9,
-    opacity_bits: 10,
-    sh0_bits: 10,
+    scale_bits: 10,
+    opacity_bits: 12,
+    sh0_bits: 11,
     sh_rest_bits: 6,
     max_sh_degree: 3,
 };
 
-/// The Medium variant's bit depths. Scale, opacity and DC colour keep High's depths: with fewer (6 / 6 / 7 bits) Medium drew
-/// further from Best than Low on SPZ-sourced scenes (biker), whose 8-bit grids Low keeps exactly
-/// (`tests/variants_quality.rs`). Opacity and DC colour at 10 bits (High's too) and positions at
-/// 15: at 8 / 9 / 13 bits the footprint-v3 utility ranked Low above Medium on 3 of 9 biker tiles
-/// (requantising an 8-bit grid costs up to half a step of the new grid, Low none).
+/// The Medium variant's bit depths. Scale, opacity and DC colour stay fine (9 / 10 / 10 bits):
+/// with fewer (6 / 6 / 7 bits) Medium drew further from Best than Low on SPZ-sourced scenes
+/// (biker), whose 8-bit grids Low keeps exactly (`tests/variants_quality.rs`).
 pub const MEDIUM: MeshoptLevel = MeshoptLevel {
-    position_bits: 15,
+    position_bits: 16,
     rotation_bits: 9,
     scale_bits: 9,
     opacity_bits: 10,
@@ -194,13 +197,13 @@ pub fn filter_in_place(data: &mut [u8], stride: usize, filter: &str) -> bool {
 fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Stream> {
     let n = splats.len();
     use AccessorType::{Scalar, Vec3, Vec4};
-    use ComponentType::{F32, I16, U8};
+    use ComponentType::{F32, I16};
     let rel: Vec<[f32; 3]> = splats
         .positions
         .iter()
         .map(|p| [0, 1, 2].map(|a| (p[a] - centre[a]) as f32))
         .collect();
-    let pos_bytes = exp3(&rel, level.position_bits, EncodeExpMode::SharedVector);
+    let pos_bytes = exp3(&rel, level.position_bits, EncodeExpMode::SharedComponent);
     let pos_dec = unfilter_exp(pos_bytes.clone());
     let mut pos = spec(ATTR_POSITION.into(), Vec3, F32, 0);
     pos.min_max = Some(min_max3(&pos_dec));
@@ -220,7 +223,7 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
         level.opacity_bits,
         EncodeExpMode::Separate,
     ));
-    let sh0_bytes = exp3(&splats.sh0, level.sh0_bits, EncodeExpMode::SharedVector);
+    let sh0_bytes = exp3(&splats.sh0, level.sh0_bits, EncodeExpMode::SharedComponent);
 
     let mut out = vec![
         Stream {
@@ -276,14 +279,8 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
             accessors: accs,
         });
     }
-    let mut c = spec(ATTR_COLOR_0.into(), Vec4, U8, 0);
-    c.normalized = true;
-    out.push(Stream {
-        data: color_bytes(splats),
-        stride: 4,
-        filter: "NONE",
-        accessors: vec![c],
-    });
+    // No COLOR_0: the point-cloud fallback is optional, a client that cannot decode
+    // EXT_meshopt_compression (required here) draws nothing anyway, and it cost 3.6-3.9 B/splat.
     out
 }
 

@@ -26,6 +26,9 @@ pub struct SpzOptions {
     pub sh1_bits: u8,
     /// Significant bits of degree-2/3 SH bytes (upstream default 4).
     pub sh_rest_bits: u8,
+    /// Bits of the largest |coordinate| (sign included): 24 keeps as many fractional bits as
+    /// the 24-bit fixed point holds; fewer drop the finest ones, which gzip cannot compress.
+    pub position_bits: u8,
 }
 
 impl Default for SpzOptions {
@@ -34,8 +37,15 @@ impl Default for SpzOptions {
             max_sh_degree: 3,
             sh1_bits: 5,
             sh_rest_bits: 4,
+            position_bits: 24,
         }
     }
+}
+
+/// Fractional bits of the 24-bit fixed-point positions that keep `position_bits` (at most 24)
+/// bits of `max_abs`: the most that fit, less `24 - position_bits`.
+pub fn position_fractional_bits(max_abs: f64, position_bits: u8) -> u8 {
+    fractional_bits(max_abs).saturating_sub(24u8.saturating_sub(position_bits))
 }
 
 /// Fractional bits of the 24-bit fixed-point positions: the most that keep `max_abs` in range.
@@ -65,7 +75,7 @@ pub fn encode_spz_v2_raw(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -
         .map(|p| [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]])
         .collect();
     let max_abs = rel.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    let fb = fractional_bits(max_abs);
+    let fb = position_fractional_bits(max_abs, opts.position_bits);
     let mut out = Vec::with_capacity(16 + n * (19 + 3 * k));
     out.extend_from_slice(b"NGSP");
     out.extend_from_slice(&2u32.to_le_bytes());
@@ -339,6 +349,39 @@ mod tests {
             },
         );
         assert_eq!(low.len(), 16 + 50 * (19 + 9));
+    }
+
+    /// Fewer position bits: the header says so, the reader honours it and the error stays
+    /// within half a step.
+    #[test]
+    fn fewer_position_bits_drop_fractional_bits() {
+        let s = scene();
+        let centre = [10.5, -1.0, 2.0];
+        let full = SpzOptions::default();
+        let coarse = SpzOptions {
+            position_bits: 16,
+            ..full
+        };
+        let max_abs = s
+            .positions
+            .iter()
+            .flat_map(|p| (0..3).map(move |a| (p[a] - centre[a]).abs()))
+            .fold(0.0, f64::max);
+        let fb = position_fractional_bits(max_abs, 16);
+        assert_eq!(fb, fractional_bits(max_abs) - 8);
+        let raw = encode_spz_v2_raw(&s, centre, &coarse);
+        assert_eq!(raw[13], fb);
+        let d = crate::io::read_bytes("t.spz", &encode_spz_v2(&s, centre, &coarse))
+            .unwrap()
+            .splats;
+        let step = 0.5f64.powi(fb as i32);
+        for i in 0..s.len() {
+            for (k, c) in centre.iter().enumerate() {
+                let e = (s.get(i).position[k] - c - d.get(i).position[k]).abs();
+                assert!(e <= step / 2.0 + 1e-9, "{i} {k}: {e} > {step}/2");
+            }
+        }
+        assert_eq!(raw.len(), encode_spz_v2_raw(&s, centre, &full).len());
     }
 
     #[test]
