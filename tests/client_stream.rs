@@ -923,3 +923,41 @@ fn hostile_transport_never_panics_the_client() {
     eprintln!("ready {ready}/24, drew {drew}/24");
     assert!(ready >= 6 && drew >= 6, "ready {ready}, drew {drew}");
 }
+
+/// The learned predictor (`PredictorKind::Tcn`, committed model) in the client loop: past the
+/// 5 s fallback it plans with the TCN's poses along a moving path, within the memory budget,
+/// and streams the view (issue 20).
+#[test]
+fn the_tcn_predictor_streams_along_a_path_within_the_budget() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    let near = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 1.2);
+    let need: u64 = select_tiles(&ts, &near, 16.0)
+        .iter()
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum();
+    let budget = need * 6 / 10;
+    let mut c = cfg(vec![Level::Best, Level::Low]);
+    c.memory_budget_bytes = budget;
+    c.predictor = PredictorKind::Tcn;
+    let mut s = Session::new(plant(), c);
+    let steps = (12.0 / DT) as usize;
+    for k in 0..steps {
+        let a = k as f64 * 0.004;
+        let cam = camera(
+            &ts,
+            DVec3::new(a.cos(), a.sin(), 0.5),
+            1.2 + 0.5 * (a * 0.7).sin(),
+        );
+        s.step(&cam);
+        let st = s.client.stats();
+        assert!(
+            st.cache_bytes <= budget,
+            "{} > {budget} at step {k}",
+            st.cache_bytes
+        );
+    }
+    let st = s.client.stats();
+    assert!(s.t > 10.0, "{}", s.t);
+    assert!(st.resident_tiles > 0 && st.resident_splats > 0, "{st:?}");
+    assert_eq!(st.errors, 0, "{st:?}");
+}

@@ -605,3 +605,41 @@ fn dir_size(dir: &Path) -> u64 {
     }
     n
 }
+
+/// The learned predictor runs in the browser: the viewer opened with `predictor=tcn` runs the
+/// committed TCN in wasm (answers 60 steps, a steady 1.4 m/s walk predicted ahead by 2..14 m at
+/// 5 s), keeps streaming with it for 7 s of walking, and the console stays clean. Prints the
+/// browser's ms per 30 s prediction (BENCHMARKS.md "Learned trajectory prediction").
+#[test]
+fn web_viewer_runs_the_tcn_predictor() {
+    require_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("plant");
+    run(Command::new(bin())
+        .arg("convert")
+        .arg(scene("plant.splat"))
+        .arg("-o")
+        .arg(&dir));
+    let viewing = view(&dir, &tmp.path().join("view.log"));
+    let o = Command::new("node")
+        .arg(js_dir().join("web_tcn.mjs"))
+        .arg(&viewing.base)
+        .args(["--runs", "30", "--timeout", "240"])
+        .output()
+        .expect("cannot run `node` (install Node >= 20)");
+    drop(viewing);
+    let v = json_of(&o, "web_tcn.mjs");
+    assert!(o.status.success() && v["ok"] == true, "run failed: {v:#}");
+    let c = &v["check"];
+    eprintln!(
+        "wasm TCN: mean {} ms, min {} ms per 30 s prediction; load {} ms",
+        c["meanMs"], c["minMs"], c["loadMs"]
+    );
+    assert_eq!(c["predictor"], "Tcn", "{c:#}");
+    assert_eq!(u(&c["steps"]), 60, "{c:#}");
+    let ahead = c["aheadAt5s"].as_f64().unwrap();
+    assert!((2.0..14.0).contains(&ahead), "{c:#}");
+    assert!(c["sidewaysAt5s"].as_f64().unwrap().abs() < 3.0, "{c:#}");
+    assert!(v["problems"].as_array().unwrap().is_empty(), "{v:#}");
+    assert_eq!(u(&v["stats"]["errors"]), 0, "{v:#}");
+}

@@ -353,8 +353,8 @@ fn client_config(s: &Scene, predictor: PredictorKind) -> ClientConfig {
     }
 }
 
-/// The predictors compared: the client's three kinds and the oracle of the trace.
-const PREDICTORS: [&str; 4] = ["reactive", "constant-velocity", "linear", "oracle"];
+/// The predictors compared: the client's four kinds and the oracle of the trace.
+const PREDICTORS: [&str; 5] = ["reactive", "constant-velocity", "linear", "tcn", "oracle"];
 
 /// One session of `predictor` (a [`PREDICTORS`] name) on `tr` over `net`.
 fn session(s: &Scene, tr: &Trace, predictor: &str, net: &NetModel) -> SessionLog {
@@ -362,6 +362,7 @@ fn session(s: &Scene, tr: &Trace, predictor: &str, net: &NetModel) -> SessionLog
         "reactive" => (PredictorKind::Reactive, false),
         "constant-velocity" => (PredictorKind::ConstantVelocity, false),
         "linear" => (PredictorKind::Linear, false),
+        "tcn" => (PredictorKind::Tcn, false),
         _ => (PredictorKind::Reactive, true),
     };
     let opts = SessionOptions {

@@ -53,7 +53,8 @@ use crate::stream::catalog::{
 use crate::stream::geom::{Frustum, Obb, ViewPose};
 use crate::stream::planner::{LinkForecast, PlanStepConfig, plan_visible_link};
 use crate::stream::predict::{
-    ConstantVelocity, LinearExtrapolation, Predictor, Reactive, needs_fallback, radius_tiles,
+    BLEND_SIGMA_M, ConstantVelocity, LinearExtrapolation, Predictor, Reactive, confident_poses,
+    needs_fallback, radius_tiles,
 };
 use crate::stream::priority::priority;
 use crate::tiling::TileKey;
@@ -83,6 +84,9 @@ pub enum PredictorKind {
     /// Least-squares extrapolation over 2 s (after 5 s of history; reactive before).
     #[default]
     Linear,
+    /// TileSplat's learned TCN + LSTM with uncertainty (`stream::learned`; after 5 s of history,
+    /// the radius rule blended in where it is uncertain).
+    Tcn,
 }
 
 /// Client settings.
@@ -409,6 +413,11 @@ fn predictor_of(kind: PredictorKind) -> Box<dyn Predictor + Send> {
         PredictorKind::Reactive => Box::new(Reactive),
         PredictorKind::ConstantVelocity => Box::new(ConstantVelocity::default()),
         PredictorKind::Linear => Box::new(LinearExtrapolation::default()),
+        // The committed model always loads (tests load it); were it ever unusable, linear.
+        PredictorKind::Tcn => match crate::stream::learned::TcnPredictor::committed() {
+            Ok(p) => Box::new(p),
+            Err(_) => Box::new(LinearExtrapolation::default()),
+        },
     }
 }
 

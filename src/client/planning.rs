@@ -116,13 +116,17 @@ impl StreamClient {
         self.dirty = false;
         self.predicted_subtrees.clear();
         let fallback = self.in_fallback();
-        let predicted = if fallback {
-            vec![]
+        let (predicted, uncertain) = if fallback {
+            (vec![], false)
         } else {
-            self.predictor.predict(
-                &self.history,
-                self.cfg.predict_horizon_s,
-                self.cfg.predict_step_s,
+            // App. C.5: poses too uncertain to plan for give way to the radius rule.
+            confident_poses(
+                &self.predictor.predict_uncertain(
+                    &self.history,
+                    self.cfg.predict_horizon_s,
+                    self.cfg.predict_step_s,
+                ),
+                BLEND_SIGMA_M,
             )
         };
         let mut first = vec![f64::INFINITY; self.info.len()];
@@ -218,9 +222,9 @@ impl StreamClient {
                 wanted.push(self.want(i, level, 0.0, &frustum));
             }
         }
-        // App. C.5 fallback: the tiles within the radius at Medium, nearest first, while the
-        // memory budget holds them.
-        if fallback && self.cfg.fallback_radius_m > 0.0 {
+        // App. C.5 fallback (and blend, when the prediction is uncertain): the tiles within the
+        // radius at Medium, nearest first, while the memory budget holds them.
+        if (fallback || uncertain) && self.cfg.fallback_radius_m > 0.0 {
             let mut room = budget;
             let near = radius_tiles(&self.catalog, pose.pos, self.cfg.fallback_radius_m);
             let n = near.len().max(1) as f64;

@@ -10,6 +10,7 @@ pub mod split;
 pub mod stream_city;
 pub mod summary;
 pub mod svg;
+pub mod tcn_data;
 pub mod trace;
 pub mod transport;
 

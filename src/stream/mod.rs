@@ -9,6 +9,7 @@ pub mod bandwidth;
 pub mod cache;
 pub mod catalog;
 pub mod geom;
+pub mod learned;
 pub mod plan;
 pub mod planner;
 pub mod predict;
@@ -23,5 +24,5 @@ pub use catalog::{CatalogTile, LEVELS, Level, TileCatalog, Variant, VariantSourc
 pub use geom::{Frustum, Intrinsics, Obb, ViewPose};
 pub use plan::{Candidate, Fetch, Plan, PlanRequest, Planner};
 pub use planner::{LinkForecast, PlanStepConfig, first_visibility, plan_step, plan_visible_link};
-pub use predict::{ConstantVelocity, LinearExtrapolation, Oracle, Predictor, Reactive};
+pub use predict::{ConstantVelocity, LinearExtrapolation, Oracle, Predictor, Reactive, Uncertain};
 pub use visibility::{VisTest, cull_hierarchical};

@@ -1,6 +1,7 @@
 //! Trajectory predictors behind one trait (reactive, constant velocity, linear extrapolation,
-//! oracle; the learned TCN of TileSplat sec. 3.3 plugs in later) and the App. C.5 fallback rule:
-//! until a predictor has its history (5 s), fetch every tile within a radius at Medium quality.
+//! oracle; the learned TCN of TileSplat sec. 3.3 is `stream::learned`) and the App. C.5 rules:
+//! until a predictor has its history (5 s), fetch every tile within a radius at Medium quality;
+//! where a prediction is too uncertain ([`BLEND_SIGMA_M`]), the radius rule joins it.
 
 use super::catalog::TileCatalog;
 use super::geom::{ViewPose, wrap_angle};
@@ -18,6 +19,45 @@ pub trait Predictor {
     /// history entry (the current pose). An empty answer means "no prediction": plan for the
     /// current view only (reactive).
     fn predict(&mut self, history: &[ViewPose], horizon: f64, step: f64) -> Vec<ViewPose>;
+    /// [`predict`](Self::predict) with each pose's horizontal uncertainty. Predictors without a
+    /// model of their error report sigma 0 (taken as certain: their plans are unchanged).
+    fn predict_uncertain(
+        &mut self,
+        history: &[ViewPose],
+        horizon: f64,
+        step: f64,
+    ) -> Vec<Uncertain> {
+        self.predict(history, horizon, step)
+            .into_iter()
+            .map(|pose| Uncertain { pose, sigma_m: 0.0 })
+            .collect()
+    }
+}
+
+/// A predicted pose with the predictor's one-sigma horizontal position uncertainty (metres).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Uncertain {
+    /// The predicted (mean) pose.
+    pub pose: ViewPose,
+    /// One sigma of the horizontal position, metres (0: certain or unknown).
+    pub sigma_m: f64,
+}
+
+/// App. C.5's low-confidence rule: predicted poses whose sigma exceeds this (metres) are not
+/// planned for; the radius rule covers the surroundings instead (a fifth of TileSplat's 100 m
+/// radius: beyond it the mean pose's frustum says little about what will be seen).
+pub const BLEND_SIGMA_M: f64 = 20.0;
+
+/// Splits a prediction by App. C.5's rule: the poses confident enough to plan for (sigma at most
+/// `limit_m`) and whether any was too uncertain (then the radius rule is blended in).
+pub fn confident_poses(pred: &[Uncertain], limit_m: f64) -> (Vec<ViewPose>, bool) {
+    let keep: Vec<ViewPose> = pred
+        .iter()
+        .filter(|u| u.sigma_m <= limit_m)
+        .map(|u| u.pose)
+        .collect();
+    let uncertain = keep.len() < pred.len();
+    (keep, uncertain)
 }
 
 /// No prediction: only tiles visible now are fetched (TileSplat-Reactive).
@@ -247,4 +287,44 @@ pub fn radius_tiles(cat: &TileCatalog, pos: DVec3, radius: f64) -> Vec<usize> {
         .collect();
     v.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     v.into_iter().map(|(_, i)| i).collect()
+}
+
+#[cfg(test)]
+mod uncertainty_tests {
+    use super::*;
+
+    fn pose(t: f64) -> ViewPose {
+        ViewPose {
+            t,
+            pos: DVec3::new(t, 0.0, 0.0),
+            yaw: 0.0,
+            pitch: 0.0,
+        }
+    }
+
+    #[test]
+    fn heuristic_predictors_report_zero_sigma_and_plan_unchanged() {
+        let h: Vec<ViewPose> = (0..=72).map(|i| pose(i as f64 / 12.0)).collect();
+        let mut lin = LinearExtrapolation::default();
+        let plain = lin.predict(&h, 10.0, 0.5);
+        let unc = lin.predict_uncertain(&h, 10.0, 0.5);
+        assert_eq!(plain.len(), 20);
+        assert!(unc.iter().all(|u| u.sigma_m == 0.0));
+        let (keep, uncertain) = confident_poses(&unc, BLEND_SIGMA_M);
+        assert_eq!(keep, plain);
+        assert!(!uncertain);
+    }
+
+    #[test]
+    fn uncertain_poses_are_dropped_and_flag_the_radius_blend() {
+        let pred: Vec<Uncertain> = (1..=6)
+            .map(|k| Uncertain {
+                pose: pose(k as f64),
+                sigma_m: 8.0 * k as f64,
+            })
+            .collect();
+        let (keep, uncertain) = confident_poses(&pred, 20.0);
+        assert_eq!(keep.iter().map(|p| p.t).collect::<Vec<_>>(), vec![1.0, 2.0]);
+        assert!(uncertain);
+    }
 }

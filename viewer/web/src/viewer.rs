@@ -6,7 +6,7 @@ use std::rc::Rc;
 
 use glam::DVec3;
 use serde_json::json;
-use splat2tiles::client::{ClientConfig, SceneUpdate, StreamClient};
+use splat2tiles::client::{ClientConfig, PredictorKind, SceneUpdate, StreamClient};
 use splat2tiles::render::camera::{self, Camera};
 use splat2tiles::render::view_spec::{ViewSpec, is_georeferenced};
 use splat2tiles::stream::Level;
@@ -28,6 +28,8 @@ struct Options {
     camera: Option<ViewSpec>,
     /// Start walking instead of flying (`mode=walk`).
     walk: bool,
+    /// The trajectory predictor (`predictor=reactive|constant-velocity|linear|tcn`).
+    predictor: PredictorKind,
 }
 
 impl Options {
@@ -82,6 +84,21 @@ impl Options {
                 "walk" => true,
                 "fly" => false,
                 other => return Err(format!("unknown mode '{other}' (walk, fly)")),
+            },
+            predictor: match v
+                .get("predictor")
+                .and_then(|m| m.as_str())
+                .unwrap_or("linear")
+            {
+                "reactive" => PredictorKind::Reactive,
+                "constant-velocity" => PredictorKind::ConstantVelocity,
+                "linear" => PredictorKind::Linear,
+                "tcn" => PredictorKind::Tcn,
+                other => {
+                    return Err(format!(
+                        "unknown predictor '{other}' (reactive, constant-velocity, linear, tcn)"
+                    ));
+                }
             },
         };
         if !(o.budget_mb.is_finite() && o.budget_mb > 0.0) {
@@ -189,6 +206,7 @@ impl WebViewer {
             max_sse: options.max_sse,
             memory_budget_bytes: (options.budget_mb * 1048576.0) as u64,
             levels: options.levels.clone(),
+            predictor: options.predictor,
             ..ClientConfig::default()
         };
         let client = StreamClient::new(&tileset_url, ccfg);
@@ -518,6 +536,47 @@ impl WebViewer {
             f("speed"),
             v["camera"].as_str().unwrap_or_default(),
         )
+    }
+
+    /// Runs the committed TCN (`stream::learned`) `runs` times on a steady 10 s walk at 1.4 m/s
+    /// along +x and answers JSON: the page's predictor, ms per 30 s prediction (mean and min, the
+    /// browser's clock) and the predicted advance along x and sideways drift at 5 s (metres).
+    pub fn tcn_check(&self, runs: usize) -> Result<String, JsValue> {
+        use splat2tiles::stream::learned::{TcnPredictor, window::straight_walk};
+        use splat2tiles::stream::predict::Predictor;
+        let clock = || {
+            web_sys::window()
+                .and_then(|w| w.performance())
+                .map_or(0.0, |p| p.now())
+        };
+        let t0 = clock();
+        let mut p = TcnPredictor::committed().map_err(|e| JsValue::from_str(&e))?;
+        let load_ms = clock() - t0;
+        let h = straight_walk(10.0, 1.4);
+        let now = h[h.len() - 1];
+        let (mut sum, mut min, mut out) = (0.0, f64::INFINITY, vec![]);
+        for _ in 0..runs.clamp(1, 1000) {
+            let t = clock();
+            out = p.predict_uncertain(&h, 30.0, 0.5);
+            let ms = clock() - t;
+            sum += ms;
+            min = min.min(ms);
+        }
+        if let Some(e) = &p.last_error {
+            return Err(JsValue::from_str(e));
+        }
+        let at5 = out.get(9).map(|u| u.pose.pos).unwrap_or(now.pos);
+        Ok(json!({
+            "predictor": format!("{:?}", self.options.predictor),
+            "steps": out.len(),
+            "loadMs": load_ms,
+            "meanMs": sum / runs.clamp(1, 1000) as f64,
+            "minMs": min,
+            "aheadAt5s": at5.x - now.pos.x,
+            "sidewaysAt5s": at5.y - now.pos.y,
+            "sigmaAt30s": out.last().map_or(0.0, |u| u.sigma_m),
+        })
+        .to_string())
     }
 
     /// The adapter and surface as JSON.

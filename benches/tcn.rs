@@ -1,0 +1,45 @@
+//! Latency of one 30 s trajectory prediction (TileSplat App. C.5: 18 ms on CPU) with the
+//! committed TCN (`stream::learned`), against the heuristic predictors, single-threaded.
+//!
+//! Run: `taskset -c 0 cargo bench --bench tcn` (one core). Prints ms per prediction (min,
+//! median) over 200 calls after 10 warm-up calls, and the model load time.
+
+use splat2tiles::stream::learned::TcnPredictor;
+use splat2tiles::stream::learned::window::straight_walk;
+use splat2tiles::stream::predict::{LinearExtrapolation, Predictor};
+use std::time::Instant;
+
+fn time(p: &mut dyn Predictor, runs: usize) -> (f64, f64) {
+    let h = straight_walk(10.0, 1.4);
+    for _ in 0..10 {
+        std::hint::black_box(p.predict_uncertain(&h, 30.0, 0.5));
+    }
+    let mut ms: Vec<f64> = (0..runs)
+        .map(|_| {
+            let t = Instant::now();
+            std::hint::black_box(p.predict_uncertain(&h, 30.0, 0.5));
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    ms.sort_by(f64::total_cmp);
+    (ms[0], ms[ms.len() / 2])
+}
+
+fn main() {
+    let t = Instant::now();
+    let mut tcn = match TcnPredictor::committed() {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("tcn bench: {e}");
+            std::process::exit(2);
+        }
+    };
+    println!(
+        "model load + optimise: {:.1} ms",
+        t.elapsed().as_secs_f64() * 1e3
+    );
+    let (min, med) = time(&mut tcn, 200);
+    println!("tcn 30 s prediction (60 steps): min {min:.2} ms, median {med:.2} ms");
+    let (min, med) = time(&mut LinearExtrapolation::default(), 200);
+    println!("linear 30 s prediction: min {min:.3} ms, median {med:.3} ms");
+}
