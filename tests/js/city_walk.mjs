@@ -103,7 +103,7 @@ try {
   const t0 = Date.now();
   await page.goto(`${base}viewer/index.html?${qs}`);
   await page.waitForFunction(() => window.splat2tiles || document.title.startsWith('error'), null, {
-    timeout: 120000,
+    timeout: 300000,
   });
   const title = await page.title();
   if (title.startsWith('error')) throw new Error(title);

@@ -79,8 +79,10 @@ try {
     }, Number(opt['frame-interval']));
   }
   await page.goto(`${base}viewer/index.html?${qs}`);
+  // Start-up compiles the viewer's wasm (16 MB since the TCN's runtime joined it): on a loaded
+  // 2-core CI box with several browsers at once that exceeded 60 s, so allow --start-timeout.
   await page.waitForFunction(() => window.splat2tiles || document.title.startsWith('error'), null, {
-    timeout: 60000,
+    timeout: Number(opt['start-timeout'] ?? 300) * 1000,
   });
   const title = await page.title();
   if (title.startsWith('error')) throw new Error(title);
