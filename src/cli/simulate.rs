@@ -6,7 +6,7 @@ use crate::client::{ClientConfig, PredictorKind};
 use crate::render::{Camera, Image, RenderOptions, render, ssim};
 use crate::sim::session::{SessionLog, SessionOptions, TickLog, run_session};
 use crate::sim::summary::{Summary, summarize};
-use crate::sim::svg::{Series, line_chart};
+use crate::sim::svg::{Series, write_time_plots};
 use crate::sim::trace::{self, Trace};
 use crate::sim::transport::NetModel;
 use crate::splat::Splats;
@@ -468,25 +468,13 @@ fn table4(args: &SimulateArgs, scenes: &[Scene]) -> anyhow::Result<String> {
             m(&|r| r.resumes as f64),
         );
     }
-    std::fs::write(
-        args.plots.join("stream_quality.svg"),
-        line_chart(
-            "plant, walk 1, 4 Mbps: SSIM of the drawn tiles vs the view set at Best",
-            "time (s)",
-            "SSIM",
-            &plot_q,
-            Some((0.0, 1.0)),
-        ),
-    )?;
-    std::fs::write(
-        args.plots.join("stream_bytes.svg"),
-        line_chart(
-            "plant, walk 1, 4 Mbps: bytes received",
-            "time (s)",
-            "MB",
-            &plot_b,
-            None,
-        ),
+    write_time_plots(
+        &args.plots,
+        "stream",
+        "plant, walk 1, 4 Mbps",
+        "SSIM of the drawn tiles vs the view set at Best",
+        &plot_q,
+        &plot_b,
     )?;
     md.push_str("\nPlots: `docs/stream_quality.svg` (SSIM over time), `docs/stream_bytes.svg` (bytes over time).\n\n");
     Ok(md)

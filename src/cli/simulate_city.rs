@@ -14,10 +14,10 @@ use crate::client::{ClientConfig, PredictorKind};
 use crate::render::{Image, ssim};
 use crate::sim::network::{Network, log_files, read_log};
 use crate::sim::score::{Chr, EventRule, Ratio, TickView, Truth, Waste, cache_hits, events};
-use crate::sim::score::{time_to_quality, wasted};
+use crate::sim::score::{drawn_is_needed_at_best, time_to_quality, wasted};
 use crate::sim::session::{SessionLog, SessionOptions, run_session};
 use crate::sim::stream_city::{BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set};
-use crate::sim::svg::{Series, line_chart};
+use crate::sim::svg::{Series, write_time_plots};
 use crate::sim::trace::{self, Trace};
 use crate::sim::transport::{NetModel, Outcome};
 use crate::stream::catalog::Level;
@@ -226,15 +226,7 @@ fn quality(truth: &mut Truth, sc: &mut Scored, log: &SessionLog, k: usize) -> an
     if needed.is_empty() {
         return Ok(1.0);
     }
-    let mut a = needed.clone();
-    let mut b: Vec<TileKey> = drawn
-        .iter()
-        .filter(|(_, l)| *l == Level::Best)
-        .map(|(k, _)| *k)
-        .collect();
-    a.sort_unstable();
-    b.sort_unstable();
-    if a == b && b.len() == drawn.len() {
+    if drawn_is_needed_at_best(needed, &drawn) {
         return Ok(1.0);
     }
     let c = ClientConfig::default();
@@ -488,25 +480,13 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
             r.evictions
         );
     }
-    std::fs::write(
-        args.plots.join("city_quality.svg"),
-        line_chart(
-            &format!("city, {pname}, 10 Mbps: SSIM of the drawn cut vs the needed cut at Best"),
-            "time (s)",
-            "SSIM",
-            &plot_q,
-            Some((0.0, 1.0)),
-        ),
-    )?;
-    std::fs::write(
-        args.plots.join("city_bytes.svg"),
-        line_chart(
-            &format!("city, {pname}, 10 Mbps: bytes received"),
-            "time (s)",
-            "MB",
-            &plot_b,
-            None,
-        ),
+    write_time_plots(
+        &args.plots,
+        "city",
+        &format!("city, {pname}, 10 Mbps"),
+        "SSIM of the drawn cut vs the needed cut at Best",
+        &plot_q,
+        &plot_b,
     )?;
     let _ = writeln!(
         md,

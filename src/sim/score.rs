@@ -168,15 +168,7 @@ impl Truth {
         width: u32,
         height: u32,
     ) -> anyhow::Result<f64> {
-        let mut a: Vec<TileKey> = needed.to_vec();
-        let mut b: Vec<TileKey> = drawn
-            .iter()
-            .filter(|(_, l)| *l == Level::Best)
-            .map(|(k, _)| *k)
-            .collect();
-        a.sort_unstable();
-        b.sort_unstable();
-        if a == b && b.len() == drawn.len() {
+        if drawn_is_needed_at_best(needed, drawn) {
             return Ok(1.0);
         }
         let small = cam.resized(width, height);
@@ -185,6 +177,20 @@ impl Truth {
         let got = self.render(drawn, &small)?;
         Ok(ssim(&got, &reference)?)
     }
+}
+
+/// Whether `drawn` is exactly the `needed` tiles, every one at Best (its quality is 1 without
+/// rendering).
+pub fn drawn_is_needed_at_best(needed: &[TileKey], drawn: &[(TileKey, Level)]) -> bool {
+    let mut a: Vec<TileKey> = needed.to_vec();
+    let mut b: Vec<TileKey> = drawn
+        .iter()
+        .filter(|(_, l)| *l == Level::Best)
+        .map(|(k, _)| *k)
+        .collect();
+    a.sort_unstable();
+    b.sort_unstable();
+    a == b && b.len() == drawn.len()
 }
 
 /// Hits out of entries.

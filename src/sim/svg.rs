@@ -150,6 +150,38 @@ fn fmt_num(v: f64) -> String {
     }
 }
 
+/// Writes `{stem}_quality.svg` (SSIM over time, 0..1) and `{stem}_bytes.svg` (MB received over
+/// time) into `dir`, titled "`label`: `quality_what`" and "`label`: bytes received".
+pub fn write_time_plots(
+    dir: &std::path::Path,
+    stem: &str,
+    label: &str,
+    quality_what: &str,
+    quality: &[Series],
+    bytes: &[Series],
+) -> std::io::Result<()> {
+    std::fs::write(
+        dir.join(format!("{stem}_quality.svg")),
+        line_chart(
+            &format!("{label}: {quality_what}"),
+            "time (s)",
+            "SSIM",
+            quality,
+            Some((0.0, 1.0)),
+        ),
+    )?;
+    std::fs::write(
+        dir.join(format!("{stem}_bytes.svg")),
+        line_chart(
+            &format!("{label}: bytes received"),
+            "time (s)",
+            "MB",
+            bytes,
+            None,
+        ),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
