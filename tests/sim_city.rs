@@ -8,7 +8,7 @@ mod common;
 use splat2tiles::client::{ClientConfig, PredictorKind};
 use splat2tiles::render::Camera;
 use splat2tiles::sim::misses::{MissBreakdown, breakdown};
-use splat2tiles::sim::score::{Ratio, TickView, Truth, cache_hits};
+use splat2tiles::sim::score::{Ratio, Truth, cache_hits, held_tiles, tick_views};
 use splat2tiles::sim::session::{SessionOptions, run_session};
 use splat2tiles::sim::stream_city::{CitySpec, StreetGrid, build_city, street_walk};
 use splat2tiles::sim::transport::NetModel;
@@ -55,21 +55,8 @@ fn chr(
                 truth.needed(&cam, cfg.max_sse)
             })
             .collect();
-        let resident: Vec<Vec<TileKey>> = log
-            .ticks
-            .iter()
-            .map(|t| t.resident.iter().map(|r| r.0).collect())
-            .collect();
-        let views: Vec<TickView> = log
-            .ticks
-            .iter()
-            .zip(needed.iter().zip(&resident))
-            .map(|(t, (n, r))| TickView {
-                t: t.t,
-                needed: n,
-                resident: r,
-            })
-            .collect();
+        let resident = held_tiles(&log);
+        let views = tick_views(&log, needed.iter().map(Vec::as_slice), &resident);
         let c = cache_hits(&views);
         total.hits += c.first.hits;
         total.n += c.first.n;
@@ -196,21 +183,8 @@ fn oracle_misses_on_the_full_city() {
                     truth.needed(&cam, cfg.max_sse)
                 })
                 .collect();
-            let resident: Vec<Vec<TileKey>> = log
-                .ticks
-                .iter()
-                .map(|t| t.resident.iter().map(|r| r.0).collect())
-                .collect();
-            let views: Vec<TickView> = log
-                .ticks
-                .iter()
-                .zip(needed.iter().zip(&resident))
-                .map(|(t, (n, r))| TickView {
-                    t: t.t,
-                    needed: n,
-                    resident: r,
-                })
-                .collect();
+            let resident = held_tiles(&log);
+            let views = tick_views(&log, needed.iter().map(Vec::as_slice), &resident);
             let w = breakdown(&log, &views);
             assert!(w.entries > 0 && w.misses <= w.entries, "{w:?}");
             // Repeated downloads: requests per (tile, level), bytes of completed ones.

@@ -13,8 +13,8 @@ use super::simulate::SimulateArgs;
 use crate::client::{ClientConfig, PredictorKind};
 use crate::render::{Image, ssim};
 use crate::sim::network::{Network, log_files, read_log};
-use crate::sim::score::{Chr, EventRule, Ratio, TickView, Truth, Waste, cache_hits, events};
-use crate::sim::score::{drawn_is_needed_at_best, time_to_quality, wasted};
+use crate::sim::score::{Chr, EventRule, Ratio, Truth, Waste, cache_hits, events};
+use crate::sim::score::{drawn_is_needed_at_best, held_tiles, tick_views, time_to_quality, wasted};
 use crate::sim::session::{SessionLog, SessionOptions, run_session};
 use crate::sim::stream_city::{BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set};
 use crate::sim::svg::{Series, write_time_plots};
@@ -155,29 +155,6 @@ fn needed_cuts(truth: &Truth, tr: &Trace) -> Vec<Vec<TileKey>> {
         .collect()
 }
 
-fn views<'a>(
-    needed: &'a [Vec<TileKey>],
-    held: &'a [Vec<TileKey>],
-    log: &SessionLog,
-) -> Vec<TickView<'a>> {
-    log.ticks
-        .iter()
-        .zip(needed.iter().zip(held))
-        .map(|(t, (n, r))| TickView {
-            t: t.t,
-            needed: n,
-            resident: r,
-        })
-        .collect()
-}
-
-fn held_of(log: &SessionLog) -> Vec<Vec<TileKey>> {
-    log.ticks
-        .iter()
-        .map(|t| t.resident.iter().map(|r| r.0).collect())
-        .collect()
-}
-
 /// Completed content downloads `(tile, bytes, end)`.
 fn downloads(log: &SessionLog) -> Vec<(TileKey, u64, f64)> {
     log.requests
@@ -247,8 +224,8 @@ fn quality(truth: &mut Truth, sc: &mut Scored, log: &SessionLog, k: usize) -> an
 
 /// TGQ per event (`score::events`) from quality samples `(t, ssim)` of a session.
 fn tgq(sc: &Scored, log: &SessionLog, samples: &[(f64, f64)]) -> Vec<Option<f64>> {
-    let held = held_of(log);
-    let vs = views(&sc.needed, &held, log);
+    let held = held_tiles(log);
+    let vs = tick_views(log, sc.needed.iter().map(Vec::as_slice), &held);
     let yaw: Vec<f64> = log.ticks.iter().map(|t| t.pose.yaw.to_degrees()).collect();
     let ev = events(&vs, &yaw, &EventRule::default());
     time_to_quality(&ev, samples, GOOD)
@@ -398,8 +375,8 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
             let t_s = Instant::now();
             let log = session(&dir, &sc.trace, p, Planner::Dp, &net10);
             let session_s = t_s.elapsed().as_secs_f64();
-            let held = held_of(&log);
-            let vs = views(&sc.needed, &held, &log);
+            let held = held_tiles(&log);
+            let vs = tick_views(&log, sc.needed.iter().map(Vec::as_slice), &held);
             let c = cache_hits(&vs);
             let w = wasted(&downloads(&log), &vs);
             drop(vs);

@@ -16,6 +16,7 @@
 //! - **TGQ**: seconds from an event to the first quality sample >= the threshold (0.90).
 //! - **WD**: content downloads completed for tiles in no needed cut from the download's end on.
 
+use super::session::SessionLog;
 use crate::render::{Camera, Image, RenderOptions, render, ssim};
 use crate::splat::Splats;
 use crate::stream::catalog::Level;
@@ -229,6 +230,31 @@ pub struct TickView<'a> {
     pub needed: &'a [TileKey],
     /// Tiles the client holds (any variant).
     pub resident: &'a [TileKey],
+}
+
+/// The tiles the client held (any variant) at each tick of `log`.
+pub fn held_tiles(log: &SessionLog) -> Vec<Vec<TileKey>> {
+    log.ticks
+        .iter()
+        .map(|t| t.resident.iter().map(|r| r.0).collect())
+        .collect()
+}
+
+/// One [`TickView`] per tick of `log`: its time, the tick's `needed` cut and `held` tiles.
+pub fn tick_views<'a>(
+    log: &SessionLog,
+    needed: impl IntoIterator<Item = &'a [TileKey]>,
+    held: &'a [Vec<TileKey>],
+) -> Vec<TickView<'a>> {
+    log.ticks
+        .iter()
+        .zip(needed.into_iter().zip(held))
+        .map(|(t, (n, r))| TickView {
+            t: t.t,
+            needed: n,
+            resident: r,
+        })
+        .collect()
 }
 
 /// CHR over a session's ticks (see the module docs).

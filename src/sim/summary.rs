@@ -1,7 +1,7 @@
 //! Summaries of a [`SessionLog`]: cache hits over first-time view entries and wasted downloads,
 //! read from what the real client needed, held and fetched (the tables of `simulate`).
 
-use super::score::{TickView, cache_hits, wasted};
+use super::score::{cache_hits, held_tiles, tick_views, wasted};
 use super::session::SessionLog;
 use super::transport::Outcome;
 use crate::tiling::TileKey;
@@ -62,21 +62,12 @@ fn ratio(a: usize, b: usize) -> f64 {
 /// Summarises a session (see [`Summary`]) against the client's own view sets, with the rules of
 /// [`super::score`].
 pub fn summarize(log: &SessionLog) -> Summary {
-    let resident: Vec<Vec<TileKey>> = log
-        .ticks
-        .iter()
-        .map(|t| t.resident.iter().map(|r| r.0).collect())
-        .collect();
-    let views: Vec<TickView> = log
-        .ticks
-        .iter()
-        .zip(&resident)
-        .map(|(t, r)| TickView {
-            t: t.t,
-            needed: &t.view_set,
-            resident: r,
-        })
-        .collect();
+    let resident = held_tiles(log);
+    let views = tick_views(
+        log,
+        log.ticks.iter().map(|t| t.view_set.as_slice()),
+        &resident,
+    );
     let c = cache_hits(&views);
     let downloads: Vec<(TileKey, u64, f64)> = log
         .requests
