@@ -201,3 +201,87 @@ fn a_level_change_blends_frame_by_frame_where_a_hard_swap_jumps() {
     // The first frame is the root alone in both; the last layered frame is the children's.
     assert_eq!(layered[0].data, swapped[0].data);
 }
+
+/// The command line: `convert --layers` writes a tileset `validate` passes and `render` draws as
+/// layers; `--layers` with `--no-lod` (parents without content) is refused before any output.
+#[test]
+fn cli_converts_validates_and_renders_layers() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("scene.ply");
+    common::write_ply_file(&ply, &common::random_splats(3000, 0, 10.0, 3));
+    let out = dir.path().join("layered");
+    let run = |args: &[&str]| {
+        std::process::Command::new(common::bin())
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let ply_s = ply.to_str().unwrap();
+    let out_s = out.to_str().unwrap();
+    let o = run(&[
+        "convert",
+        ply_s,
+        "-o",
+        out_s,
+        "--max-splats",
+        "500",
+        "--layers",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let ts = out.join("tileset.json");
+    let o = run(&["validate", ts.to_str().unwrap()]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let png = dir.path().join("view.png");
+    let o = run(&[
+        "render",
+        ts.to_str().unwrap(),
+        "--auto-view",
+        "0",
+        "--width",
+        "96",
+        "--height",
+        "64",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains(" layers of "), "{err}");
+
+    let refused = dir.path().join("refused");
+    let o = run(&[
+        "convert",
+        ply_s,
+        "-o",
+        refused.to_str().unwrap(),
+        "--layers",
+        "--no-lod",
+        "-q",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!refused.exists());
+    let o = run(&[
+        "convert",
+        ply_s,
+        "-o",
+        refused.to_str().unwrap(),
+        "--layers",
+        "--profile",
+        "cesium",
+        "-q",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--layers"));
+    assert!(!refused.exists());
+}

@@ -2,11 +2,12 @@
 //! the tileset must refine by ADD, the root must carry the base layer, and every other content
 //! must be a layer of its own level whose deltas match its parent's splats and stay in range.
 //!
-//! Runs after the structural checks over the tiles `tiling::load` finds; a content that is not
-//! a readable, uncompressed glb is skipped here (the content checks report it).
+//! Runs after the structural checks, when they found no error, over the tiles `tiling::load`
+//! finds; a content that is not a readable, uncompressed glb is skipped here (the content checks
+//! report it).
 
 use super::context::Ctx;
-use super::issues::Issue;
+use super::issues::{Issue, Severity};
 use crate::encode::glb::{parse_json, read_glb};
 use crate::encode::tile::ATTR_POSITION;
 use crate::layers::glb::{LayerInfo, read_layer};
@@ -51,8 +52,13 @@ fn read_content(path: &Path, name: String, limit: u64) -> Option<Content> {
     })
 }
 
-/// Checks the layered form of the tileset in `file` (a `tileset.json` on disk).
+/// Checks the layered form of the tileset in `file` (a `tileset.json` on disk), once the
+/// structural checks found no error: the tile walk (`tiling::load`) trusts the structure
+/// (its availability and subtree sizes) that those checks bound on hostile input.
 pub(crate) fn validate(ctx: &mut Ctx<'_>, file: &Path) {
+    if ctx.issues.iter().any(|i| i.severity == Severity::Error) {
+        return;
+    }
     let Ok(ts) = load_tileset(file) else {
         return;
     };
