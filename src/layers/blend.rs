@@ -14,7 +14,7 @@ pub const BLEND_BAND: f64 = 2.0;
 /// is seen with screen-space error `parent_sse` (pixels) and the viewer refines at `max_sse`:
 /// 0 at `max_sse` and below, 1 from `BLEND_BAND * max_sse`, linear in between.
 pub fn blend_factor(parent_sse: f64, max_sse: f64) -> f32 {
-    if parent_sse.is_nan() || !(max_sse > 0.0) {
+    if parent_sse.is_nan() || max_sse.is_nan() || max_sse <= 0.0 {
         return 0.0;
     }
     ((parent_sse - max_sse) / (max_sse * (BLEND_BAND - 1.0))).clamp(0.0, 1.0) as f32
