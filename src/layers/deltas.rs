@@ -141,8 +141,8 @@ mod tests {
         // child (child 1's (11,0,0), 39 away; child 0's (9,0,0) is 41 away) takes it.
         assert_eq!(d[0][2], 0.0);
         assert_eq!(d[1][2], -1.0);
-        for i in 0..3 {
-            assert!((d[0][i] + d[1][i] + 1.0).abs() < 1e-6);
+        for (a, b) in d[0].iter().zip(&d[1]) {
+            assert!((a + b + 1.0).abs() < 1e-6);
         }
     }
 

@@ -194,3 +194,83 @@ pub fn read_layer(glb: &[u8]) -> Result<Option<LayerInfo>, GlbError> {
         delta_accessor_path: Some(apath),
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encode::glb::write_glb;
+    use crate::encode::tile::IDENTITY;
+    use crate::encode::write_tile_glb;
+    use crate::splat::{Splat, Splats};
+
+    fn tile(n: usize) -> Vec<u8> {
+        let mut s = Splats::new(0);
+        for i in 0..n {
+            s.push(
+                Splat {
+                    position: [i as f64, 0.0, 0.0],
+                    scale: [0.1; 3],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                    opacity: 0.5,
+                    sh0: [0.0; 3],
+                },
+                &[],
+            );
+        }
+        write_tile_glb(&s, [0.0; 3], IDENTITY)
+    }
+
+    /// `glb` with its JSON edited by `f`.
+    fn edited(glb: &[u8], f: impl FnOnce(&mut Value)) -> Vec<u8> {
+        let c = read_glb(glb).unwrap();
+        let mut v: Value = serde_json::from_slice(c.json).unwrap();
+        f(&mut v);
+        write_glb(&serde_json::to_vec(&v).unwrap(), c.bin).unwrap()
+    }
+
+    fn ext(v: &mut Value) -> &mut Value {
+        &mut v["meshes"][0]["primitives"][0]["extensions"][EXTENSION]
+    }
+
+    #[test]
+    fn layers_round_trip_and_keep_the_splats() {
+        let plain = tile(3);
+        assert_eq!(read_layer(&plain).unwrap(), None);
+        let base = add_layer(&plain, 0, None).unwrap();
+        let l = read_layer(&base).unwrap().unwrap();
+        assert_eq!((l.level, l.parent_opacity_delta), (0, None));
+        let d = [-1.0f32, -0.5, 0.0, -0.25, -0.75];
+        let child = add_layer(&plain, 3, Some(&d)).unwrap();
+        let l = read_layer(&child).unwrap().unwrap();
+        assert_eq!(l.level, 3);
+        assert_eq!(l.parent_opacity_delta.as_deref(), Some(&d[..]));
+        let a = crate::encode::read_tile_glb(&plain).unwrap();
+        let b = crate::encode::read_tile_glb(&child).unwrap();
+        assert_eq!(a.splats, b.splats);
+    }
+
+    #[test]
+    fn malformed_extensions_are_refused_with_their_path() {
+        let child = add_layer(&tile(2), 1, Some(&[-1.0, 0.0])).unwrap();
+        let bad = [
+            edited(&child, |v| ext(v)["level"] = json!(-1)),
+            edited(&child, |v| ext(v)["parentOpacityDelta"] = json!(99)),
+            edited(&child, |v| {
+                let a = ext(v)["parentOpacityDelta"].as_u64().unwrap() as usize;
+                v["accessors"][a]["componentType"] = json!(5123);
+            }),
+            edited(&child, |v| {
+                let a = ext(v)["parentOpacityDelta"].as_u64().unwrap() as usize;
+                v["accessors"][a]["count"] = json!(1u64 << 40);
+            }),
+            edited(&child, |v| {
+                let a = ext(v)["parentOpacityDelta"].as_u64().unwrap() as usize;
+                v["accessors"][a]["count"] = json!(u64::MAX / 2);
+            }),
+        ];
+        for (i, b) in bad.iter().enumerate() {
+            let e = read_layer(b).expect_err(&format!("case {i}"));
+            assert!(e.to_string().contains('/'), "case {i}: {e}");
+        }
+    }
+}
