@@ -8,6 +8,7 @@ pub mod convert;
 pub mod encode;
 pub mod frame;
 pub mod io;
+pub mod layers;
 pub mod limits;
 pub mod lod;
 pub mod output;

@@ -62,6 +62,13 @@ fn base(name: &str) -> PathBuf {
             gen_ply(6000, 1, 7),
             opts(400, SchemeChoice::Octree, Some(2), None),
         ),
+        "layered_octree" => (
+            gen_ply(6000, 1, 7),
+            ConvertOptions {
+                layers: true,
+                ..opts(400, SchemeChoice::Octree, Some(2), None)
+            },
+        ),
         "small_quadtree" => (
             gen_ply(6000, 1, 8),
             opts(400, SchemeChoice::Quadtree, Some(2), None),
@@ -297,6 +304,49 @@ fn leaf_row(j: &Value, bin: &[u8]) -> usize {
 
 fn set_f64(bin: &mut [u8], at: usize, v: f64) {
     bin[at..at + 8].copy_from_slice(&v.to_le_bytes());
+}
+
+/// Extension name of layered content.
+const LAYER: &str = "SPLAT2TILES_layer";
+
+/// The `n`-th (in path order) content glb of `level` of a layered base.
+fn layer_glb(t: &Ts, level: u32, n: usize) -> PathBuf {
+    let under = t.dir.join(format!("tiles/best/{level}"));
+    let mut all: Vec<PathBuf> = t
+        .glbs()
+        .into_iter()
+        .filter(|p| p.starts_with(&under))
+        .collect();
+    all.sort();
+    all.into_iter().nth(n).expect("a layer glb")
+}
+
+/// Edits one glb's JSON, keeping its BIN chunk.
+fn edit_glb_at(p: &Path, f: impl FnOnce(&mut Value)) {
+    let bytes = std::fs::read(p).unwrap();
+    let c = read_glb(&bytes).unwrap();
+    let mut v: Value = serde_json::from_slice(c.json).unwrap();
+    f(&mut v);
+    let out = write_glb(&serde_json::to_vec(&v).unwrap(), c.bin).unwrap();
+    std::fs::write(p, out).unwrap();
+}
+
+/// Writes `val` into delta `i` of a layer's parentOpacityDelta accessor.
+fn poke_delta(p: &Path, i: usize, val: f32) {
+    let mut bytes = std::fs::read(p).unwrap();
+    let c = read_glb(&bytes).unwrap();
+    let v: Value = serde_json::from_slice(c.json).unwrap();
+    let a = v["meshes"][0]["primitives"][0]["extensions"][LAYER]["parentOpacityDelta"]
+        .as_u64()
+        .unwrap() as usize;
+    let acc = &v["accessors"][a];
+    let view = &v["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+    let at = c.bin_offset
+        + view["byteOffset"].as_u64().unwrap_or(0) as usize
+        + acc["byteOffset"].as_u64().unwrap_or(0) as usize
+        + i * 4;
+    bytes[at..at + 4].copy_from_slice(&val.to_le_bytes());
+    std::fs::write(p, bytes).unwrap();
 }
 
 type Mutation = fn(&Ts);
@@ -908,6 +958,43 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
     });
     m.insert("pnts_position_missing", |t| {
         write_legacy(t, b"pnts", 1, r#"{"POINTS_LENGTH":0}"#, false, 0)
+    });
+    // Layered content (spec/layered-content.md), base `layered_octree`.
+    m.insert("layered_refine_replace", |t| {
+        t.edit_tileset(|v| v["root"]["refine"] = json!("REPLACE"))
+    });
+    m.insert("layered_base_not_a_layer", |t| {
+        edit_glb_at(&layer_glb(t, 0, 0), |v| {
+            let p = &mut v["meshes"][0]["primitives"][0]["extensions"];
+            p.as_object_mut().unwrap().remove(LAYER);
+        })
+    });
+    m.insert("layered_child_without_extension", |t| {
+        edit_glb_at(&layer_glb(t, 1, 0), |v| {
+            let p = &mut v["meshes"][0]["primitives"][0]["extensions"];
+            p.as_object_mut().unwrap().remove(LAYER);
+        })
+    });
+    m.insert("layered_level_mismatch", |t| {
+        edit_glb_at(&layer_glb(t, 1, 0), |v| {
+            v["meshes"][0]["primitives"][0]["extensions"][LAYER]["level"] = json!(5);
+        })
+    });
+    m.insert("layered_delta_count_short", |t| {
+        edit_glb_at(&layer_glb(t, 1, 0), |v| {
+            let a = v["meshes"][0]["primitives"][0]["extensions"][LAYER]["parentOpacityDelta"]
+                .as_u64()
+                .unwrap() as usize;
+            let n = v["accessors"][a]["count"].as_u64().unwrap();
+            v["accessors"][a]["count"] = json!(n - 1);
+        })
+    });
+    m.insert("layered_delta_positive", |t| {
+        poke_delta(&layer_glb(t, 1, 0), 0, 0.5)
+    });
+    m.insert("layered_deltas_sum_below_minus_one", |t| {
+        poke_delta(&layer_glb(t, 1, 0), 0, -1.0);
+        poke_delta(&layer_glb(t, 1, 1), 0, -1.0);
     });
     m
 }

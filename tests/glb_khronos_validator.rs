@@ -84,6 +84,46 @@ fn run_validator(paths: &[PathBuf]) -> std::process::Output {
         .expect("cannot run `node` (install Node >= 20)")
 }
 
+/// Layered contents (`spec/layered-content.md`): a base layer and an enhancement layer whose
+/// `parentOpacityDelta` accessor follows the splat data in the BIN chunk.
+#[test]
+fn layered_tiles_pass_the_khronos_validator() {
+    use splat2tiles::layers::glb::{add_layer, read_layer};
+    require_node_modules();
+    let dir = tempfile::tempdir().unwrap();
+    let base = write_tile_glb(&tile(1, 50), [100.5, -50.0, 1.5], IDENTITY);
+    let child = write_tile_glb(&tile(3, 33), [100.5, -50.0, 1.5], IDENTITY);
+    let deltas: Vec<f32> = (0..50).map(|i| -(i as f32) / 49.0).collect();
+    let cases = [
+        ("base.glb", add_layer(&base, 0, None).unwrap()),
+        ("layer.glb", add_layer(&child, 1, Some(&deltas)).unwrap()),
+    ];
+    let back = read_layer(&cases[1].1).unwrap().unwrap();
+    assert_eq!(back.parent_opacity_delta.as_deref(), Some(&deltas[..]));
+    let mut paths = Vec::new();
+    for (name, bytes) in &cases {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        paths.push(p);
+    }
+    let out = run_validator(&paths);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let mut reports = 0;
+    for line in stdout.lines() {
+        let r: serde_json::Value = serde_json::from_str(line)
+            .unwrap_or_else(|e| panic!("validator output is not JSON ({e}): {line}"));
+        eprintln!("validator: {line}");
+        assert_eq!(r["numErrors"].as_u64(), Some(0), "validator errors: {line}");
+        reports += 1;
+    }
+    assert_eq!(
+        reports,
+        2,
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 /// Negative control: the harness must report a real defect (a wrong POSITION max) as an error.
 #[test]
 fn harness_reports_a_broken_tile() {

@@ -102,6 +102,10 @@ pub struct ConvertArgs {
     /// Distance (scene units) within which a --partition view needs full detail.
     #[arg(long, requires = "partition", default_value_t = 200.0, value_parser = positive_f64)]
     pub partition_range: f64,
+    /// Layered content (spec/layered-content.md): ADD refinement, each tile's content a layer
+    /// drawn over its ancestors', carrying the opacity deltas that fade its parent's splats.
+    #[arg(long, conflicts_with_all = ["plan", "no_lod", "variants"])]
+    pub layers: bool,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -139,6 +143,7 @@ fn options(args: &ConvertArgs) -> ConvertOptions {
             .unwrap_or_else(MemoryLimit::machine_default)
             .bytes(),
         partition: None,
+        layers: args.layers,
     }
 }
 

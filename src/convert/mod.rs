@@ -5,6 +5,7 @@
 //! stays within `--memory-limit` (ARCHITECTURE.md "Out-of-core conversion").
 
 mod frame;
+mod layered;
 mod merge;
 mod part;
 mod plan;
@@ -19,6 +20,7 @@ mod top;
 use crate::frame::geo::Geodetic;
 use crate::frame::{UpAxis, source_to_tileset};
 use crate::io::{self, ChunkedInput, ReadError, Scene};
+use crate::layers::build::LayerError;
 use crate::lod::{LEAF_SIZE_DIVISOR, LodOptions};
 use crate::output::{OutputError, Staging};
 use crate::splat::Splats;
@@ -26,6 +28,7 @@ use crate::tiling::TileKey;
 use crate::variants::{ContentError, ContentFacts, VariantOptions};
 use frame::{FrameAccum, Layout};
 use indicatif::{ProgressBar, ProgressStyle};
+use layered::layer_tree;
 pub use merge::{MergeReport, merge_parts};
 pub use part::{PartPhase, PartReport, convert_part};
 pub use plan::{MAX_PARTS, PLAN_VERSION, PlanReport, make_plan};
@@ -99,6 +102,9 @@ pub struct ConvertOptions {
     /// View-optimised leaf levels (`--partition views:DIR`, SGSS sec. 3.1): tiles the tree DP
     /// splits are split even under `max_splats_per_tile` (`partition::plan`).
     pub partition: Option<crate::partition::plan::PartitionRequest>,
+    /// Layered content (`--layers`, `spec/layered-content.md`): ADD refinement, every content
+    /// a layer over its ancestors' with its parent's opacity deltas (needs LOD, Best only).
+    pub layers: bool,
 }
 
 impl Default for ConvertOptions {
@@ -118,6 +124,7 @@ impl Default for ConvertOptions {
             variants: VariantOptions::default(),
             memory_limit: crate::limits::MemoryLimit::machine_default().bytes(),
             partition: None,
+            layers: false,
         }
     }
 }
@@ -253,6 +260,9 @@ pub enum ConvertError {
     /// The output folder is refused, busy, unwritable, or the run was interrupted.
     #[error(transparent)]
     Out(#[from] OutputError),
+    /// `--layers`: the contents could not be layered.
+    #[error(transparent)]
+    Layers(#[from] crate::layers::build::LayerError),
 }
 
 impl ConvertError {
@@ -275,6 +285,18 @@ impl ConvertError {
             },
             ConvertError::Content(ContentError::Io { path, source }) => {
                 ConvertError::Content(ContentError::Io {
+                    path: swap(path),
+                    source,
+                })
+            }
+            ConvertError::Layers(LayerError::Io { path, source }) => {
+                ConvertError::Layers(LayerError::Io {
+                    path: swap(path),
+                    source,
+                })
+            }
+            ConvertError::Layers(LayerError::Glb { path, source }) => {
+                ConvertError::Layers(LayerError::Glb {
                     path: swap(path),
                     source,
                 })
@@ -421,6 +443,9 @@ fn run(
     opts: &ConvertOptions,
 ) -> Result<ConvertReport, ConvertError> {
     let start = Instant::now();
+    if opts.layers {
+        layered::check_options(opts)?;
+    }
     let (up, a, budget) = frame_and_budget(&input, opts);
     let degree = input.sh_degree();
 
@@ -630,6 +655,13 @@ fn run(
             .push(("utilities", start.elapsed().as_secs_f64()));
     }
 
+    if opts.layers {
+        layer_tree(&mut tree, layout.scheme, &dir, &mut report).map_err(relocate)?;
+        report
+            .stage_seconds
+            .push(("layers", start.elapsed().as_secs_f64()));
+    }
+
     // Tileset stage.
     let subtree_levels = opts
         .subtree_levels
@@ -651,6 +683,10 @@ fn run(
         name,
         &opts.variants,
     );
+    let mut tileset = tileset;
+    if opts.layers {
+        tileset.root.refine = Some("ADD".into());
+    }
     let json = serde_json::to_vec_pretty(&tileset).expect("tileset serialises");
     let path = dir.join("tileset.json");
     std::fs::write(&path, &json)

@@ -189,18 +189,25 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         let ts = crate::tiling::load::load_tileset(&args.input)?;
         let up = up_arg.unwrap_or_else(|| tileset_up(&ts));
         let cam = resolve_camera(args, up, tileset_bounds(&ts))?;
-        let picked = select_tiles(&ts, &cam, args.max_sse);
-        let mut instances = Vec::with_capacity(picked.len());
-        for path in &picked {
-            let bytes =
-                std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-            // Any variant: plain, EXT_meshopt_compression or SPZ_2 compressed.
-            let (splats, node) = crate::variants::decode_variant(&bytes)
-                .with_context(|| format!("{}", path.display()))?;
-            instances.push((splats, content_model(&ts, &node)));
+        if crate::layers::view::is_layered(&ts) {
+            // Layered content: ancestors' layers + blended children (spec/layered-content.md).
+            let instances = crate::layers::view::layered_instances(&ts, &cam, args.max_sse)?;
+            let note = format!("{} layers of {} tiles, ", instances.len(), ts.tiles.len());
+            (instances, cam, note)
+        } else {
+            let picked = select_tiles(&ts, &cam, args.max_sse);
+            let mut instances = Vec::with_capacity(picked.len());
+            for path in &picked {
+                let bytes = std::fs::read(path)
+                    .with_context(|| format!("{}: cannot read", path.display()))?;
+                // Any variant: plain, EXT_meshopt_compression or SPZ_2 compressed.
+                let (splats, node) = crate::variants::decode_variant(&bytes)
+                    .with_context(|| format!("{}", path.display()))?;
+                instances.push((splats, content_model(&ts, &node)));
+            }
+            let note = format!("{} of {} tiles, ", picked.len(), ts.tiles.len());
+            (instances, cam, note)
         }
-        let note = format!("{} of {} tiles, ", picked.len(), ts.tiles.len());
-        (instances, cam, note)
     } else {
         let scene = crate::io::read_path(&args.input)?;
         let up = up_arg.unwrap_or_else(|| default_up_axis(&args.input));

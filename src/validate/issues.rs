@@ -236,6 +236,22 @@ catalogue! {
     CONTENT_OUTSIDE_BOUNDING_VOLUME => Error,
     /// A splat's 3-sigma ellipsoid reaches outside its tile's bounding volume (--check-extent).
     CONTENT_EXTENT_OUTSIDE_BOUNDING_VOLUME => Warning,
+    /// Layered contents (SPLAT2TILES_layer) in a tileset whose implicit root does not refine by ADD.
+    LAYER_REFINE_NOT_ADD => Error,
+    /// A layered tileset's root content is missing or is not a base layer (level 0, no deltas).
+    LAYER_BASE_MISSING => Error,
+    /// A content of a layered tileset lacks SPLAT2TILES_layer, or the extension is malformed.
+    LAYER_EXTENSION_INVALID => Error,
+    /// A layer's level is not its tile's level.
+    LAYER_LEVEL_MISMATCH => Error,
+    /// An enhancement layer's parent tile has no content to adjust.
+    LAYER_PARENT_MISSING => Error,
+    /// parentOpacityDelta's count is not the parent layer's splat count.
+    LAYER_DELTA_COUNT_MISMATCH => Error,
+    /// An opacity delta outside [-1, 0] (or not finite).
+    LAYER_DELTA_OUT_OF_RANGE => Error,
+    /// The deltas the child layers give one parent splat add up to less than -1.
+    LAYER_DELTA_SUM_OUT_OF_RANGE => Error,
 }
 
 #[cfg(test)]

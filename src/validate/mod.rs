@@ -15,6 +15,7 @@ mod gltf_core;
 mod implicit;
 pub mod issues;
 mod json;
+mod layered;
 mod legacy;
 mod metadata;
 pub mod report;
@@ -75,6 +76,7 @@ pub fn validate_tileset_bytes(bytes: &[u8], dir: &Path, opts: &ValidateOptions) 
 /// Validates tileset JSON bytes; `file` is the file they came from (for cycles) and its name.
 fn run(bytes: &[u8], dir: &Path, file: Option<(&Path, String)>, opts: &ValidateOptions) -> Report {
     let mut ctx = Ctx::new(dir.to_path_buf(), opts);
+    let layered_from = file.as_ref().map(|(path, _)| path.to_path_buf());
     if let Some((path, name)) = file {
         // Issue paths name the file relative to the root (`--root` may be a parent folder).
         ctx.file = uri::lexical(path)
@@ -90,6 +92,9 @@ fn run(bytes: &[u8], dir: &Path, file: Option<(&Path, String)>, opts: &ValidateO
         && let Some(v) = json::parse(&mut ctx, &bytes, &name)
     {
         tileset::tileset(&mut ctx, &v, glam::DMat4::IDENTITY);
+        if let Some(path) = &layered_from {
+            layered::validate(&mut ctx, path);
+        }
     }
     Report::new(ctx.issues)
 }

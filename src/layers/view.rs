@@ -1,0 +1,155 @@
+//! The reference renderer's view of a layered tileset: the layers a camera draws (every tile
+//! reached, ADD), each child's blend factor from its parent's screen-space error (eq. 4), and
+//! their splats at effective opacity, ready for `render::raster::render`.
+
+use super::blend::{DrawnLayer, blend_factor, drawn_layers};
+use super::glb::read_layer;
+use crate::encode::read_tile_glb;
+use crate::render::camera::Camera;
+use crate::splat::Splats;
+use crate::tiling::TileKey;
+use crate::tiling::load::LoadedTileset;
+use anyhow::Context;
+use glam::DMat4;
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+/// One layer a camera draws.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewLayer {
+    /// Its tile.
+    pub key: TileKey,
+    /// Its content file.
+    pub path: PathBuf,
+    /// Index of its parent layer in the same list (`None`: the base).
+    pub parent: Option<usize>,
+    /// Its blend factor.
+    pub blend: f32,
+}
+
+/// Whether `ts` is layered: the implicit root refines by ADD and its content declares
+/// `SPLAT2TILES_layer`.
+pub fn is_layered(ts: &LoadedTileset) -> bool {
+    if ts.tileset.root.refine.as_deref() != Some("ADD") {
+        return false;
+    }
+    let Some(path) = ts
+        .tiles
+        .iter()
+        .find(|t| t.key == TileKey::ROOT)
+        .and_then(|t| t.content.as_ref())
+    else {
+        return false;
+    };
+    std::fs::read(path)
+        .ok()
+        .is_some_and(|b| matches!(read_layer(&b), Ok(Some(_))))
+}
+
+/// Screen-space error (pixels) of tile `i` seen by `cam`: geometric error * focal / distance
+/// to its box's bounding sphere (as `render::cli::select_tiles`).
+fn sse(ts: &LoadedTileset, i: usize, cam: &Camera) -> f64 {
+    let t = &ts.tiles[i];
+    let distance = t
+        .bounding_box
+        .as_ref()
+        .map(|b| {
+            let (centre, radius) = crate::stream::select::box_sphere(b, &ts.root_transform);
+            (centre.distance(cam.center()) - radius).max(1e-9)
+        })
+        .unwrap_or(1e-9);
+    t.geometric_error * cam.fy / distance
+}
+
+/// The layers `cam` draws: from the root, every tile reached is drawn; a tile whose
+/// screen-space error exceeds `max_sse` brings in its children with blend factor
+/// `blend_factor(its error, max_sse)`, ancestors before descendants.
+pub fn select_layers(ts: &LoadedTileset, cam: &Camera, max_sse: f64) -> Vec<ViewLayer> {
+    let mut children: HashMap<TileKey, Vec<usize>> = HashMap::new();
+    for (i, t) in ts.tiles.iter().enumerate() {
+        if let Some(p) = t.key.parent() {
+            children.entry(p).or_default().push(i);
+        }
+    }
+    let Some(root) = ts.tiles.iter().position(|t| t.key == TileKey::ROOT) else {
+        return vec![];
+    };
+    let Some(path) = ts.tiles[root].content.clone() else {
+        return vec![];
+    };
+    let mut out = vec![ViewLayer {
+        key: TileKey::ROOT,
+        path,
+        parent: None,
+        blend: 1.0,
+    }];
+    let mut tile_of = vec![root];
+    let mut next = 0;
+    while next < out.len() {
+        let i = tile_of[next];
+        let s = sse(ts, i, cam);
+        if s > max_sse
+            && let Some(kids) = children.get(&ts.tiles[i].key)
+        {
+            let t = blend_factor(s, max_sse);
+            let mut kids = kids.clone();
+            kids.sort_by_key(|&k| ts.tiles[k].key);
+            for k in kids {
+                if let Some(path) = ts.tiles[k].content.clone()
+                    && t > 0.0
+                {
+                    out.push(ViewLayer {
+                        key: ts.tiles[k].key,
+                        path,
+                        parent: Some(next),
+                        blend: t,
+                    });
+                    tile_of.push(k);
+                }
+            }
+        }
+        next += 1;
+    }
+    out
+}
+
+/// The splats `cam` draws from layered `ts` (effective opacities, occupancy rule applied), each
+/// with its content's model matrix.
+pub fn layered_instances(
+    ts: &LoadedTileset,
+    cam: &Camera,
+    max_sse: f64,
+) -> anyhow::Result<Vec<(Splats, DMat4)>> {
+    let picked = select_layers(ts, cam, max_sse);
+    let mut decoded = Vec::with_capacity(picked.len());
+    for l in &picked {
+        let bytes =
+            std::fs::read(&l.path).with_context(|| format!("{}: cannot read", l.path.display()))?;
+        let tile = read_tile_glb(&bytes).with_context(|| l.path.display().to_string())?;
+        let layer = read_layer(&bytes).with_context(|| l.path.display().to_string())?;
+        let deltas = layer.and_then(|x| x.parent_opacity_delta);
+        decoded.push((tile, deltas));
+    }
+    let layers: Vec<DrawnLayer<'_>> = picked
+        .iter()
+        .zip(&decoded)
+        .map(|(l, (tile, deltas))| DrawnLayer {
+            splats: &tile.splats,
+            parent: l.parent,
+            deltas: deltas.as_deref(),
+            blend: l.blend,
+        })
+        .collect();
+    let drawn = drawn_layers(&layers).map_err(|e| {
+        let at = match &e {
+            super::blend::ComposeError::BadParent(k)
+            | super::blend::ComposeError::DeltaCount { layer: k, .. } => picked[*k].path.display(),
+        };
+        anyhow::anyhow!("{at}: {e}")
+    })?;
+    Ok(drawn
+        .into_iter()
+        .zip(&decoded)
+        .map(|(s, (tile, _))| (s, crate::render::cli::content_model(ts, &tile.node_matrix)))
+        .collect())
+}

@@ -1,0 +1,194 @@
+//! Layered content (`spec/layered-content.md`): once any content declares `SPLAT2TILES_layer`,
+//! the tileset must refine by ADD, the root must carry the base layer, and every other content
+//! must be a layer of its own level whose deltas match its parent's splats and stay in range.
+//!
+//! Runs after the structural checks, when they found no error, over the tiles `tiling::load`
+//! finds; a content that is not a readable, uncompressed glb is skipped here (the content checks
+//! report it).
+
+use super::context::Ctx;
+use super::issues::{Issue, Severity};
+use crate::encode::glb::{parse_json, read_glb};
+use crate::encode::tile::ATTR_POSITION;
+use crate::layers::glb::{LayerInfo, read_layer};
+use crate::layers::{DELTA_SUM_TOLERANCE, EXTENSION};
+use crate::tiling::TileKey;
+use crate::tiling::load::load_tileset;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// What one content says about its layer.
+struct Content {
+    /// Issue path prefix (`file#`).
+    name: String,
+    /// Splats of its splat primitive (`POSITION` count).
+    splats: u64,
+    /// Its layer, or why the extension could not be read.
+    layer: Result<Option<LayerInfo>, String>,
+}
+
+fn read_content(path: &Path, name: String, limit: u64) -> Option<Content> {
+    let size = std::fs::metadata(path).ok()?.len();
+    if size > limit {
+        return None;
+    }
+    let bytes = std::fs::read(path).ok()?;
+    let chunks = read_glb(&bytes).ok()?;
+    let doc = parse_json(&chunks).ok()?;
+    let splats = doc
+        .meshes
+        .iter()
+        .flat_map(|m| &m.primitives)
+        .find_map(|p| {
+            p.extensions.as_ref()?.gaussian_splatting.as_ref()?;
+            let a = *p.attributes.get(ATTR_POSITION)?;
+            Some(doc.accessors.get(a as usize)?.count)
+        })?;
+    let layer = read_layer(&bytes).map_err(|e| e.to_string());
+    Some(Content {
+        name,
+        splats,
+        layer,
+    })
+}
+
+/// Checks the layered form of the tileset in `file` (a `tileset.json` on disk), once the
+/// structural checks found no error: the tile walk (`tiling::load`) trusts the structure
+/// (its availability and subtree sizes) that those checks bound on hostile input.
+pub(crate) fn validate(ctx: &mut Ctx<'_>, file: &Path) {
+    if ctx.issues.iter().any(|i| i.severity == Severity::Error) {
+        return;
+    }
+    let Ok(ts) = load_tileset(file) else {
+        return;
+    };
+    let limit = ctx.opts.max_decompressed_bytes;
+    let mut contents: BTreeMap<TileKey, Content> = BTreeMap::new();
+    for t in &ts.tiles {
+        let Some(path) = &t.content else { continue };
+        let name = path
+            .strip_prefix(&ctx.root)
+            .unwrap_or(path)
+            .display()
+            .to_string();
+        if let Some(c) = read_content(path, name, limit) {
+            contents.insert(t.key, c);
+        }
+    }
+    if !contents.values().any(|c| !matches!(c.layer, Ok(None))) {
+        return;
+    }
+    let refine = ts.tileset.root.refine.as_deref().unwrap_or("");
+    if refine != "ADD" {
+        ctx.push(Issue::LAYER_REFINE_NOT_ADD(
+            format!("{}#/root/refine", ctx.file),
+            format!("contents declare {EXTENSION} but the implicit root refines by '{refine}'; layers are drawn together (ADD)"),
+        ));
+    }
+    match contents.get(&TileKey::ROOT) {
+        Some(Content {
+            layer: Ok(Some(l)), ..
+        }) if l.level == 0 && l.parent_opacity_delta.is_none() => {}
+        Some(c) => ctx.push(Issue::LAYER_BASE_MISSING(
+            c.name.clone(),
+            "the root tile's content is not a base layer (level 0, no parentOpacityDelta)",
+        )),
+        None => ctx.push(Issue::LAYER_BASE_MISSING(
+            format!("{}#/root/content", ctx.file),
+            "the root tile has no readable content to serve as the base layer",
+        )),
+    }
+    // Per parent: the sum of its children's deltas, per parent splat.
+    let mut sums: BTreeMap<TileKey, Vec<f32>> = BTreeMap::new();
+    for (&key, c) in &contents {
+        if key == TileKey::ROOT {
+            continue;
+        }
+        let ext = format!("{}#/meshes/*/primitives/*/extensions/{EXTENSION}", c.name);
+        let layer = match &c.layer {
+            Err(why) => {
+                ctx.push(Issue::LAYER_EXTENSION_INVALID(c.name.clone(), why.clone()));
+                continue;
+            }
+            Ok(None) => {
+                ctx.push(Issue::LAYER_EXTENSION_INVALID(
+                    c.name.clone(),
+                    format!("a content of a layered tileset without {EXTENSION}"),
+                ));
+                continue;
+            }
+            Ok(Some(l)) => l,
+        };
+        if layer.level != key.level {
+            ctx.push(Issue::LAYER_LEVEL_MISMATCH(
+                format!("{ext}/level"),
+                format!("level {} on a tile of level {}", layer.level, key.level),
+            ));
+        }
+        let Some(deltas) = &layer.parent_opacity_delta else {
+            ctx.push(Issue::LAYER_EXTENSION_INVALID(
+                ext,
+                "an enhancement layer needs parentOpacityDelta",
+            ));
+            continue;
+        };
+        let apath = format!(
+            "{}#{}",
+            c.name,
+            layer.delta_accessor_path.as_deref().unwrap_or("")
+        );
+        let parent = key.parent().expect("not the root");
+        let Some(pc) = contents.get(&parent) else {
+            ctx.push(Issue::LAYER_PARENT_MISSING(
+                c.name.clone(),
+                format!(
+                    "parent tile {}/{}/{}/{} has no readable content to adjust",
+                    parent.level, parent.x, parent.y, parent.z
+                ),
+            ));
+            continue;
+        };
+        if deltas.len() as u64 != pc.splats {
+            ctx.push(Issue::LAYER_DELTA_COUNT_MISMATCH(
+                format!("{apath}/count"),
+                format!(
+                    "{} deltas but the parent layer {} holds {} splats",
+                    deltas.len(),
+                    pc.name,
+                    pc.splats
+                ),
+            ));
+            continue;
+        }
+        if let Some((i, v)) = deltas
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !(-1.0..=0.0).contains(*v))
+        {
+            let bad = deltas.iter().filter(|v| !(-1.0..=0.0).contains(*v)).count();
+            ctx.push(Issue::LAYER_DELTA_OUT_OF_RANGE(
+                apath,
+                format!("{bad} deltas outside [-1, 0], the first at index {i}: {v}"),
+            ));
+            continue;
+        }
+        let s = sums
+            .entry(parent)
+            .or_insert_with(|| vec![0.0; deltas.len()]);
+        for (a, d) in s.iter_mut().zip(deltas) {
+            *a += d;
+        }
+    }
+    for (parent, s) in sums {
+        if let Some((i, v)) = s
+            .iter()
+            .enumerate()
+            .find(|(_, v)| **v < -1.0 - DELTA_SUM_TOLERANCE)
+        {
+            ctx.push(Issue::LAYER_DELTA_SUM_OUT_OF_RANGE(
+                contents[&parent].name.clone(),
+                format!("the child layers' deltas of splat {i} add up to {v} (below -1): it would be faded below zero"),
+            ));
+        }
+    }
+}
