@@ -220,11 +220,10 @@ mod tests {
         logvar: Vec<Vec<f32>>,
     }
 
-    #[test]
-    fn the_committed_model_matches_pytorch_on_recorded_inputs() {
-        let rec: Parity = serde_json::from_str(include_str!("parity.json")).unwrap();
+    /// The largest difference between `m`'s outputs and PyTorch's on the recorded inputs.
+    fn worst_difference(m: &TrajectoryModel, parity_json: &str) -> f32 {
+        let rec: Parity = serde_json::from_str(parity_json).unwrap();
         assert!(!rec.inputs.is_empty());
-        let m = TrajectoryModel::committed().unwrap();
         let mut worst = 0.0f32;
         for (i, x) in rec.inputs.iter().enumerate() {
             let out = m.run(x).unwrap();
@@ -236,9 +235,26 @@ mod tests {
                 worst = worst.max((a - b).abs());
             }
         }
+        worst
+    }
+
+    #[test]
+    fn the_committed_model_matches_pytorch_on_recorded_inputs() {
+        let m = TrajectoryModel::committed().unwrap();
+        let worst = worst_difference(&m, include_str!("parity.json"));
         eprintln!("largest difference from PyTorch: {worst:e}");
         assert!(worst <= 1e-4, "largest difference from PyTorch {worst}");
         assert!(TCN_ONNX.len() <= MAX_MODEL_BYTES);
+    }
+
+    /// The LSTM-only baseline (`train.py --arch lstm`, Table 3's row; test data only) runs the
+    /// 2-layer LSTM encoder path of the forward pass.
+    #[test]
+    fn the_lstm_only_baseline_matches_pytorch_on_recorded_inputs() {
+        let m = TrajectoryModel::load(include_bytes!("lstm_only.onnx"), "lstm_only.onnx").unwrap();
+        let worst = worst_difference(&m, include_str!("lstm_only_parity.json"));
+        eprintln!("LSTM-only: largest difference from PyTorch: {worst:e}");
+        assert!(worst <= 1e-4, "largest difference from PyTorch {worst}");
     }
 
     #[test]

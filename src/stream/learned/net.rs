@@ -2,7 +2,8 @@
 //! heads) in plain Rust, with the weights of its ONNX export; the same code natively and in wasm.
 //!
 //! Exactly the exported graph: input normalisation, causal dilated convolution blocks (weight norm
-//! already folded by the export), the last step's features repeated into the LSTMs, the heads.
+//! already folded by the export), the last step's features repeated into the LSTMs, the heads;
+//! or, for `--arch lstm` (the LSTM-only baseline), a 2-layer LSTM encoder instead of the blocks.
 
 use super::onnx::{Graph, Tensor};
 
@@ -149,6 +150,9 @@ pub struct Net {
     ym: Vec<f32>,
     ys: Vec<f32>,
     blocks: Vec<Block>,
+    /// The 2-layer LSTM encoder of `train.py --arch lstm` (the LSTM-only baseline), when there
+    /// are no TCN blocks.
+    enc_lstm: Option<[Lstm; 2]>,
     dec: [Lstm; 2],
     mu: Head,
     lv: Head,
@@ -219,19 +223,27 @@ impl Net {
             cin = c1.cout;
             blocks.push(Block { c1, c2, res });
         }
-        if blocks.is_empty() {
-            return Err(format!(
-                "{name}: no initializer 'enc.0.c1.conv.weight' (not the TCN of tools/tcn/train.py)"
-            ));
-        }
         let lstms: Vec<&super::onnx::Node> =
             graph.nodes.iter().filter(|n| n.op == "LSTM").collect();
-        if lstms.len() != 2 {
+        // TCN: the decoder's 2 LSTM nodes; LSTM-only: the encoder's 2, then the decoder's.
+        let want = if blocks.is_empty() { 4 } else { 2 };
+        if lstms.len() != want {
             return Err(format!(
-                "{name}: {} LSTM nodes, expected the 2-layer decoder",
+                "{name}: {} TCN blocks and {} LSTM nodes; expected train.py's TCN (blocks and \
+                 the 2-layer LSTM decoder) or its LSTM-only model (4 LSTM nodes)",
+                blocks.len(),
                 lstms.len()
             ));
         }
+        let enc_lstm = if blocks.is_empty() {
+            let e0 = lstm(graph, lstms[0], inputs, name)?;
+            let e1 = lstm(graph, lstms[1], e0.hidden, name)?;
+            cin = e1.hidden;
+            Some([e0, e1])
+        } else {
+            None
+        };
+        let lstms = &lstms[want - 2..];
         let l0 = lstm(graph, lstms[0], cin, name)?;
         let l1 = lstm(graph, lstms[1], l0.hidden, name)?;
         let hidden = l1.hidden;
@@ -245,6 +257,7 @@ impl Net {
             ym,
             ys,
             blocks,
+            enc_lstm,
             dec: [l0, l1],
             mu,
             lv,
@@ -281,8 +294,20 @@ impl Net {
                 .collect();
             a = sum;
         }
-        let channels = self.blocks.last().map_or(self.inputs, |b| b.c2.cout);
-        let ctx: Vec<f32> = (0..channels).map(|c| a[c * steps + steps - 1]).collect();
+        let ctx: Vec<f32> = match &self.enc_lstm {
+            Some([e0, e1]) => {
+                // Row-major ([time][channel]) as the LSTM reads it; the last step's state.
+                let z: Vec<f32> = (0..steps * self.inputs)
+                    .map(|k| a[(k % self.inputs) * steps + k / self.inputs])
+                    .collect();
+                let s = e1.run(&e0.run(&z, steps, false), steps, false);
+                s[(steps - 1) * e1.hidden..].to_vec()
+            }
+            None => {
+                let channels = self.blocks.last().map_or(self.inputs, |b| b.c2.cout);
+                (0..channels).map(|c| a[c * steps + steps - 1]).collect()
+            }
+        };
         let s1 = self.dec[0].run(&ctx, future, true);
         let s2 = self.dec[1].run(&s1, future, false);
         let hidden = self.dec[1].hidden;
