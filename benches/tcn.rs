@@ -35,7 +35,7 @@ fn main() {
         }
     };
     println!(
-        "model load + optimise: {:.1} ms",
+        "model load (decode and checks): {:.1} ms",
         t.elapsed().as_secs_f64() * 1e3
     );
     let (min, med) = time(&mut tcn, 200);

@@ -1,5 +1,5 @@
 //! Training windows for the learned trajectory predictor (`stream::learned`) cut from traces, and
-//! the per-horizon ADE/FDE evaluation of predictors on traces (TileSplat Table 3, Fig. 10).
+//! the per-horizon ADE/FDE and tile coverage of predictors on traces (TileSplat Table 3, Fig. 10).
 //!
 //! The traces come only through [`super::split`]'s sets: the export writes the tuning set's train
 //! and val windows; the evaluation takes whatever set its caller was allowed to build.
@@ -172,6 +172,54 @@ pub fn evaluate(p: &mut dyn Predictor, traces: &[Trace], stride_s: f64) -> Error
     }
 }
 
+/// Tile coverage per [`HORIZONS`] entry (TileSplat Table 3): over windows `stride_s` apart, the
+/// mean fraction of the tiles in the needed cut of the true pose at `now + h` that are in the
+/// current view's cut or the cut of a pose `p` predicted up to `now + h` (0.5 s steps): what a
+/// client prefetching along the prediction would hold, ignoring bandwidth and eviction.
+/// `cut` gives a pose's needed cut; windows whose true cut is empty are skipped. Also returns
+/// the windows counted per horizon.
+pub fn coverage<K: std::hash::Hash + Eq + Copy>(
+    p: &mut dyn Predictor,
+    traces: &[Trace],
+    stride_s: f64,
+    cut: &mut dyn FnMut(&crate::stream::ViewPose) -> Vec<K>,
+) -> ([f64; 6], [usize; 6]) {
+    let mut sum = [0.0f64; 6];
+    let mut count = [0usize; 6];
+    for t in traces {
+        for a in anchors(&t.poses, stride_s) {
+            let h = client_history(&t.poses, a);
+            let Some(now) = h.last().copied() else {
+                continue;
+            };
+            let pred = p.predict(&h, FUTURE_STEPS as f64 * FUTURE_STEP_S, FUTURE_STEP_S);
+            let mut held: std::collections::HashSet<K> = cut(&now).into_iter().collect();
+            let mut next = 0;
+            for (i, hz) in HORIZONS.iter().enumerate() {
+                while let Some(q) = pred.get(next).filter(|q| q.t <= a + hz + 1e-9) {
+                    held.extend(cut(q));
+                    next += 1;
+                }
+                let Some(truth) = sample_trace(&t.poses, a + hz) else {
+                    continue;
+                };
+                let need = cut(&truth);
+                if need.is_empty() {
+                    continue;
+                }
+                let hit = need.iter().filter(|k| held.contains(k)).count();
+                sum[i] += hit as f64 / need.len() as f64;
+                count[i] += 1;
+            }
+        }
+    }
+    let mut out = [0.0; 6];
+    for i in 0..6 {
+        out[i] = sum[i] / count[i].max(1) as f64;
+    }
+    (out, count)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -208,6 +256,23 @@ mod tests {
             (r.fde[5] - 60.0).abs() < 1e-6 && (r.ade[0] - 5.5).abs() < 1e-6,
             "{r:?}"
         );
+    }
+
+    #[test]
+    fn a_prediction_on_the_path_covers_the_future_cut_and_no_prediction_does_not() {
+        // A pose's "cut": the 10 m cells of x from 0 to 20 m ahead of it.
+        let mut cut = |p: &ViewPose| -> Vec<i64> {
+            let c = (p.pos.x / 10.0).floor() as i64;
+            (c..=c + 2).collect()
+        };
+        let tr = [line(1, 2.0)];
+        let (cv, n) = coverage(&mut ConstantVelocity::default(), &tr, 1.0, &mut cut);
+        assert!(n.iter().all(|&n| n > 5));
+        assert!(cv.iter().all(|c| (c - 1.0).abs() < 1e-9), "{cv:?}");
+        // Reactive holds the current cells only: 2 m/s for 5 s = 10 m moved, about two of the
+        // three cells still held at 5 s; none from 30 s (60 m ahead).
+        let (r, _) = coverage(&mut Reactive, &tr, 1.0, &mut cut);
+        assert!((0.6..=0.7).contains(&r[0]) && r[5] == 0.0, "{r:?}");
     }
 
     #[test]

@@ -48,7 +48,8 @@ class CausalConv(nn.Module):
 
     def forward(self, x):
         # Padded on both sides, the right side chomped: constant Conv pads and a constant Slice
-        # in ONNX (a functional pad exports a computed Pad that tract cannot analyse).
+        # in ONNX (a functional pad exports a computed Pad; src/stream/learned/net.rs checks the
+        # Conv's pads are the causal (k-1)d).
         return self.conv(x)[:, :, : -self.pad]
 
 

@@ -1,6 +1,8 @@
-//! The trained TCN + LSTM trajectory model (TileSplat sec. 3.3, App. C; `tools/tcn/train.py`)
-//! run with tract, a pure-Rust ONNX runtime, the same natively and in wasm, behind [`Predictor`].
+//! The trained TCN + LSTM trajectory model (TileSplat sec. 3.3, App. C; `tools/tcn/train.py`):
+//! its ONNX export's weights run by a small forward pass ([`super::net`]), behind [`Predictor`].
 
+use super::net::Net;
+use super::onnx::Graph;
 use super::window::{
     FUTURE_STEP_S, FUTURE_STEPS, HISTORY_STEPS, IN_CHANNELS, LocalFrame, OUT_CHANNELS, input_window,
 };
@@ -8,7 +10,6 @@ use crate::stream::geom::ViewPose;
 use crate::stream::predict::{Predictor, Uncertain};
 use glam::DVec3;
 use std::sync::Arc;
-use tract_onnx::prelude::*;
 
 /// The committed TCN model (ONNX; trained by `tools/tcn/train.py`, see `tools/tcn/README.md`).
 pub const TCN_ONNX: &[u8] = include_bytes!("tcn.onnx");
@@ -16,12 +17,11 @@ pub const TCN_ONNX: &[u8] = include_bytes!("tcn.onnx");
 /// Largest model file accepted.
 pub const MAX_MODEL_BYTES: usize = 5 << 20;
 
-type Plan = TypedSimplePlan<TypedModel>;
-
-/// A loaded model: ONNX input `history` `[1, 60, 6]`, outputs `mean` and `logvar` `[1, 60, 5]`.
+/// A loaded model: input `HISTORY_STEPS x IN_CHANNELS`, outputs (mean, log-variance)
+/// `FUTURE_STEPS x OUT_CHANNELS` each.
 #[derive(Clone)]
 pub struct TrajectoryModel {
-    plan: Arc<Plan>,
+    net: Arc<Net>,
 }
 
 impl std::fmt::Debug for TrajectoryModel {
@@ -41,7 +41,7 @@ pub struct RawOutput {
 }
 
 impl TrajectoryModel {
-    /// Loads an ONNX model; `name` is used in errors.
+    /// Loads the weights of a `train.py` ONNX export; `name` is used in errors.
     pub fn load(bytes: &[u8], name: &str) -> Result<TrajectoryModel, String> {
         if bytes.len() > MAX_MODEL_BYTES {
             return Err(format!(
@@ -49,34 +49,12 @@ impl TrajectoryModel {
                 bytes.len()
             ));
         }
-        let err = |e: TractError| format!("{name}: not a usable trajectory model: {e}");
-        let model = tract_onnx::onnx()
-            .model_for_read(&mut &bytes[..])
-            .map_err(err)?
-            .with_input_fact(0, f32::fact([1, HISTORY_STEPS, IN_CHANNELS]).into())
-            .map_err(err)?
-            .into_optimized()
-            .map_err(err)?;
-        let want = tvec!(1, FUTURE_STEPS, OUT_CHANNELS);
-        for o in 0..2 {
-            let fact = model.output_fact(o).map_err(err)?;
-            let shape = fact
-                .shape
-                .as_concrete()
-                .map(|s| s.iter().copied().collect());
-            if fact.datum_type != f32::datum_type() || shape.as_ref() != Some(&want) {
-                return Err(format!(
-                    "{name}: output {o} is {fact:?}, expected f32 {want:?}"
-                ));
-            }
-        }
-        let plan = model.into_runnable().map_err(err)?;
-        Ok(TrajectoryModel {
-            plan: Arc::new(plan),
-        })
+        let graph = Graph::decode(bytes, name)?;
+        let net = Net::from_graph(&graph, IN_CHANNELS, OUT_CHANNELS, name)?;
+        Ok(TrajectoryModel { net: Arc::new(net) })
     }
 
-    /// The committed model (loaded and optimised once per process).
+    /// The committed model (loaded once per process).
     pub fn committed() -> Result<TrajectoryModel, String> {
         static MODEL: std::sync::OnceLock<Result<TrajectoryModel, String>> =
             std::sync::OnceLock::new();
@@ -94,21 +72,8 @@ impl TrajectoryModel {
                 HISTORY_STEPS * IN_CHANNELS
             ));
         }
-        let x =
-            tract_ndarray::Array3::from_shape_vec((1, HISTORY_STEPS, IN_CHANNELS), input.to_vec())
-                .map_err(|e| e.to_string())?;
-        let out = self
-            .plan
-            .run(tvec!(Tensor::from(x).into()))
-            .map_err(|e| format!("trajectory model: {e}"))?;
-        let take = |i: usize| -> Result<Vec<f32>, String> {
-            let v = out[i].as_slice::<f32>().map_err(|e| e.to_string())?;
-            Ok(v.to_vec())
-        };
-        Ok(RawOutput {
-            mean: take(0)?,
-            logvar: take(1)?,
-        })
+        let (mean, logvar) = self.net.forward(input, HISTORY_STEPS, FUTURE_STEPS);
+        Ok(RawOutput { mean, logvar })
     }
 }
 
@@ -255,11 +220,10 @@ mod tests {
         logvar: Vec<Vec<f32>>,
     }
 
-    #[test]
-    fn the_committed_model_matches_pytorch_on_recorded_inputs() {
-        let rec: Parity = serde_json::from_str(include_str!("parity.json")).unwrap();
+    /// The largest difference between `m`'s outputs and PyTorch's on the recorded inputs.
+    fn worst_difference(m: &TrajectoryModel, parity_json: &str) -> f32 {
+        let rec: Parity = serde_json::from_str(parity_json).unwrap();
         assert!(!rec.inputs.is_empty());
-        let m = TrajectoryModel::committed().unwrap();
         let mut worst = 0.0f32;
         for (i, x) in rec.inputs.iter().enumerate() {
             let out = m.run(x).unwrap();
@@ -271,8 +235,26 @@ mod tests {
                 worst = worst.max((a - b).abs());
             }
         }
+        worst
+    }
+
+    #[test]
+    fn the_committed_model_matches_pytorch_on_recorded_inputs() {
+        let m = TrajectoryModel::committed().unwrap();
+        let worst = worst_difference(&m, include_str!("parity.json"));
+        eprintln!("largest difference from PyTorch: {worst:e}");
         assert!(worst <= 1e-4, "largest difference from PyTorch {worst}");
         assert!(TCN_ONNX.len() <= MAX_MODEL_BYTES);
+    }
+
+    /// The LSTM-only baseline (`train.py --arch lstm`, Table 3's row; test data only) runs the
+    /// 2-layer LSTM encoder path of the forward pass.
+    #[test]
+    fn the_lstm_only_baseline_matches_pytorch_on_recorded_inputs() {
+        let m = TrajectoryModel::load(include_bytes!("lstm_only.onnx"), "lstm_only.onnx").unwrap();
+        let worst = worst_difference(&m, include_str!("lstm_only_parity.json"));
+        eprintln!("LSTM-only: largest difference from PyTorch: {worst:e}");
+        assert!(worst <= 1e-4, "largest difference from PyTorch {worst}");
     }
 
     #[test]
@@ -290,6 +272,48 @@ mod tests {
         );
         let m = TrajectoryModel::committed().unwrap();
         assert!(m.run(&[0.0; 5]).is_err());
+    }
+
+    #[test]
+    fn truncated_weight_files_are_errors_naming_the_file() {
+        // Every cut inside the graph (the file ends with its 4-byte opset import).
+        let end = TCN_ONNX.len() - 8;
+        for n in (0..end).step_by(409).chain([1, end / 2, end - 1]) {
+            let e = TrajectoryModel::load(&TCN_ONNX[..n], "cut.onnx").unwrap_err();
+            assert!(e.contains("cut.onnx"), "{n}: {e}");
+        }
+    }
+
+    #[test]
+    fn corrupted_weight_files_are_errors_or_models_never_panics() {
+        let x = vec![0.25f32; HISTORY_STEPS * IN_CHANNELS];
+        let mut errors = 0;
+        for at in (0..TCN_ONNX.len()).step_by(263) {
+            for flip in [0xffu8, 0x80] {
+                let mut bytes = TCN_ONNX.to_vec();
+                bytes[at] ^= flip;
+                match TrajectoryModel::load(&bytes, "bad.onnx") {
+                    Ok(m) => assert_eq!(m.run(&x).unwrap().mean.len(), FUTURE_STEPS * OUT_CHANNELS),
+                    Err(e) => {
+                        assert!(e.contains("bad.onnx"), "{e}");
+                        errors += 1;
+                    }
+                }
+            }
+        }
+        assert!(errors > 0);
+        // A weight of the wrong shape: the first conv's dims [32, 6, 3] made [32, 6, 2].
+        let name = b"enc.0.c1.conv.weight";
+        let mut bytes = TCN_ONNX.to_vec();
+        let at = bytes.windows(name.len()).rposition(|w| w == name).unwrap();
+        let dims = [0x08, 32, 0x08, 6, 0x08, 3];
+        let d = bytes[..at].windows(6).rposition(|w| w == dims).unwrap();
+        bytes[d + 5] = 2;
+        let e = TrajectoryModel::load(&bytes, "shape.onnx").unwrap_err();
+        assert!(
+            e.contains("shape.onnx") && e.contains("enc.0.c1.conv.weight"),
+            "{e}"
+        );
     }
 
     #[test]
