@@ -165,6 +165,13 @@ pub(crate) fn validate_glb(
         .map(|i| meshopt(&raw["bufferViews"][i]))
         .collect();
 
+    if doc
+        .extensions_used
+        .iter()
+        .any(|e| e == crate::layers::EXTENSION)
+    {
+        ctx.layered_seen = true;
+    }
     // Extensions: required => used; every extension object present => used.
     for (i, ext) in doc.extensions_required.iter().enumerate() {
         if !doc.extensions_used.contains(ext) {

@@ -69,6 +69,9 @@ pub(crate) struct Ctx<'a> {
     /// Quality-variant URI templates (name, template) declared by the tileset's `splatVariants`
     /// metadata (spec/quality-variants.md): each content tile's variant files are checked too.
     pub variant_templates: Vec<(String, String)>,
+    /// A content checked so far lists `SPLAT2TILES_layer` in its `extensionsUsed`: only then does
+    /// the layered pass walk the tiles and read their contents again (`layered::validate`).
+    pub layered_seen: bool,
 }
 
 /// Most issues one report lists (hostile inputs can produce millions).
@@ -101,6 +104,7 @@ impl<'a> Ctx<'a> {
             issues: Vec::new(),
             memory: None,
             variant_templates: Vec::new(),
+            layered_seen: false,
         }
     }
 

@@ -56,7 +56,9 @@ fn read_content(path: &Path, name: String, limit: u64) -> Option<Content> {
 /// structural checks found no error: the tile walk (`tiling::load`) trusts the structure
 /// (its availability and subtree sizes) that those checks bound on hostile input.
 pub(crate) fn validate(ctx: &mut Ctx<'_>, file: &Path) {
-    if ctx.issues.iter().any(|i| i.severity == Severity::Error) {
+    // Nothing layered among the checked contents: no second walk over every content (on a
+    // city that would read gigabytes again).
+    if !ctx.layered_seen || ctx.issues.iter().any(|i| i.severity == Severity::Error) {
         return;
     }
     let Ok(ts) = load_tileset(file) else {
