@@ -124,8 +124,10 @@ fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
     let (r, o) = (reactive.rate().unwrap(), oracle.rate().unwrap());
     // The oracle needs no pose history, so it never falls back to reactive (it did for 5 s and
     // scored 192/262 = 0.73 with every miss in those 5 s); what it misses now is the cold start
-    // (the link still busy with the first view), nothing later.
-    assert!(o >= 0.9, "oracle {o:.3} below 0.9");
+    // (the link still busy with the first view), nothing later. 238/262 = 0.908 before the
+    // churn fixes of issue 19 (in-flight downloads kept, missing tiles before upgrades,
+    // earliest-deadline-first preemption), 244/262 = 0.931 after.
+    assert!(o >= 0.92, "oracle {o:.3} below 0.92");
     assert!(r <= 0.1, "reactive {r:.3} above 0.1");
     let late = why_o.at_s.iter().filter(|&&t| t >= 5.0).count();
     assert!(
