@@ -18,7 +18,10 @@ impl StreamClient {
             if slot.loaded || slot.given_up || slot.inflight || now < slot.retry_at {
                 continue;
             }
-            if self.requests.len() >= self.cfg.max_concurrent {
+            // Subtree files have their own `max_concurrent` slots: behind tile downloads that
+            // kept every slot busy they arrived after the tiles they list entered the view
+            // (issue 19: most of the oracle's misses on the full-city walk were "late").
+            if self.in_flight(false) >= self.cfg.max_concurrent {
                 break;
             }
             let uri = expand_template(&template, k);

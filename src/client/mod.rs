@@ -105,7 +105,7 @@ pub struct ClientConfig {
     pub frustum_cull: bool,
     /// Content bytes the client may hold (resident tiles + partial downloads).
     pub memory_budget_bytes: u64,
-    /// Requests in flight at most.
+    /// Tile-content requests in flight at most (tileset and subtree files have as many more).
     pub max_concurrent: usize,
     /// Levels the client may download (the wasm build decodes only Best and Low).
     pub levels: Vec<Level>,
@@ -349,6 +349,8 @@ struct Want {
     level: Level,
     priority: f32,
     in_view: bool,
+    /// Seconds until the tile is needed (0: in view).
+    deadline: f64,
 }
 
 /// The streaming client (see the module docs).
@@ -600,6 +602,14 @@ impl StreamClient {
                     })
             }
         }
+    }
+
+    /// Requests in flight for tile contents (`content`) or for tileset and subtree files.
+    fn in_flight(&self, content: bool) -> usize {
+        self.requests
+            .values()
+            .filter(|r| matches!(r.kind, ReqKind::Content(_)) == content)
+            .count()
     }
 
     fn held_bytes(&self) -> u64 {

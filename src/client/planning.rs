@@ -149,10 +149,27 @@ impl StreamClient {
                 }
             }
         }
+        // A download in flight keeps its level and is not offered to the planner again (its
+        // remaining bytes are the link's `in_flight_bytes`): re-deciding it every plan switched
+        // levels and dropped the partial bytes (issue 19: the full-city walk asked for 331
+        // (tile, level) pairs over 169 tiles).
+        let flying: Vec<(usize, Level)> = self
+            .state
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| {
+                let d = s.download.as_ref()?;
+                d.req.map(|_| (i, d.level))
+            })
+            .collect();
+        let mut pinned_tile = vec![false; self.info.len()];
+        for &(i, _) in &flying {
+            pinned_tile[i] = true;
+        }
         let firsts: Vec<(usize, f64)> = first
             .iter()
             .enumerate()
-            .filter(|(i, t)| t.is_finite() && self.usable(*i))
+            .filter(|(i, t)| t.is_finite() && self.usable(*i) && !pinned_tile[*i])
             .map(|(i, t)| (i, *t))
             .collect();
         let pinned: u64 = self
@@ -207,8 +224,16 @@ impl StreamClient {
             let Some(level) = self.usable_level(c.tile, f.level) else {
                 continue;
             };
+            let level = self.resume_level(c.tile, level);
             if seen.insert(c.tile) {
                 wanted.push(self.want(c.tile, level, c.deadline, &frustum));
+            }
+        }
+        // Downloads in flight go on while their tile is in view or predicted within the
+        // horizon (a prefetch is not aborted because one plan left it out).
+        for (i, level) in flying {
+            if first[i].is_finite() && self.usable(i) && seen.insert(i) {
+                wanted.push(self.want(i, level, first[i], &frustum));
             }
         }
         // Every tile of the view set is needed whatever the plan says.
@@ -245,15 +270,43 @@ impl StreamClient {
                 wanted.push(self.want(i, level, deadline, &frustum));
             }
         }
-        // Tiles in view first, by priority; then prefetches in plan (deadline) order.
+        // Missing tiles in view first, by priority; then prefetches of tiles not held, by
+        // deadline; upgrades of held tiles last (in view first). With upgrades of the view
+        // ahead of prefetches, tiles due in 1 s waited behind Low -> Best upgrades and were
+        // requested after they entered (issue 19: the oracle's "late" misses on the walk).
+        let group = |w: &Want| (self.cache.level(w.tile).is_some(), !w.in_view);
         wanted.sort_by(|a, b| {
-            b.in_view.cmp(&a.in_view).then(if a.in_view {
+            group(a).cmp(&group(b)).then(if a.in_view {
                 b.priority.total_cmp(&a.priority)
             } else {
-                std::cmp::Ordering::Equal
+                a.deadline.total_cmp(&b.deadline)
             })
         });
         self.wanted = wanted;
+    }
+
+    /// The level to fetch `tile` at when the plan chose `level`: a paused download of another
+    /// level is resumed instead when that level is at least as good or its remaining bytes are
+    /// no more than `level`'s (a paused transfer still wanted is resumed, not restarted at
+    /// another level: with the size rule alone the plant walk dropped 7% of its bytes).
+    fn resume_level(&self, tile: usize, level: Level) -> Level {
+        let Some(d) = self.state[tile].download.as_ref() else {
+            return level;
+        };
+        if d.level == level || d.req.is_some() || !d.resumable || d.bytes.is_empty() {
+            return level;
+        }
+        let size = |l: Level| self.catalog.tiles[tile].variants[l.index()].bytes;
+        let left = d
+            .total
+            .unwrap_or(size(d.level))
+            .saturating_sub(d.bytes.len() as u64);
+        let better_than_resident = self.cache.level(tile).is_none_or(|r| d.level < r);
+        if better_than_resident && (d.level <= level || left <= size(level)) {
+            d.level
+        } else {
+            level
+        }
     }
 
     pub(super) fn want(&self, tile: usize, level: Level, deadline: f64, f: &Frustum) -> Want {
@@ -277,6 +330,7 @@ impl StreamClient {
             level,
             priority: priority as f32,
             in_view,
+            deadline,
         }
     }
 }

@@ -219,6 +219,10 @@ pub struct Chr {
     pub first: Ratio,
     /// Entries of tiles needed before, left and needed again.
     pub reentry: Ratio,
+    /// The first-time entries from the end of the warm-up on: the first tick after the first
+    /// one whose whole needed cut was held (until then the link still carries the first view,
+    /// and no predictor can prefetch); a subset of `first`.
+    pub warm: Ratio,
 }
 
 /// One tick as the scorer needs it.
@@ -263,6 +267,7 @@ pub fn cache_hits(ticks: &[TickView]) -> Chr {
     let mut ever: HashSet<TileKey> = HashSet::new();
     let mut prev: HashSet<TileKey> = HashSet::new();
     let mut started = false;
+    let mut warm = false;
     for tick in ticks {
         let held: HashSet<TileKey> = tick.resident.iter().copied().collect();
         let now: HashSet<TileKey> = tick.needed.iter().copied().collect();
@@ -270,16 +275,22 @@ pub fn cache_hits(ticks: &[TickView]) -> Chr {
             if prev.contains(key) {
                 continue;
             }
+            let hit = held.contains(key) as u64;
             let r = if !started {
                 &mut out.initial
             } else if ever.contains(key) {
                 &mut out.reentry
             } else {
+                if warm {
+                    out.warm.n += 1;
+                    out.warm.hits += hit;
+                }
                 &mut out.first
             };
             r.n += 1;
-            r.hits += held.contains(key) as u64;
+            r.hits += hit;
         }
+        warm |= started && !now.is_empty() && now.iter().all(|k| held.contains(k));
         started |= !now.is_empty();
         ever.extend(now.iter().copied());
         prev = now;
@@ -435,6 +446,8 @@ mod tests {
         assert_eq!(chr.initial, Ratio { hits: 0, n: 1 });
         assert_eq!(chr.first, Ratio { hits: 1, n: 2 });
         assert_eq!(chr.reentry, Ratio { hits: 1, n: 2 });
+        // Warm from t1 on (its whole cut held): the t2 miss counts, the t1 hit does not.
+        assert_eq!(chr.warm, Ratio { hits: 0, n: 1 });
         assert_eq!(chr.first.rate(), Some(0.5));
         assert_eq!(Ratio::default().rate(), None);
     }
