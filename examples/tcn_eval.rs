@@ -12,7 +12,6 @@
 //! measured as a check of the evaluation).
 
 use splat2tiles::client::ClientConfig;
-use splat2tiles::render::Camera;
 use splat2tiles::sim::Trace;
 use splat2tiles::sim::score::Truth;
 use splat2tiles::sim::stream_city::{StreetGrid, evaluation_set, tuning_set};
@@ -174,14 +173,7 @@ fn run() -> Result<(), String> {
 
 /// The needed cut of `pose` (tileset frame) at the client's default viewport.
 fn needed(truth: &Truth, pose: &ViewPose) -> Vec<TileKey> {
-    let c = ClientConfig::default();
-    let cam = Camera::from_pose(
-        c.width,
-        c.height,
-        c.fov_y_deg,
-        truth.root_transform() * pose.world_from_camera(),
-    );
-    truth.needed(&cam, c.max_sse)
+    truth.needed_at(&ClientConfig::default(), pose)
 }
 
 /// The oracle (each trace's own future) over `sel`: errors and coverage summed per trace,

@@ -16,7 +16,6 @@
 //! same model with its sigma ignored (every mean pose planned for, never the radius rule).
 
 use splat2tiles::client::{ClientConfig, PredictorKind};
-use splat2tiles::render::Camera;
 use splat2tiles::sim::Trace;
 use splat2tiles::sim::score::{Ratio, Truth, Waste, cache_hits, held_tiles, tick_views, wasted};
 use splat2tiles::sim::session::{SessionOptions, run_session};
@@ -86,20 +85,7 @@ fn score(
     log: &splat2tiles::sim::session::SessionLog,
     row: &mut Row,
 ) {
-    let root = truth.root_transform();
-    let needed: Vec<Vec<TileKey>> = log
-        .ticks
-        .iter()
-        .map(|t| {
-            let cam = Camera::from_pose(
-                cfg.width,
-                cfg.height,
-                cfg.fov_y_deg,
-                root * t.pose.world_from_camera(),
-            );
-            truth.needed(&cam, cfg.max_sse)
-        })
-        .collect();
+    let needed = truth.needed_per_tick(cfg, log);
     let resident = held_tiles(log);
     let views = tick_views(log, needed.iter().map(Vec::as_slice), &resident);
     let c = cache_hits(&views);

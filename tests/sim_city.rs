@@ -6,7 +6,6 @@
 mod common;
 
 use splat2tiles::client::{ClientConfig, PredictorKind};
-use splat2tiles::render::Camera;
 use splat2tiles::sim::misses::{MissBreakdown, breakdown};
 use splat2tiles::sim::score::{Ratio, Truth, cache_hits, held_tiles, tick_views};
 use splat2tiles::sim::session::{SessionOptions, run_session};
@@ -41,20 +40,7 @@ fn chr(
             &NetModel::constant(10.0, 0.04),
             opts,
         );
-        let root = truth.root_transform();
-        let needed: Vec<Vec<TileKey>> = log
-            .ticks
-            .iter()
-            .map(|t| {
-                let cam = Camera::from_pose(
-                    cfg.width,
-                    cfg.height,
-                    cfg.fov_y_deg,
-                    root * t.pose.world_from_camera(),
-                );
-                truth.needed(&cam, cfg.max_sse)
-            })
-            .collect();
+        let needed = truth.needed_per_tick(cfg, &log);
         let resident = held_tiles(&log);
         let views = tick_views(&log, needed.iter().map(Vec::as_slice), &resident);
         let c = cache_hits(&views);
@@ -174,19 +160,7 @@ fn oracle_misses_on_the_full_city() {
                 &NetModel::constant(10.0, 0.04),
                 opts,
             );
-            let needed: Vec<Vec<TileKey>> = log
-                .ticks
-                .iter()
-                .map(|t| {
-                    let cam = Camera::from_pose(
-                        cfg.width,
-                        cfg.height,
-                        cfg.fov_y_deg,
-                        truth.root_transform() * t.pose.world_from_camera(),
-                    );
-                    truth.needed(&cam, cfg.max_sse)
-                })
-                .collect();
+            let needed = truth.needed_per_tick(&cfg, &log);
             let resident = held_tiles(&log);
             let views = tick_views(&log, needed.iter().map(Vec::as_slice), &resident);
             let w = breakdown(&log, &views);

@@ -150,18 +150,7 @@ struct Scored {
 
 fn needed_cuts(truth: &Truth, tr: &Trace) -> Vec<Vec<TileKey>> {
     let c = ClientConfig::default();
-    tr.poses
-        .iter()
-        .map(|p| {
-            let cam = crate::render::Camera::from_pose(
-                c.width,
-                c.height,
-                c.fov_y_deg,
-                truth.root_transform() * p.world_from_camera(),
-            );
-            truth.needed(&cam, c.max_sse)
-        })
-        .collect()
+    tr.poses.iter().map(|p| truth.needed_at(&c, p)).collect()
 }
 
 /// Completed content downloads `(tile, bytes, end)`.

@@ -118,6 +118,33 @@ impl Truth {
             .collect()
     }
 
+    /// The cut a client with `cfg`'s viewport and SSE threshold needs at `pose` (tileset frame).
+    pub fn needed_at(
+        &self,
+        cfg: &crate::client::ClientConfig,
+        pose: &crate::stream::ViewPose,
+    ) -> Vec<TileKey> {
+        let cam = Camera::from_pose(
+            cfg.width,
+            cfg.height,
+            cfg.fov_y_deg,
+            self.root_transform() * pose.world_from_camera(),
+        );
+        self.needed(&cam, cfg.max_sse)
+    }
+
+    /// [`Self::needed_at`] of every tick's pose of a session.
+    pub fn needed_per_tick(
+        &self,
+        cfg: &crate::client::ClientConfig,
+        log: &SessionLog,
+    ) -> Vec<Vec<TileKey>> {
+        log.ticks
+            .iter()
+            .map(|t| self.needed_at(cfg, &t.pose))
+            .collect()
+    }
+
     /// Decodes (once) the content of `key` at `level`.
     fn decode(&mut self, key: TileKey, level: Level) -> anyhow::Result<Option<usize>> {
         let Some(&i) = self.index.get(&key) else {
