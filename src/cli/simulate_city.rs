@@ -58,12 +58,14 @@ const QH: u32 = 360;
 /// SSIM counted as good quality.
 const GOOD: f64 = 0.9;
 
-/// The Table 4 predictors; "oracle, mirrored" is the oracle of the trace turned 180 degrees
-/// about its start: a damaged predictor the setup must rank below the oracle.
-const PREDICTORS: [&str; 5] = [
+/// The Table 4 predictors; "tcn" is the committed learned model (issue 20); "oracle, mirrored"
+/// is the oracle of the trace turned 180 degrees about its start: a damaged predictor the setup
+/// must rank below the oracle.
+const PREDICTORS: [&str; 6] = [
     "reactive",
     "constant-velocity",
     "linear",
+    "tcn",
     "oracle",
     "oracle, mirrored",
 ];
@@ -95,6 +97,7 @@ fn session(
     let kind = match predictor {
         "constant-velocity" => PredictorKind::ConstantVelocity,
         "linear" => PredictorKind::Linear,
+        "tcn" => PredictorKind::Tcn,
         _ => PredictorKind::Reactive,
     };
     let oracle: Option<Vec<ViewPose>> = match predictor {
