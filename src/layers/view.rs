@@ -46,21 +46,6 @@ pub fn is_layered(ts: &LoadedTileset) -> bool {
         .is_some_and(|b| matches!(read_layer(&b), Ok(Some(_))))
 }
 
-/// Screen-space error (pixels) of tile `i` seen by `cam`: geometric error * focal / distance
-/// to its box's bounding sphere (as `render::cli::select_tiles`).
-fn sse(ts: &LoadedTileset, i: usize, cam: &Camera) -> f64 {
-    let t = &ts.tiles[i];
-    let distance = t
-        .bounding_box
-        .as_ref()
-        .map(|b| {
-            let (centre, radius) = crate::stream::select::box_sphere(b, &ts.root_transform);
-            (centre.distance(cam.center()) - radius).max(1e-9)
-        })
-        .unwrap_or(1e-9);
-    t.geometric_error * cam.fy / distance
-}
-
 /// The layers `cam` draws: from the root, every tile reached is drawn; a tile whose
 /// screen-space error exceeds `max_sse` brings in its children with blend factor
 /// `blend_factor(its error, max_sse)`, ancestors before descendants.
@@ -87,7 +72,7 @@ pub fn select_layers(ts: &LoadedTileset, cam: &Camera, max_sse: f64) -> Vec<View
     let mut next = 0;
     while next < out.len() {
         let i = tile_of[next];
-        let s = sse(ts, i, cam);
+        let s = crate::render::cli::tile_sse(ts, i, cam);
         if s > max_sse
             && let Some(kids) = children.get(&ts.tiles[i].key)
         {

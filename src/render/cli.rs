@@ -280,6 +280,21 @@ pub fn box_corners(b: &[f64; 12]) -> [DVec3; 8] {
     })
 }
 
+/// Screen-space error (pixels) of tile `i` seen by `cam`: geometric error * focal / distance
+/// from the eye to its box's bounding sphere (1e-9 inside it or without a box).
+pub fn tile_sse(ts: &crate::tiling::load::LoadedTileset, i: usize, cam: &Camera) -> f64 {
+    let t = &ts.tiles[i];
+    let distance = t
+        .bounding_box
+        .as_ref()
+        .map(|b| {
+            let (centre, radius) = crate::stream::select::box_sphere(b, &ts.root_transform);
+            (centre.distance(cam.center()) - radius).max(1e-9)
+        })
+        .unwrap_or(1e-9);
+    t.geometric_error * cam.fy / distance
+}
+
 /// REPLACE-refinement selection: from the root, a tile is refined into its children while its
 /// screen-space error (geometric error * focal / distance to its box) exceeds `max_sse` pixels;
 /// the content of every tile reached and not refined is drawn.
@@ -295,7 +310,6 @@ pub fn select_tiles(
             children.entry(p).or_default().push(i);
         }
     }
-    let eye = cam.center();
     let Some(root) = ts
         .tiles
         .iter()
@@ -307,15 +321,7 @@ pub fn select_tiles(
     let mut stack = vec![root];
     while let Some(i) = stack.pop() {
         let t = &ts.tiles[i];
-        let distance = t
-            .bounding_box
-            .as_ref()
-            .map(|b| {
-                let (centre, radius) = crate::stream::select::box_sphere(b, &ts.root_transform);
-                (centre.distance(eye) - radius).max(1e-9)
-            })
-            .unwrap_or(1e-9);
-        let sse = t.geometric_error * cam.fy / distance;
+        let sse = tile_sse(ts, i, cam);
         match children.get(&t.key) {
             Some(kids) if sse > max_sse => stack.extend(kids.iter().copied()),
             _ => out.extend(t.content.clone()),
