@@ -149,12 +149,7 @@ fn run() -> Result<(), String> {
             (d, grid, false)
         }
         None => {
-            let spec = CitySpec {
-                splats: 200_000,
-                stride: 16,
-                seed: 3,
-                max_splats_per_tile: 4096,
-            };
+            let spec = CitySpec::small();
             if tmp.exists() {
                 return Err(format!(
                     "{} exists (left by an earlier run?)",

@@ -266,6 +266,17 @@ fn camera(ts: &LoadedTileset, dir: DVec3, dist: f64) -> Camera {
     Camera::look_at(1280, 720, 50.0, eye, c, DVec3::Z)
 }
 
+/// Step `k` of the slow orbit the memory-budget tests walk (0.004 rad a step, distance
+/// breathing between 0.7 and 1.7 root radii).
+fn budget_orbit(ts: &LoadedTileset, k: usize) -> Camera {
+    let a = k as f64 * 0.004;
+    camera(
+        ts,
+        DVec3::new(a.cos(), a.sin(), 0.5),
+        1.2 + 0.5 * (a * 0.7).sin(),
+    )
+}
+
 fn key_path(ts: &LoadedTileset, k: TileKey) -> PathBuf {
     ts.dir.join(content_uri(ts.scheme, k, Variant::Best))
 }
@@ -431,13 +442,7 @@ fn memory_budget_is_respected_along_a_path() {
     let mut s = Session::new(plant(), c);
     let mut max_held = 0;
     for k in 0..1500 {
-        let a = k as f64 * 0.004;
-        let cam = camera(
-            &ts,
-            DVec3::new(a.cos(), a.sin(), 0.5),
-            1.2 + 0.5 * (a * 0.7).sin(),
-        );
-        s.step(&cam);
+        s.step(&budget_orbit(&ts, k));
         let st = s.client.stats();
         assert!(
             st.cache_bytes <= budget,
@@ -950,13 +955,7 @@ fn the_tcn_predictor_streams_along_a_path_within_the_budget() {
     let mut s = Session::new(plant(), c);
     let steps = (12.0 / DT) as usize;
     for k in 0..steps {
-        let a = k as f64 * 0.004;
-        let cam = camera(
-            &ts,
-            DVec3::new(a.cos(), a.sin(), 0.5),
-            1.2 + 0.5 * (a * 0.7).sin(),
-        );
-        s.step(&cam);
+        s.step(&budget_orbit(&ts, k));
         let st = s.client.stats();
         assert!(
             st.cache_bytes <= budget,

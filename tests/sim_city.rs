@@ -55,12 +55,7 @@ fn chr(
 fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
     let scenes = common::scenes();
     let tmp = tempfile::tempdir().unwrap();
-    let spec = CitySpec {
-        splats: 200_000,
-        stride: 16,
-        seed: 3,
-        max_splats_per_tile: 4096,
-    };
+    let spec = CitySpec::small();
     let city = build_city(&scenes, &tmp.path().join("city"), &spec, None).unwrap();
     let truth = Truth::load(&city.dir.join("tileset.json")).unwrap();
     let cfg = |p| ClientConfig {

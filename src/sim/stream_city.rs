@@ -82,6 +82,17 @@ impl Default for CitySpec {
 }
 
 impl CitySpec {
+    /// The small city (200k splats, about 280 content tiles) that `tests/sim_city.rs` pins the
+    /// predictor ordering on and `examples/tcn_selection.rs` compares selection rules on.
+    pub fn small() -> Self {
+        CitySpec {
+            splats: 200_000,
+            stride: 16,
+            seed: 3,
+            max_splats_per_tile: 4096,
+        }
+    }
+
     /// The layout given to [`generate_city`].
     pub fn layout(&self) -> CityLayout {
         CityLayout {
