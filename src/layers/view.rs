@@ -11,7 +11,6 @@ use crate::tiling::TileKey;
 use crate::tiling::load::LoadedTileset;
 use anyhow::Context;
 use glam::DMat4;
-use std::collections::HashMap;
 use std::path::PathBuf;
 
 /// One layer a camera draws.
@@ -33,12 +32,7 @@ pub fn is_layered(ts: &LoadedTileset) -> bool {
     if ts.tileset.root.refine.as_deref() != Some("ADD") {
         return false;
     }
-    let Some(path) = ts
-        .tiles
-        .iter()
-        .find(|t| t.key == TileKey::ROOT)
-        .and_then(|t| t.content.as_ref())
-    else {
+    let Some(path) = ts.root_index().and_then(|i| ts.tiles[i].content.as_ref()) else {
         return false;
     };
     std::fs::read(path)
@@ -50,13 +44,8 @@ pub fn is_layered(ts: &LoadedTileset) -> bool {
 /// screen-space error exceeds `max_sse` brings in its children with blend factor
 /// `blend_factor(its error, max_sse)`, ancestors before descendants.
 pub fn select_layers(ts: &LoadedTileset, cam: &Camera, max_sse: f64) -> Vec<ViewLayer> {
-    let mut children: HashMap<TileKey, Vec<usize>> = HashMap::new();
-    for (i, t) in ts.tiles.iter().enumerate() {
-        if let Some(p) = t.key.parent() {
-            children.entry(p).or_default().push(i);
-        }
-    }
-    let Some(root) = ts.tiles.iter().position(|t| t.key == TileKey::ROOT) else {
+    let children = ts.children();
+    let Some(root) = ts.root_index() else {
         return vec![];
     };
     let Some(path) = ts.tiles[root].content.clone() else {

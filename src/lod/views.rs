@@ -338,10 +338,8 @@ fn save(img: &Image, path: &Path) -> anyhow::Result<()> {
 /// World-space centre and bounding-sphere radius of the root tile's box (the whole scene).
 fn scene_sphere(ts: &LoadedTileset) -> anyhow::Result<(DVec3, f64)> {
     let root = ts
-        .tiles
-        .iter()
-        .find(|t| t.key == TileKey::ROOT)
-        .and_then(|t| t.bounding_box)
+        .root_index()
+        .and_then(|i| ts.tiles[i].bounding_box)
         .ok_or_else(|| anyhow::anyhow!("root has no bounding box"))?;
     Ok(sphere(ts, &root))
 }

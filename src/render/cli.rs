@@ -252,10 +252,7 @@ pub fn tileset_up(ts: &crate::tiling::load::LoadedTileset) -> DVec3 {
 
 /// World-space (after the root transform) axis-aligned bounds of the root's tight box.
 pub fn tileset_bounds(ts: &crate::tiling::load::LoadedTileset) -> Option<(DVec3, DVec3)> {
-    let root = ts
-        .tiles
-        .iter()
-        .find(|t| t.key == crate::tiling::TileKey::ROOT)?;
+    let root = &ts.tiles[ts.root_index()?];
     let corners = box_corners(root.bounding_box.as_ref()?);
     let pts: Vec<DVec3> = corners
         .iter()
@@ -303,18 +300,8 @@ pub fn select_tiles(
     cam: &Camera,
     max_sse: f64,
 ) -> Vec<PathBuf> {
-    use std::collections::HashMap;
-    let mut children: HashMap<crate::tiling::TileKey, Vec<usize>> = HashMap::new();
-    for (i, t) in ts.tiles.iter().enumerate() {
-        if let Some(p) = t.key.parent() {
-            children.entry(p).or_default().push(i);
-        }
-    }
-    let Some(root) = ts
-        .tiles
-        .iter()
-        .position(|t| t.key == crate::tiling::TileKey::ROOT)
-    else {
+    let children = ts.children();
+    let Some(root) = ts.root_index() else {
         return vec![];
     };
     let mut out = vec![];

@@ -37,6 +37,24 @@ pub struct LoadedTileset {
     pub tiles: Vec<LoadedTile>,
 }
 
+impl LoadedTileset {
+    /// Index in [`Self::tiles`] of the root tile, if it is available.
+    pub fn root_index(&self) -> Option<usize> {
+        self.tiles.iter().position(|t| t.key == TileKey::ROOT)
+    }
+
+    /// Indices in [`Self::tiles`] of each tile's available children, by parent key.
+    pub fn children(&self) -> std::collections::HashMap<TileKey, Vec<usize>> {
+        let mut children: std::collections::HashMap<TileKey, Vec<usize>> = Default::default();
+        for (i, t) in self.tiles.iter().enumerate() {
+            if let Some(p) = t.key.parent() {
+                children.entry(p).or_default().push(i);
+            }
+        }
+        children
+    }
+}
+
 /// Why a tileset could not be loaded.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
