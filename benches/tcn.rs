@@ -1,11 +1,12 @@
 //! Latency of one 30 s trajectory prediction (TileSplat App. C.5: 18 ms on CPU) with the
 //! committed TCN (`stream::learned`), against the heuristic predictors, single-threaded.
 //!
-//! Run: `taskset -c 0 cargo bench --bench tcn` (one core). Prints ms per prediction (min,
-//! median) over 200 calls after 10 warm-up calls, and the model load time.
+//! Run: `taskset -c 0 cargo bench --bench tcn [-- NAME=FILE.onnx ...]` (one core). Prints ms
+//! per prediction (min, median) over 200 calls after 10 warm-up calls, and the model load time;
+//! each `NAME=FILE.onnx` (e.g. the App. C.4 sizes `tools/tcn/train.py` writes) is timed the same.
 
-use splat2tiles::stream::learned::TcnPredictor;
 use splat2tiles::stream::learned::window::straight_walk;
+use splat2tiles::stream::learned::{TcnPredictor, TrajectoryModel};
 use splat2tiles::stream::predict::{LinearExtrapolation, Predictor};
 use std::time::Instant;
 
@@ -42,4 +43,23 @@ fn main() {
     println!("tcn 30 s prediction (60 steps): min {min:.2} ms, median {med:.2} ms");
     let (min, med) = time(&mut LinearExtrapolation::default(), 200);
     println!("linear 30 s prediction: min {min:.3} ms, median {med:.3} ms");
+    // cargo bench adds `--bench`; every NAME=FILE argument is a further model to time.
+    for arg in std::env::args().skip(1).filter(|a| !a.starts_with("--")) {
+        let Some((name, file)) = arg.split_once('=') else {
+            eprintln!("tcn bench: '{arg}': expected NAME=FILE.onnx");
+            std::process::exit(2);
+        };
+        let model = std::fs::read(file)
+            .map_err(|e| format!("{file}: {e}"))
+            .and_then(|b| TrajectoryModel::load(&b, file));
+        let mut p = match model {
+            Ok(m) => TcnPredictor::new(m),
+            Err(e) => {
+                eprintln!("tcn bench: {e}");
+                std::process::exit(2);
+            }
+        };
+        let (min, med) = time(&mut p, 200);
+        println!("{name} 30 s prediction (60 steps): min {min:.2} ms, median {med:.2} ms");
+    }
 }

@@ -5,6 +5,7 @@
 //! and val windows; the evaluation takes whatever set its caller was allowed to build.
 
 use super::trace::Trace;
+use crate::stream::learned::smooth::{Kalman, kalman};
 use crate::stream::learned::window::{
     FUTURE_STEP_S, FUTURE_STEPS, HISTORY_STEPS, IN_CHANNELS, OUT_CHANNELS, anchors, history_until,
     input_window, target_window,
@@ -49,13 +50,16 @@ impl Windows {
 }
 
 /// Every window of `traces` at anchors `stride_s` apart, the history cut at 10 s as the client
-/// keeps it.
-pub fn windows(traces: &[Trace], stride_s: f64) -> Windows {
+/// keeps it; with `smooth`, the history Kalman-filtered first (the targets stay raw).
+pub fn windows(traces: &[Trace], stride_s: f64, smooth: Option<&Kalman>) -> Windows {
     let mut w = Windows::default();
     for t in traces {
         let code = KINDS.iter().position(|k| *k == trace_kind(t)).unwrap_or(0) as u8;
         for a in anchors(&t.poses, stride_s) {
-            let h = client_history(&t.poses, a);
+            let mut h = client_history(&t.poses, a);
+            if let Some(k) = smooth {
+                h = kalman(&h, k);
+            }
             let Some((frame, x)) = input_window(&h) else {
                 continue;
             };
@@ -287,7 +291,7 @@ mod tests {
 
     #[test]
     fn windows_are_written_whole_with_their_kinds() {
-        let w = windows(&[line(2, 1.0)], 1.0);
+        let w = windows(&[line(2, 1.0)], 1.0, None);
         assert_eq!(w.len(), 16);
         assert_eq!(w.x.len(), w.len() * HISTORY_STEPS * IN_CHANNELS);
         assert_eq!(w.kind[0], 1);

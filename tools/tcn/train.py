@@ -165,7 +165,7 @@ def main():
             nn.utils.clip_grad_norm_(net.parameters(), 1.0)
             opt.step()
             sched.step()
-            tot += float(loss) * len(idx)
+            tot += loss.item() * len(idx)
         net.eval()
         with torch.no_grad():
             m, lv = net(Xv)

@@ -5,6 +5,7 @@
 pub mod model;
 mod net;
 mod onnx;
+pub mod smooth;
 pub mod window;
 
 pub use model::{RawOutput, TcnPredictor, TrajectoryModel, decode};
