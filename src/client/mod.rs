@@ -592,7 +592,9 @@ impl StreamClient {
             let Some((sid, _)) = self.state[v].shown.filter(|_| self.drawn[v]) else {
                 continue;
             };
-            let parent = self.catalog.tiles[v].parent.and_then(|p| at.get(&p).copied());
+            let parent = self.catalog.tiles[v]
+                .parent
+                .and_then(|p| at.get(&p).copied());
             at.insert(v, out.len());
             out.push(LayerDraw {
                 key: self.info[v].key,
@@ -614,7 +616,12 @@ impl StreamClient {
         let zeros: Vec<Vec<f32>> = layers
             .iter()
             .map(|l| match l.parent {
-                Some(p) => vec![0.0; self.layer_data.get(&layers[p].scene_id).map_or(0, |d| d.0.len())],
+                Some(p) => vec![
+                    0.0;
+                    self.layer_data
+                        .get(&layers[p].scene_id)
+                        .map_or(0, |d| d.0.len())
+                ],
                 None => vec![],
             })
             .collect();

@@ -242,15 +242,17 @@ impl Truth {
         let dl: Vec<crate::layers::blend::DrawnLayer<'_>> = picked
             .iter()
             .zip(&zeros)
-            .map(|(&(i, parent, blend), z)| crate::layers::blend::DrawnLayer {
-                splats: &self.content[&(i, Level::Best)].0,
-                parent,
-                deltas: parent.map(|_| match (fade, &self.deltas[&i]) {
-                    (true, Some(d)) => d.as_slice(),
-                    _ => z.as_slice(),
-                }),
-                blend: if parent.is_some() { blend } else { 1.0 },
-            })
+            .map(
+                |(&(i, parent, blend), z)| crate::layers::blend::DrawnLayer {
+                    splats: &self.content[&(i, Level::Best)].0,
+                    parent,
+                    deltas: parent.map(|_| match (fade, &self.deltas[&i]) {
+                        (true, Some(d)) => d.as_slice(),
+                        _ => z.as_slice(),
+                    }),
+                    blend: if parent.is_some() { blend } else { 1.0 },
+                },
+            )
             .collect();
         let drawn = crate::layers::blend::drawn_layers(&dl)?;
         let inst: Vec<(&Splats, DMat4)> = drawn
