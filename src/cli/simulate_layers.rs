@@ -31,6 +31,8 @@ const H: u32 = 180;
 const SAMPLE_S: f64 = 1.0;
 /// Quality threshold of the "time to quality" column (the scorer's TGQ threshold).
 const GOOD: f64 = 0.9;
+/// Link rates compared (Mbps).
+const MBPS: [f64; 2] = [4.0, 1.0];
 
 /// Samples of one session: `(t, MB received, SSIM)` per sample, per drawing.
 #[derive(Default)]
@@ -45,6 +47,15 @@ impl Samples {
     }
     fn first_good(&self) -> Option<f64> {
         self.ssim.iter().find(|s| s.1 >= GOOD).map(|s| s.0)
+    }
+    fn mean_until(&self, t: f64) -> f64 {
+        let early: Vec<f64> = self
+            .ssim
+            .iter()
+            .filter(|s| s.0 < t - 1e-9)
+            .map(|s| s.1)
+            .collect();
+        early.iter().sum::<f64>() / early.len().max(1) as f64
     }
     fn at(&self, t: f64) -> f64 {
         self.ssim
@@ -139,19 +150,28 @@ const DRAWINGS: [&str; 4] = [
     "layers, every needed layer held",
 ];
 
+/// Content bytes a session received per level (Best, High, Medium, Low), in MB.
+fn mb_by_level(log: &SessionLog) -> String {
+    let mut b = [0u64; 4];
+    for r in &log.requests {
+        if let Some(l) = r.level {
+            b[l.index()] += r.bytes;
+        }
+    }
+    b.map(|x| format!("{:.2}", x as f64 / 1e6)).join(" / ")
+}
+
 /// Runs the experiment; returns its markdown.
 pub fn layers(args: &SimulateArgs) -> anyhow::Result<String> {
-    let mbps = 4.0;
-    let net = NetModel::constant(mbps, 0.04);
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "### Layered vs independent-variant streaming\n\nShared scenes tiled at {} splats/tile, converted plain with all four variants and with `--layers`; the shipped client (1280x720, 50 deg, 4 requests in flight, linear predictor, App. C.5 fallback within 0.3 x the scene diagonal) over the simulated link ({mbps} Mbps, 40 ms RTT); traces: SGSS orbital + 2 walks per scene (seed {}). SSIM at {W}x{H} every {SAMPLE_S} s against the full Best cut of the pose (plain tileset, every tile available); 'first >= {GOOD}' = first sample at or above it.\n\n| scene | trace | drawing | MB received | mean SSIM | SSIM at 5 s | SSIM at 15 s | first >= {GOOD} (s) |\n|---|---|---|---:|---:|---:|---:|---:|",
+        "### Layered vs independent-variant streaming\n\nShared scenes tiled at {} splats/tile, converted plain with all four variants and with `--layers`; the shipped client (1280x720, 50 deg, 4 requests in flight, linear predictor, App. C.5 fallback within 0.3 x the scene diagonal) over the simulated link ({MBPS:?} Mbps, 40 ms RTT); traces: SGSS orbital + 2 walks per scene (seed {}). SSIM at {W}x{H} every {SAMPLE_S} s against the full Best cut of the pose (plain tileset, every tile available); 'first >= {GOOD}' = first sample at or above it; content MB by level = Best / High / Medium / Low.\n\n| scene | trace | Mbps | drawing | MB received | content MB by level | mean SSIM | mean SSIM, first 10 s | SSIM at 5 s | first >= {GOOD} (s) |\n|---|---|---:|---|---:|---|---:|---:|---:|---:|",
         args.max_splats, args.seed
     );
     let mut plot_q: Vec<Series> = vec![];
     let mut plot_b: Vec<Series> = vec![];
-    let mut sums = [(0.0f64, 0.0f64, 0usize); 4];
+    let mut sums = [[(0.0f64, 0.0f64, 0.0f64, 0usize); 2]; 4];
     for f in ["plant.splat", "biker.spz"] {
         let file = args.scenes.join(f);
         let name = f.split('.').next().unwrap_or(f).to_string();
@@ -176,59 +196,84 @@ pub fn layers(args: &SimulateArgs) -> anyhow::Result<String> {
             fallback_radius_m: 0.3 * (hi - lo).length(),
             ..ClientConfig::default()
         };
-        for (ti, tr) in traces.iter().enumerate() {
-            let run = |dir: &Path| {
-                run_session(dir, cfg.clone(), &tr.poses, &net, SessionOptions::default())
-            };
-            let var = run(&plain_dir);
-            let lay = run(&layer_dir);
-            anyhow::ensure!(
-                lay.errors == 0 && var.errors == 0,
-                "{name} trace {ti}: client errors (variants {}, layers {})",
-                var.errors,
-                lay.errors
-            );
-            let samples = score(&mut plain, &mut layered, &cfg, &var, &lay)?;
-            let trace_name = if ti == 0 {
-                "orbital".to_string()
-            } else {
-                format!("walk {ti}")
-            };
-            for ((d, s), sum) in DRAWINGS.iter().zip(&samples).zip(&mut sums) {
-                let _ = writeln!(
-                    md,
-                    "| {name} | {trace_name} | {d} | {:.2} | {:.4} | {:.4} | {:.4} | {} |",
-                    s.total_mb(),
-                    s.mean(),
-                    s.at(5.0),
-                    s.at(15.0),
-                    s.first_good().map_or("-".into(), |t| format!("{t:.0}")),
+        for mbps in MBPS {
+            let net = NetModel::constant(mbps, 0.04);
+            for (ti, tr) in traces.iter().enumerate() {
+                let run = |dir: &Path| {
+                    run_session(dir, cfg.clone(), &tr.poses, &net, SessionOptions::default())
+                };
+                let var = run(&plain_dir);
+                let lay = run(&layer_dir);
+                anyhow::ensure!(
+                    lay.errors == 0 && var.errors == 0,
+                    "{name} trace {ti}: client errors (variants {}, layers {})",
+                    var.errors,
+                    lay.errors
                 );
-                sum.0 += s.total_mb();
-                sum.1 += s.mean();
-                sum.2 += 1;
-            }
-            if name == "plant" && ti == 1 {
-                for (d, s) in DRAWINGS.iter().zip(&samples) {
-                    plot_q.push((d.to_string(), s.ssim.clone()));
-                    plot_b.push((d.to_string(), s.mb.clone()));
+                let samples = score(&mut plain, &mut layered, &cfg, &var, &lay)?;
+                let trace_name = if ti == 0 {
+                    "orbital".to_string()
+                } else {
+                    format!("walk {ti}")
+                };
+                let levels = [
+                    mb_by_level(&var),
+                    mb_by_level(&lay),
+                    "same".into(),
+                    "same".into(),
+                ];
+                for (((d, s), sum), lv) in DRAWINGS
+                    .iter()
+                    .zip(&samples)
+                    .zip(sums.iter_mut())
+                    .zip(&levels)
+                {
+                    let _ = writeln!(
+                        md,
+                        "| {name} | {trace_name} | {mbps} | {d} | {:.2} | {lv} | {:.4} | {:.4} | {:.4} | {} |",
+                        s.total_mb(),
+                        s.mean(),
+                        s.mean_until(10.0),
+                        s.at(5.0),
+                        s.first_good().map_or("-".into(), |t| format!("{t:.0}")),
+                    );
+                    let k = usize::from(mbps < 4.0);
+                    sum[k].0 += s.total_mb();
+                    sum[k].1 += s.mean();
+                    sum[k].2 += s.mean_until(10.0);
+                    sum[k].3 += 1;
                 }
+                if name == "plant" && ti == 1 && mbps == 1.0 {
+                    for (d, s) in DRAWINGS.iter().zip(&samples) {
+                        plot_q.push((d.to_string(), s.ssim.clone()));
+                        plot_b.push((d.to_string(), s.mb.clone()));
+                    }
+                }
+                eprintln!("simulate: layers {name} {trace_name} {mbps} Mbps done");
             }
-            eprintln!("simulate: layers {name} {trace_name} done");
         }
     }
     let _ = writeln!(
         md,
-        "\n| drawing | mean MB per session | mean SSIM |\n|---|---:|---:|"
+        "\n| Mbps | drawing | mean MB per session | mean SSIM | mean SSIM, first 10 s |\n|---:|---|---:|---:|---:|"
     );
-    for (d, s) in DRAWINGS.iter().zip(&sums) {
-        let n = s.2.max(1) as f64;
-        let _ = writeln!(md, "| {d} | {:.2} | {:.4} |", s.0 / n, s.1 / n);
+    for (k, mbps) in MBPS.iter().enumerate() {
+        for (d, s) in DRAWINGS.iter().zip(&sums) {
+            let (mb, q, q10, n) = s[k];
+            let n = n.max(1) as f64;
+            let _ = writeln!(
+                md,
+                "| {mbps} | {d} | {:.2} | {:.4} | {:.4} |",
+                mb / n,
+                q / n,
+                q10 / n
+            );
+        }
     }
     write_time_plots(
         &args.plots,
         "layers",
-        "plant, walk 1, 4 Mbps",
+        "plant, walk 1, 1 Mbps",
         "SSIM of the drawn set vs the full Best cut",
         &plot_q,
         &plot_b,
