@@ -6,6 +6,7 @@ pub mod serve;
 pub mod shard;
 pub mod simulate;
 mod simulate_city;
+mod simulate_layers;
 pub mod stats;
 pub mod validate;
 

@@ -27,7 +27,8 @@ use std::time::Instant;
 /// Arguments of `simulate`.
 #[derive(Debug, clap::Args)]
 pub struct SimulateArgs {
-    /// Which experiment: table5, table4, dolly, visibility, traces, city or all (all but city).
+    /// Which experiment: table5, table4, dolly, visibility, traces, city, layers or all (all but
+    /// city and layers).
     #[arg(long, default_value = "all")]
     pub experiment: String,
     /// Folder of the shared scenes (plant.splat, donut_fused_sh0.ply, biker.spz).
@@ -213,6 +214,9 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     }
     if args.experiment == "city" {
         md.push_str(&super::simulate_city::city(args)?);
+    }
+    if args.experiment == "layers" {
+        md.push_str(&super::simulate_layers::layers(args)?);
     }
     let path = args.out.join("streaming.md");
     std::fs::write(&path, &md)?;

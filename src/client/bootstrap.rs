@@ -141,6 +141,22 @@ impl StreamClient {
         {
             self.error(format!("content.uri template refused, never fetched: {e}"));
         }
+        // Layered content (`spec/layered-content.md`): ADD refinement at the implicit root.
+        // Variants do not apply to it (`convert --layers` writes Best only, and a layer's
+        // deltas describe its parent's Best splats), and a prefix of a layer lacks the deltas,
+        // which follow the splats: whole Best files only, drawn once complete.
+        self.layered = root.tileset.root.refine.as_deref() == Some("ADD");
+        if self.layered {
+            let best = templates[Level::Best.index()]
+                .take()
+                .or_else(|| root.content_template.clone());
+            templates = Default::default();
+            templates[Level::Best.index()] = best;
+            self.progressive = [false; LEVELS];
+            if !self.cfg.levels.contains(&Level::Best) {
+                self.error("layered tileset: Best is not among the allowed levels".into());
+            }
+        }
         for (j, t) in templates.iter_mut().enumerate() {
             if !self.cfg.levels.contains(&Level::from_index(j)) {
                 *t = None;
@@ -258,6 +274,7 @@ impl StreamClient {
             self.state.push(TileState::default());
             self.in_view.push(false);
             self.drawn.push(false);
+            self.blend.push(0.0);
         }
     }
 

@@ -19,6 +19,14 @@
 //!   nearest resident ancestor stays drawn (else its topmost resident descendants). A Best tile of
 //!   the view set that is downloading without a resident level is drawn progressively (Insert then
 //!   Appends) beside that ancestor, which is removed once every needed tile is resident.
+//! * **Layered tilesets** (`spec/layered-content.md`, detected at bootstrap by ADD refinement
+//!   at the implicit root): the view set is the ADD selection (`stream::select::select_add`:
+//!   every tile reached; a tile over `max_sse` brings in its children, each with the blend
+//!   factor of its error); only whole Best files are fetched (variants do not apply to layers,
+//!   and a prefix lacks the deltas), coarser levels first; a layer is drawn when it and every
+//!   ancestor layer are resident, never in place of a missing one.
+//!   [`StreamClient::layers`] and [`StreamClient::layer_opacities`] give each drawn layer's
+//!   blend factor and its splats' effective opacities (`layers::blend`).
 //! * **Memory**: `memory_budget_bytes` bounds the content bytes the client holds (resident tiles'
 //!   glb bytes, kept so hidden tiles can be shown again, plus partial downloads kept for resume).
 //! * **Pause/resume** (SGSS 3.3): a download whose tile is no longer wanted, or that is
@@ -227,6 +235,19 @@ pub enum SceneUpdate {
     },
 }
 
+/// One layer a client draws (layered tilesets, [`StreamClient::layers`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LayerDraw {
+    /// Its tile.
+    pub key: TileKey,
+    /// Its drawable's scene id.
+    pub scene_id: u64,
+    /// Index of its parent layer in the same list (`None`: the base layer).
+    pub parent: Option<usize>,
+    /// Its blend factor `t` (LapisGS eq. 4 over the parent's screen-space error; 1 for the base).
+    pub blend: f32,
+}
+
 /// Counters and gauges of a client.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ClientStats {
@@ -393,6 +414,12 @@ pub struct StreamClient {
     in_view: Vec<bool>,
     view: Vec<usize>,
     drawn: Vec<bool>,
+    /// Layered tileset (ADD refinement at the implicit root): selection by ADD, Best only.
+    layered: bool,
+    /// Blend factor of each tile of the view set (layered; 0 elsewhere).
+    blend: Vec<f32>,
+    /// Per drawable of a layered tileset: its stored splats and its parent-opacity deltas.
+    layer_data: HashMap<u64, (Splats, Option<Vec<f32>>)>,
     wanted: Vec<Want>,
     last_plan: f64,
     dirty: bool,
@@ -479,6 +506,9 @@ impl StreamClient {
             in_view: vec![],
             view: vec![],
             drawn: vec![],
+            layered: false,
+            blend: vec![],
+            layer_data: HashMap::new(),
             wanted: vec![],
             last_plan: f64::NEG_INFINITY,
             dirty: true,
@@ -542,6 +572,91 @@ impl StreamClient {
             .enumerate()
             .filter_map(|(i, s)| s.shown.map(|(id, l)| (self.info[i].key, l, id)))
             .collect()
+    }
+
+    /// Whether the tileset is layered (ADD refinement at the implicit root,
+    /// `spec/layered-content.md`): the client selects, fetches and draws layers.
+    pub fn is_layered(&self) -> bool {
+        self.layered
+    }
+
+    /// The layers drawn (layered tilesets; empty otherwise), parents before children: each
+    /// with its scene id, its parent's index in this list and its blend factor.
+    pub fn layers(&self) -> Vec<LayerDraw> {
+        if !self.layered {
+            return vec![];
+        }
+        let mut at = HashMap::new();
+        let mut out = vec![];
+        for &v in &self.view {
+            let Some((sid, _)) = self.state[v].shown.filter(|_| self.drawn[v]) else {
+                continue;
+            };
+            let parent = self.catalog.tiles[v]
+                .parent
+                .and_then(|p| at.get(&p).copied());
+            at.insert(v, out.len());
+            out.push(LayerDraw {
+                key: self.info[v].key,
+                scene_id: sid,
+                parent,
+                blend: if parent.is_some() { self.blend[v] } else { 1.0 },
+            });
+        }
+        out
+    }
+
+    /// The opacity each drawn layer's splats are drawn with (scene id, one value per splat in
+    /// the drawable's order): `layers::blend::effective_opacities` of [`Self::layers`], and 0
+    /// for splats under the occupancy threshold. A layer whose deltas do not match its parent
+    /// (count, or none on a layer with a parent) is an error naming the tile; a content
+    /// without the layer extension in an ADD tileset fades nothing (an ordinary ADD tile).
+    pub fn layer_opacities(&self) -> Result<Vec<(u64, Vec<f32>)>, String> {
+        let layers = self.layers();
+        let zeros: Vec<Vec<f32>> = layers
+            .iter()
+            .map(|l| match l.parent {
+                Some(p) => vec![
+                    0.0;
+                    self.layer_data
+                        .get(&layers[p].scene_id)
+                        .map_or(0, |d| d.0.len())
+                ],
+                None => vec![],
+            })
+            .collect();
+        let mut drawn = Vec::with_capacity(layers.len());
+        for (l, z) in layers.iter().zip(&zeros) {
+            let (splats, deltas) = self
+                .layer_data
+                .get(&l.scene_id)
+                .ok_or_else(|| format!("tile {:?}: layer not decoded", l.key))?;
+            drawn.push(crate::layers::blend::DrawnLayer {
+                splats,
+                parent: l.parent,
+                deltas: l.parent.map(|_| deltas.as_deref().unwrap_or(z)),
+                blend: l.blend,
+            });
+        }
+        let ops = crate::layers::blend::effective_opacities(&drawn).map_err(|e| {
+            let k = match e {
+                crate::layers::blend::ComposeError::BadParent(k)
+                | crate::layers::blend::ComposeError::DeltaCount { layer: k, .. } => k,
+            };
+            format!("tile {:?}: {e}", layers[k].key)
+        })?;
+        Ok(layers
+            .iter()
+            .zip(ops)
+            .map(|(l, mut o)| {
+                for x in &mut o {
+                    if *x < crate::layers::OCCUPANCY_THRESHOLD {
+                        *x = 0.0;
+                    }
+                }
+                (l.scene_id, o)
+            })
+            .collect())
     }
 
     /// The view set of the last camera (see the module docs).

@@ -16,8 +16,17 @@ impl StreamClient {
         let keep_from = self.now - 10.0;
         let drop = self.history.iter().take_while(|p| p.t < keep_from).count();
         self.history.drain(..drop);
-        // 2. View set.
-        let (view, wants) = self.select(camera);
+        // 2. View set (layered: with each layer's blend factor).
+        let (view, wants) = if self.layered {
+            let (picks, wants) = self.select_layers(camera);
+            self.blend = vec![0.0; n];
+            for p in &picks {
+                self.blend[p.tile] = p.blend;
+            }
+            (picks.iter().map(|p| p.tile).collect(), wants)
+        } else {
+            self.select(camera)
+        };
         self.request_subtrees(&wants, actions);
         self.subtree_wants = wants;
         let changed = view != self.view;
@@ -282,6 +291,14 @@ impl StreamClient {
                 a.deadline.total_cmp(&b.deadline)
             })
         });
+        // Layered: a layer is drawn only over its ancestors' layers, so coarser levels first
+        // (the sort is stable: the order above holds within a level).
+        if self.layered {
+            wanted.sort_by_key(|w| {
+                let g = group(w);
+                (g.0, g.1, self.info[w.tile].key.level)
+            });
+        }
         self.wanted = wanted;
     }
 

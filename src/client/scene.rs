@@ -49,6 +49,7 @@ impl StreamClient {
     }
 
     pub(super) fn remove_object(&mut self, sid: u64) {
+        self.layer_data.remove(&sid);
         if self.scene_splats.remove(&sid).is_some() {
             self.updates.push(SceneUpdate::Remove { tile: sid });
         }
@@ -58,7 +59,13 @@ impl StreamClient {
     pub(super) fn reconcile_scene(&mut self) {
         let n = self.info.len();
         let mut drawn = vec![false; n];
-        for &v in &self.view {
+        // Layered: a layer of the view set is drawn when it is resident and its parent layer is
+        // drawn (the view set lists parents first); nothing stands in for a missing layer.
+        for &v in self.view.iter().filter(|_| self.layered) {
+            drawn[v] = self.cache.level(v).is_some()
+                && self.catalog.tiles[v].parent.is_none_or(|p| drawn[p]);
+        }
+        for &v in self.view.iter().filter(|_| !self.layered) {
             if self.cache.level(v).is_some() {
                 drawn[v] = true;
                 continue;
@@ -124,6 +131,21 @@ impl StreamClient {
         match crate::variants::decode_variant(bytes) {
             Ok((splats, node)) => {
                 let sid = self.next_scene;
+                if self.layered {
+                    match crate::layers::glb::read_layer(bytes) {
+                        Ok(layer) => {
+                            let deltas = layer.and_then(|l| l.parent_opacity_delta);
+                            self.layer_data.insert(sid, (splats.clone(), deltas));
+                        }
+                        Err(e) => {
+                            let msg = format!("tile {:?}: layer: {e}", self.info[i].key);
+                            self.cache.remove(&self.catalog, i);
+                            self.state[i].content = None;
+                            self.backoff(i, msg, true);
+                            return;
+                        }
+                    }
+                }
                 self.next_scene += 1;
                 let m = self.tile_to_world(&node);
                 self.add_object(sid, i, level, splats, m);

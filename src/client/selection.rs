@@ -1,8 +1,8 @@
-//! View selection: the REPLACE selection by screen-space error restricted to the frustum, the
-//! subtree files it would refine into, and camera poses in the tileset frame.
+//! View selection: the REPLACE (or, for layered tilesets, ADD) selection by screen-space error
+//! restricted to the frustum, the subtree files it would refine into, and camera poses.
 
 use super::*;
-use crate::stream::select::{CutTree, select_cut};
+use crate::stream::select::{AddPick, CutTree, select_add, select_cut};
 
 impl StreamClient {
     /// World matrix of a tile's content given its glb node matrix.
@@ -10,29 +10,52 @@ impl StreamClient {
         self.tile_to_world_base * DMat4::from_cols_array(node)
     }
 
-    /// The view set of a camera: [`select_cut`] over the tiles read so far; plus
-    /// the unread subtree files the selection would refine into (the tile above them is
-    /// selected until they are read).
+    /// The view set of a camera: [`select_cut`] over the tiles read so far (a layered
+    /// tileset: the tiles of [`Self::select_layers`]); plus the unread subtree files the
+    /// selection would refine into (the tile above them is selected until they are read).
     pub(super) fn select(&self, cam: &Camera) -> (Vec<usize>, Vec<TileKey>) {
+        if self.layered {
+            let (picks, wants) = self.select_layers(cam);
+            return (picks.iter().map(|p| p.tile).collect(), wants);
+        }
         let mut wants = vec![];
         let view = select_cut(
             &ClientTree(self),
             cam,
             self.cfg.max_sse,
             self.cfg.frustum_cull,
-            |i| {
-                let before = wants.len();
-                if let Some(below) = self.by_leaf.get(&self.catalog.tiles[i].key) {
-                    wants.extend(below.iter().copied().filter(|k| {
-                        self.subtrees
-                            .get(k)
-                            .is_some_and(|s| !s.loaded && !s.given_up)
-                    }));
-                }
-                wants.len() == before
-            },
+            |i| self.subtrees_read_below(i, &mut wants),
         );
         (view, wants)
+    }
+
+    /// The layers a camera needs ([`select_add`] over the tiles read so far: every tile
+    /// reached, children with the blend factor of their parent's error), parents first; plus
+    /// the unread subtree files below.
+    pub(super) fn select_layers(&self, cam: &Camera) -> (Vec<AddPick>, Vec<TileKey>) {
+        let mut wants = vec![];
+        let picks = select_add(
+            &ClientTree(self),
+            cam,
+            self.cfg.max_sse,
+            self.cfg.frustum_cull,
+            |i| self.subtrees_read_below(i, &mut wants),
+        );
+        (picks, wants)
+    }
+
+    /// Whether every subtree file below tile `i` is read; the unread ones (not given up) are
+    /// added to `wants`.
+    fn subtrees_read_below(&self, i: usize, wants: &mut Vec<TileKey>) -> bool {
+        let before = wants.len();
+        if let Some(below) = self.by_leaf.get(&self.catalog.tiles[i].key) {
+            wants.extend(below.iter().copied().filter(|k| {
+                self.subtrees
+                    .get(k)
+                    .is_some_and(|s| !s.loaded && !s.given_up)
+            }));
+        }
+        wants.len() == before
     }
 
     pub(super) fn pose_of(&self, cam: &Camera) -> ViewPose {

@@ -156,6 +156,7 @@ mod tests {
             view_set: view_set.to_vec(),
             resident: vec![],
             drawn: vec![],
+            layers: vec![],
             bytes_down: 0,
             wire_bytes: 0,
             bandwidth_estimate: 0.0,

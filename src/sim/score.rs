@@ -36,6 +36,8 @@ pub struct Truth {
     spheres: Vec<Option<(DVec3, f64)>>,
     index: HashMap<TileKey, usize>,
     content: HashMap<(usize, Level), (Splats, DMat4)>,
+    /// Parent-opacity deltas of each decoded Best content (layered tilesets).
+    deltas: HashMap<usize, Option<Vec<f32>>>,
 }
 
 impl CutTree for Truth {
@@ -87,6 +89,7 @@ impl Truth {
             spheres,
             index,
             content: HashMap::new(),
+            deltas: HashMap::new(),
         })
     }
 
@@ -163,6 +166,12 @@ impl Truth {
             let (splats, node) =
                 crate::variants::decode_variant(&bytes).with_context(|| p.display().to_string())?;
             let m = crate::render::cli::content_model(&self.ts, &node);
+            if level == Level::Best {
+                let layer = crate::layers::glb::read_layer(&bytes)
+                    .with_context(|| p.display().to_string())?;
+                self.deltas
+                    .insert(i, layer.and_then(|l| l.parent_opacity_delta));
+            }
             self.content.insert((i, level), (splats, m));
         }
         Ok(Some(i))
@@ -182,6 +191,74 @@ impl Truth {
                 let (s, m) = &self.content[k];
                 (s, *m)
             })
+            .collect();
+        Ok(render(&inst, cam, &RenderOptions::default()))
+    }
+
+    /// The layers `cam` needs from a layered tileset at `max_sse` (frustum-culled ADD
+    /// selection over every available tile, `select_add`), parents first, with blend factors.
+    pub fn needed_layers(&self, cam: &Camera, max_sse: f64) -> Vec<(TileKey, f32)> {
+        crate::stream::select::select_add(self, cam, max_sse, true, |_| true)
+            .into_iter()
+            .map(|p| (self.ts.tiles[p.tile].key, p.blend))
+            .collect()
+    }
+
+    /// Renders layers (Best contents of a layered tileset, parents before children, each with
+    /// its blend factor) from `cam` on black at their effective opacities
+    /// (`layers::blend::drawn_layers`); with `fade` false the parent-opacity deltas are ignored
+    /// (every layer at its stored opacity times its cumulative blend, as a viewer without layer
+    /// support would draw them, but blended). A layer whose parent is not listed is an error.
+    pub fn render_layers(
+        &mut self,
+        layers: &[(TileKey, f32)],
+        cam: &Camera,
+        fade: bool,
+    ) -> anyhow::Result<Image> {
+        let mut picked: Vec<(usize, Option<usize>, f32)> = vec![];
+        let mut at: HashMap<TileKey, usize> = HashMap::new();
+        for &(k, blend) in layers {
+            let Some(i) = self.decode(k, Level::Best)? else {
+                anyhow::bail!("layer {k:?}: no such content");
+            };
+            let parent = match k.parent().filter(|_| k != TileKey::ROOT) {
+                Some(p) => Some(
+                    *at.get(&p)
+                        .with_context(|| format!("layer {k:?}: its parent is not drawn"))?,
+                ),
+                None => None,
+            };
+            at.insert(k, picked.len());
+            picked.push((i, parent, blend));
+        }
+        let zeros: Vec<Vec<f32>> = picked
+            .iter()
+            .map(|&(_, p, _)| {
+                p.map_or(vec![], |p| {
+                    vec![0.0; self.content[&(picked[p].0, Level::Best)].0.len()]
+                })
+            })
+            .collect();
+        let dl: Vec<crate::layers::blend::DrawnLayer<'_>> = picked
+            .iter()
+            .zip(&zeros)
+            .map(
+                |(&(i, parent, blend), z)| crate::layers::blend::DrawnLayer {
+                    splats: &self.content[&(i, Level::Best)].0,
+                    parent,
+                    deltas: parent.map(|_| match (fade, &self.deltas[&i]) {
+                        (true, Some(d)) => d.as_slice(),
+                        _ => z.as_slice(),
+                    }),
+                    blend: if parent.is_some() { blend } else { 1.0 },
+                },
+            )
+            .collect();
+        let drawn = crate::layers::blend::drawn_layers(&dl)?;
+        let inst: Vec<(&Splats, DMat4)> = drawn
+            .iter()
+            .zip(&picked)
+            .map(|(s, &(i, _, _))| (s, self.content[&(i, Level::Best)].1))
             .collect();
         Ok(render(&inst, cam, &RenderOptions::default()))
     }

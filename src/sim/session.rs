@@ -31,6 +31,9 @@ pub struct TickLog {
     pub resident: Vec<(TileKey, Level)>,
     /// Tiles drawn: key, level, scene id ([`StreamClient::drawn`]).
     pub drawn: Vec<(TileKey, Level, u64)>,
+    /// Layers drawn (layered tilesets; empty otherwise), parents first, with their blend
+    /// factor ([`StreamClient::layers`]).
+    pub layers: Vec<(TileKey, f32)>,
     /// Body bytes delivered to the client so far.
     pub bytes_down: u64,
     /// Bytes the link carried so far (header overheads included).
@@ -222,6 +225,12 @@ pub fn run_session(
             view_set: run.client.view_set(),
             resident: run.client.resident(),
             drawn: run.client.drawn(),
+            layers: run
+                .client
+                .layers()
+                .iter()
+                .map(|l| (l.key, l.blend))
+                .collect(),
             bytes_down: s.bytes_received,
             wire_bytes: run.net.wire_bytes(),
             bandwidth_estimate: s.bandwidth,

@@ -59,6 +59,87 @@ pub fn select_cut(
     out
 }
 
+/// One tile of an ADD (layered) selection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AddPick {
+    /// The tile.
+    pub tile: usize,
+    /// Index of its parent's pick in the same list (always earlier); `None` for a root.
+    pub parent: Option<usize>,
+    /// Its blend factor: 1 for a root, else `layers::blend::blend_factor` of the parent's
+    /// screen-space error (LapisGS eq. 4 over SSE).
+    pub blend: f32,
+}
+
+/// The ADD (layered) selection for `cam`: every tile reached from the roots is selected (if it
+/// has content); a tile whose screen-space error exceeds `max_sse`, and for which `may_refine`
+/// agrees, brings in its children, each with the blend factor of that error
+/// (`spec/layered-content.md`, "Drawing"). Same error and culling rules as [`select_cut`];
+/// parents come before their children, siblings in child order. A tile without content ends
+/// its branch (a layer needs its parent's layer).
+pub fn select_add(
+    tree: &impl CutTree,
+    cam: &Camera,
+    max_sse: f64,
+    frustum_cull: bool,
+    mut may_refine: impl FnMut(usize) -> bool,
+) -> Vec<AddPick> {
+    let eye = cam.center();
+    let rot_t = cam.rotation().transpose();
+    let mut out: Vec<AddPick> = tree
+        .roots()
+        .iter()
+        .map(|&tile| AddPick {
+            tile,
+            parent: None,
+            blend: 1.0,
+        })
+        .collect();
+    let mut keep = vec![];
+    let mut next = 0;
+    while next < out.len() {
+        let i = out[next].tile;
+        let distance = match tree.sphere(i) {
+            Some((c, r)) => {
+                if frustum_cull && !sphere_in_view(cam, rot_t * (c - eye), r) {
+                    next += 1;
+                    continue;
+                }
+                (c.distance(eye) - r).max(1e-9)
+            }
+            None => 1e-9,
+        };
+        if !tree.has_content(i) {
+            next += 1;
+            continue;
+        }
+        keep.push(next);
+        let sse = tree.geometric_error(i) * cam.fy / distance;
+        if sse > max_sse && may_refine(i) {
+            let blend = crate::layers::blend::blend_factor(sse, max_sse);
+            for &c in tree.children(i) {
+                out.push(AddPick {
+                    tile: c,
+                    parent: Some(next),
+                    blend,
+                });
+            }
+        }
+        next += 1;
+    }
+    // Drop the culled and empty picks, renumbering the parents.
+    let mut new_index = vec![usize::MAX; out.len()];
+    for (n, &k) in keep.iter().enumerate() {
+        new_index[k] = n;
+    }
+    keep.iter()
+        .map(|&k| AddPick {
+            parent: out[k].parent.map(|p| new_index[p]),
+            ..out[k]
+        })
+        .collect()
+}
+
 /// Whether a sphere (centre in camera coordinates: x right, y down, z forward) meets the
 /// camera's viewing pyramid (side planes through the image borders, in front of the camera).
 pub fn sphere_in_view(cam: &Camera, c: DVec3, r: f64) -> bool {

@@ -94,6 +94,8 @@ struct App {
     size: (u32, u32),
     driver: Driver,
     pending: Vec<splat2tiles::client::SceneUpdate>,
+    /// Layers whose opacities the renderer holds (layered tilesets).
+    layers: Vec<splat2tiles::client::LayerDraw>,
     fly: FlyCamera,
     root: glam::DMat4,
     cfg: RendererConfig,
@@ -170,6 +172,15 @@ impl App {
         let mut ups = std::mem::take(&mut self.pending);
         ups.extend(self.driver.tick(now, &cam));
         crate::stream::apply_updates(&mut g.renderer, &g.device, &g.queue, ups, now);
+        if let Err(e) = crate::stream::apply_layer_opacities(
+            &mut g.renderer,
+            &g.queue,
+            self.driver.client(),
+            &mut self.layers,
+        ) {
+            // The stored opacities stay; the tileset is at fault, not the viewer.
+            eprintln!("layer error: {e}");
+        }
         let frame = match g.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(f)
             | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
@@ -353,6 +364,7 @@ pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
         size: (w, h),
         driver,
         pending,
+        layers: Vec::new(),
         fly,
         root,
         cfg,

@@ -253,6 +253,7 @@ pub fn run_trace(
     let mut clock = t_boot;
     let mut t_render = t_first;
     let mut peak = 0;
+    let mut layers = Vec::new();
     for (k, pose) in trace.poses.iter().enumerate() {
         clock = clock.max(pose.t);
         let cam = Camera::from_pose(w, h, fov, root * pose.world_from_camera());
@@ -271,6 +272,8 @@ pub fn run_trace(
             clock += (now - last) / 1e3;
             last = now;
         }
+        crate::stream::apply_layer_opacities(&mut r, &gpu.queue, d.client(), &mut layers)
+            .map_err(|e| anyhow::anyhow!("{url}: {e}"))?;
         let stats = r.render(&gpu.device, &gpu.queue, &target.view, &cam, t_render);
         peak = peak.max(stats.resident);
         let png = out.join(format!("frame_{k:04}.png"));

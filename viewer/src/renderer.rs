@@ -129,6 +129,10 @@ struct Tile {
     /// Set by `remove_tile`: the time and the fade-in alpha reached then.
     dying: Option<(f64, f64)>,
     count: usize,
+    /// Splats passed in so far (inserted + appended, uploaded or not).
+    inputs: usize,
+    /// For each uploaded splat, in slot order (the runs'), its index among the inputs.
+    source: Vec<u32>,
 }
 
 /// A depth-sort request: batches with the depth row (camera z of the tile frame) to apply.
@@ -662,6 +666,8 @@ impl SplatRenderer {
             born: now_s,
             dying: None,
             count: 0,
+            inputs: 0,
+            source: Vec::new(),
         };
         self.upload(device, queue, &mut tile, splats);
         self.tiles.insert(id, tile);
@@ -797,8 +803,42 @@ impl SplatRenderer {
         }
     }
 
+    /// Replaces the opacities of a resident tile: one value per splat passed in (inserted and
+    /// appended, in that order), as a layered tileset's blend factors and deltas make them
+    /// (`StreamClient::layer_opacities`). Returns false (nothing written) for an unknown id or
+    /// a count that is not the tile's.
+    pub fn set_opacities(&mut self, queue: &wgpu::Queue, id: u64, opacities: &[f32]) -> bool {
+        let Some(tile) = self.tiles.get(&id) else {
+            return false;
+        };
+        if opacities.len() != tile.inputs {
+            return false;
+        }
+        let positions: Vec<[f32; 3]> = tile
+            .chunks
+            .iter()
+            .flat_map(|c| c.positions.iter().copied())
+            .collect();
+        let mut k = 0usize;
+        for run in &tile.runs {
+            for (page, local, len) in page_pieces(*run, PAGE_SPLATS, PAGE_ROW) {
+                let mut pos = Vec::with_capacity(len as usize * 16);
+                for j in k..k + len as usize {
+                    let p = positions[j];
+                    let o = opacities[tile.source[j] as usize];
+                    pos.extend_from_slice(bytemuck::cast_slice(&[p[0], p[1], p[2], o]));
+                }
+                k += len as usize;
+                self.pos.write(queue, page, local, len, 0, &pos);
+            }
+        }
+        true
+    }
+
     fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, tile: &mut Tile, s: &Splats) {
         let n_all = s.len();
+        let first_input = tile.inputs;
+        tile.inputs += n_all;
         let consistent = s.scales.len() == n_all
             && s.rotations.len() == n_all
             && s.opacities.len() == n_all
@@ -887,6 +927,8 @@ impl SplatRenderer {
             }
         }
         tile.count += keep.len();
+        tile.source
+            .extend(keep.iter().map(|&i| (first_input + i) as u32));
         tile.runs.extend(runs);
         tile.chunks.push(Arc::new(Chunk { positions, slots }));
     }

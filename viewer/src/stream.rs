@@ -4,7 +4,7 @@
 use anyhow::bail;
 use glam::{DMat4, DVec3};
 use splat2tiles::client::native::Driver;
-use splat2tiles::client::{ClientConfig, SceneUpdate};
+use splat2tiles::client::{ClientConfig, LayerDraw, SceneUpdate, StreamClient};
 use splat2tiles::render::camera::Camera;
 
 use crate::renderer::SplatRenderer;
@@ -32,6 +32,31 @@ pub fn apply_updates(
             SceneUpdate::Remove { tile } => r.remove_tile(tile, now_s),
         }
     }
+}
+
+/// Layered tilesets (`spec/layered-content.md`): writes the effective opacities of the drawn
+/// layers (blend factors and parent-opacity deltas, `StreamClient::layer_opacities`) into the
+/// renderer when the drawn layers or their blend factors changed since `last`. Does nothing for
+/// other tilesets; an inconsistent layer (deltas not matching its parent) leaves the stored
+/// opacities and returns the error.
+pub fn apply_layer_opacities(
+    r: &mut SplatRenderer,
+    queue: &wgpu::Queue,
+    client: &StreamClient,
+    last: &mut Vec<LayerDraw>,
+) -> Result<(), String> {
+    if !client.is_layered() {
+        return Ok(());
+    }
+    let layers = client.layers();
+    if layers == *last {
+        return Ok(());
+    }
+    *last = layers;
+    for (sid, ops) in client.layer_opacities()? {
+        r.set_opacities(queue, sid, &ops);
+    }
+    Ok(())
 }
 
 /// A driver for `url` (path, `file://` or `http://`) planning for `width x height` frames.
