@@ -5,12 +5,12 @@
 
 mod common;
 
-use splat2tiles::client::{Action, ClientConfig, StreamClient, timeline::Input};
+use splat2tiles::client::{Action, ClientConfig, StreamClient};
 use splat2tiles::convert::{ConvertOptions, SchemeChoice, convert};
 use splat2tiles::layers::view::{layered_instances, select_layers};
 use splat2tiles::render::camera::{Camera, auto_views_with};
 use splat2tiles::render::cli::{tileset_bounds, tileset_up};
-use splat2tiles::sim::transport::{NetEvent, NetModel, SimTransport};
+use splat2tiles::sim::transport::{NetModel, SimTransport};
 use splat2tiles::stream::Level;
 use splat2tiles::tiling::TileKey;
 use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
@@ -59,31 +59,7 @@ fn stream(
     let mut t = 0.0;
     while t <= seconds {
         while let Some(d) = net.next(t) {
-            let input = match d.event {
-                NetEvent::Response {
-                    status,
-                    etag,
-                    range_start,
-                    total,
-                } => Input::Response {
-                    id: d.id,
-                    status,
-                    etag,
-                    range_start,
-                    total,
-                },
-                NetEvent::Data(bytes) => Input::Data {
-                    id: d.id,
-                    t: d.t,
-                    bytes,
-                },
-                NetEvent::Done => Input::Done { id: d.id, t: d.t },
-                NetEvent::Error(message) => Input::Error {
-                    id: d.id,
-                    t: d.t,
-                    message,
-                },
-            };
+            let input = d.into_input();
             let a: Vec<Action> = input.apply(&mut client);
             net.apply(&a);
         }

@@ -154,25 +154,9 @@ impl Run {
     }
 
     fn deliver(&mut self, d: Delivery, pose: Option<&ViewPose>) {
-        let Delivery { t, id, event } = d;
-        let end = matches!(event, NetEvent::Done | NetEvent::Error(_));
-        let input = match event {
-            NetEvent::Response {
-                status,
-                etag,
-                range_start,
-                total,
-            } => Input::Response {
-                id,
-                status,
-                etag,
-                range_start,
-                total,
-            },
-            NetEvent::Data(bytes) => Input::Data { id, t, bytes },
-            NetEvent::Done => Input::Done { id, t },
-            NetEvent::Error(message) => Input::Error { id, t, message },
-        };
+        let t = d.t;
+        let end = matches!(d.event, NetEvent::Done | NetEvent::Error(_));
+        let input = d.into_input();
         self.input(input);
         if end && let Some(p) = pose {
             let cam = camera_of(&self.client, p);

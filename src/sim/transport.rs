@@ -12,6 +12,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::client::timeline::Input;
 use crate::client::{Action, FetchRequest, RequestId};
 
 /// Largest file the transport serves (bytes); bigger ones answer a transport error.
@@ -95,6 +96,30 @@ pub struct Delivery {
     pub id: RequestId,
     /// The event.
     pub event: NetEvent,
+}
+
+impl Delivery {
+    /// The client input this delivery is (what a native HTTP driver would feed it).
+    pub fn into_input(self) -> Input {
+        let Delivery { t, id, event } = self;
+        match event {
+            NetEvent::Response {
+                status,
+                etag,
+                range_start,
+                total,
+            } => Input::Response {
+                id,
+                status,
+                etag,
+                range_start,
+                total,
+            },
+            NetEvent::Data(bytes) => Input::Data { id, t, bytes },
+            NetEvent::Done => Input::Done { id, t },
+            NetEvent::Error(message) => Input::Error { id, t, message },
+        }
+    }
 }
 
 /// How a request ended.
