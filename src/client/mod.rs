@@ -394,6 +394,8 @@ pub struct StreamClient {
     view: Vec<usize>,
     drawn: Vec<bool>,
     wanted: Vec<Want>,
+    /// The last plan's predicted views: tile and seconds until first seen (0: in view).
+    predicted: Vec<(usize, f64)>,
     last_plan: f64,
     dirty: bool,
     now: f64,
@@ -480,6 +482,7 @@ impl StreamClient {
             view: vec![],
             drawn: vec![],
             wanted: vec![],
+            predicted: vec![],
             last_plan: f64::NEG_INFINITY,
             dirty: true,
             now: 0.0,
@@ -542,6 +545,29 @@ impl StreamClient {
             .enumerate()
             .filter_map(|(i, s)| s.shown.map(|(id, l)| (self.info[i].key, l, id)))
             .collect()
+    }
+
+    /// The last plan's wants: tile, level and the time it is due (plan time + deadline; the
+    /// plan's time for tiles in view), in the order they are requested.
+    pub fn planned(&self) -> Vec<(TileKey, Level, f64)> {
+        self.wanted
+            .iter()
+            .map(|w| (self.info[w.tile].key, w.level, self.last_plan + w.deadline))
+            .collect()
+    }
+
+    /// The tiles the last plan's predicted views (and the view) selected, with the time each is
+    /// first seen (plan time + seconds), before the planner chose among them.
+    pub fn predicted(&self) -> Vec<(TileKey, f64)> {
+        self.predicted
+            .iter()
+            .map(|&(i, dt)| (self.info[i].key, self.last_plan + dt))
+            .collect()
+    }
+
+    /// Time of the last plan (seconds, the clock of [`Self::update`]).
+    pub fn last_plan_s(&self) -> f64 {
+        self.last_plan
     }
 
     /// The view set of the last camera (see the module docs).

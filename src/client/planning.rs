@@ -149,6 +149,12 @@ impl StreamClient {
                 }
             }
         }
+        self.predicted = first
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.is_finite())
+            .map(|(i, t)| (i, *t))
+            .collect();
         // A download in flight keeps its level and is not offered to the planner again (its
         // remaining bytes are the link's `in_flight_bytes`): re-deciding it every plan switched
         // levels and dropped the partial bytes (issue 19: the full-city walk asked for 331
