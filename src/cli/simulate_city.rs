@@ -17,9 +17,7 @@ use crate::sim::score::{Chr, EventRule, Ratio, Truth, Waste, cache_hits, events}
 use crate::sim::score::{drawn_is_needed_at_best, held_tiles, tick_views, time_to_quality, wasted};
 use crate::sim::session::{SessionLog, SessionOptions, run_session};
 use crate::sim::split::EvaluationSet;
-use crate::sim::stream_city::{
-    BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set,
-};
+use crate::sim::stream_city::{BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set};
 use crate::sim::svg::{Series, write_time_plots};
 use crate::sim::trace::{self, Trace};
 use crate::sim::transport::{NetModel, Outcome};

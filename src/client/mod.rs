@@ -74,6 +74,12 @@ pub const MAX_TILES: usize = 1 << 20;
 /// Error messages kept in [`ClientStats::last_errors`].
 const KEPT_ERRORS: usize = 32;
 
+/// The client's DP time step (s). A download takes at least one step of the DP's time grid, so
+/// the step caps a plan at `1 / step` fetches a second: at TileSplat's 0.1 s the oracle's plans
+/// held 100 fetches and dropped the rest of a 275-tile burst on the city (issue 19; tiles of
+/// 17-55 KB at Low take 14-44 ms at 10 Mbit/s).
+pub const PLAN_STEP_S: f64 = 0.02;
+
 /// Which trajectory predictor feeds the planner.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum PredictorKind {
@@ -159,7 +165,10 @@ impl Default for ClientConfig {
             replan_speed_change: 0.2,
             fallback_s: 5.0,
             fallback_radius_m: 0.0,
-            plan: PlanStepConfig::default(),
+            plan: PlanStepConfig {
+                step_s: PLAN_STEP_S,
+                ..PlanStepConfig::default()
+            },
             initial_bandwidth: 2.0e6,
             predictor: PredictorKind::Linear,
             predict_horizon_s: 10.0,

@@ -231,8 +231,10 @@ impl StreamClient {
                 continue;
             };
             let level = self.resume_level(c.tile, level);
+            // The predicted first visibility, not the planner's deadline (at least `urgent_s`):
+            // the wants are requested in this order.
             if seen.insert(c.tile) {
-                wanted.push(self.want(c.tile, level, c.deadline, &frustum));
+                wanted.push(self.want(c.tile, level, first[c.tile], &frustum));
             }
         }
         // Downloads in flight go on while their tile is in view or predicted within the

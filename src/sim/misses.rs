@@ -165,7 +165,8 @@ pub fn breakdown(log: &SessionLog, ticks: &[TickView]) -> MissBreakdown {
                 reqs.iter().filter(|(s, _, _)| *s <= t).collect();
             let cause = if ever_held.contains(&key) {
                 Cause::Evicted
-            } else if let Some(&&(s, _, _)) = before.iter().find(|(_, e, _)| e.is_none_or(|e| e > t))
+            } else if let Some(&&(s, _, _)) =
+                before.iter().find(|(_, e, _)| e.is_none_or(|e| e > t))
             {
                 out.in_flight_lead_s.push(t - s);
                 Cause::InFlight
@@ -326,7 +327,14 @@ mod tests {
         let b = breakdown(&log, &views);
         assert_eq!((b.entries, b.misses), (6, 6));
         assert_eq!(
-            (b.evicted, b.in_flight, b.aborted, b.refused, b.late, b.never),
+            (
+                b.evicted,
+                b.in_flight,
+                b.aborted,
+                b.refused,
+                b.late,
+                b.never
+            ),
             (1, 1, 1, 1, 1, 1)
         );
         assert!((b.in_flight_lead_s[0] - 0.3).abs() < 1e-12);
