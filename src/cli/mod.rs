@@ -5,7 +5,7 @@ pub mod convert;
 pub mod serve;
 pub mod shard;
 pub mod simulate;
-mod simulate_city;
+pub mod simulate_city;
 mod simulate_layers;
 pub mod stats;
 pub mod validate;

@@ -16,6 +16,7 @@ use crate::sim::network::{Network, log_files, read_log};
 use crate::sim::score::{Chr, EventRule, Ratio, Truth, Waste, cache_hits, events};
 use crate::sim::score::{drawn_is_needed_at_best, held_tiles, tick_views, time_to_quality, wasted};
 use crate::sim::session::{SessionLog, SessionOptions, run_session};
+use crate::sim::split::EvaluationSet;
 use crate::sim::stream_city::{BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set};
 use crate::sim::svg::{Series, write_time_plots};
 use crate::sim::trace::{self, Trace};
@@ -86,7 +87,7 @@ fn mirrored(poses: &[ViewPose]) -> Vec<ViewPose> {
 }
 
 /// One session of `predictor` (a [`PREDICTORS`] name) planned by `planner`.
-fn session(
+pub fn session(
     dir: &Path,
     tr: &Trace,
     predictor: &str,
@@ -133,8 +134,27 @@ fn truncated(tr: &Trace, s: f64) -> Trace {
     }
 }
 
+/// The traces of Table 4 from the evaluation set: the first [`TRACE_S`] s of [`PER_KIND`] human
+/// sessions (every [`HUMAN_EVERY`]-th), street walks and flights, in that order.
+pub fn table4_traces(eval: &EvaluationSet) -> Vec<Trace> {
+    let of = |kind: &'static str| {
+        eval.traces()
+            .iter()
+            .filter(move |t| t.header("kind") == Some(kind))
+    };
+    let mut traces: Vec<Trace> = of("eyenav")
+        .step_by(HUMAN_EVERY)
+        .take(PER_KIND)
+        .map(|t| truncated(t, TRACE_S))
+        .collect();
+    for kind in ["street_walk", "flight"] {
+        traces.extend(of(kind).take(PER_KIND).map(|t| truncated(t, TRACE_S)));
+    }
+    traces
+}
+
 /// A trace's short name for the tables.
-fn label(tr: &Trace) -> String {
+pub fn label(tr: &Trace) -> String {
     let kind = tr.header("kind").unwrap_or("trace");
     match (kind, tr.header("source"), tr.header("seed")) {
         ("eyenav", Some(src), _) => src.split_once(' ').map_or(src, |p| p.1).to_string(),
@@ -351,28 +371,12 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
         .map(|(k, (_, _, u))| (k, u))
         .collect();
     let eval = evaluation_set(&city.grid, &args.navigation).map_err(anyhow::Error::msg)?;
-    let mut traces: Vec<Trace> = vec![];
-    let humans: Vec<&Trace> = eval
+    let humans = eval
         .traces()
         .iter()
         .filter(|t| t.header("kind") == Some("eyenav"))
-        .collect();
-    traces.extend(
-        humans
-            .iter()
-            .step_by(HUMAN_EVERY)
-            .take(PER_KIND)
-            .map(|t| truncated(t, TRACE_S)),
-    );
-    for kind in ["street_walk", "flight"] {
-        traces.extend(
-            eval.traces()
-                .iter()
-                .filter(|t| t.header("kind") == Some(kind))
-                .take(PER_KIND)
-                .map(|t| truncated(t, TRACE_S)),
-        );
-    }
+        .count();
+    let traces = table4_traces(&eval);
     let mut scored: Vec<Scored> = traces
         .into_iter()
         .map(|trace| Scored {
@@ -384,8 +388,8 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
     let names: Vec<String> = scored.iter().map(|s| label(&s.trace)).collect();
     eprintln!(
         "simulate: city traces ({} of {} test humans, every {HUMAN_EVERY}th): {}",
-        humans.len().div_ceil(HUMAN_EVERY),
-        humans.len(),
+        humans.div_ceil(HUMAN_EVERY),
+        humans,
         names.join(", ")
     );
     let mut md = String::new();

@@ -82,6 +82,12 @@ pub const MAX_TILES: usize = 1 << 20;
 /// Error messages kept in [`ClientStats::last_errors`].
 const KEPT_ERRORS: usize = 32;
 
+/// The client's DP time step (s). A download takes at least one step of the DP's time grid, so
+/// the step caps a plan at `1 / step` fetches a second: at TileSplat's 0.1 s the oracle's plans
+/// held 100 fetches and dropped the rest of a 275-tile burst on the city (issue 19; tiles of
+/// 17-55 KB at Low take 14-44 ms at 10 Mbit/s).
+pub const PLAN_STEP_S: f64 = 0.02;
+
 /// Which trajectory predictor feeds the planner.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum PredictorKind {
@@ -167,7 +173,10 @@ impl Default for ClientConfig {
             replan_speed_change: 0.2,
             fallback_s: 5.0,
             fallback_radius_m: 0.0,
-            plan: PlanStepConfig::default(),
+            plan: PlanStepConfig {
+                step_s: PLAN_STEP_S,
+                ..PlanStepConfig::default()
+            },
             initial_bandwidth: 2.0e6,
             predictor: PredictorKind::Linear,
             predict_horizon_s: 10.0,
@@ -421,6 +430,8 @@ pub struct StreamClient {
     /// Per drawable of a layered tileset: its stored splats and its parent-opacity deltas.
     layer_data: HashMap<u64, (Splats, Option<Vec<f32>>)>,
     wanted: Vec<Want>,
+    /// The last plan's predicted views: tile and seconds until first seen (0: in view).
+    predicted: Vec<(usize, f64)>,
     last_plan: f64,
     dirty: bool,
     now: f64,
@@ -510,6 +521,7 @@ impl StreamClient {
             blend: vec![],
             layer_data: HashMap::new(),
             wanted: vec![],
+            predicted: vec![],
             last_plan: f64::NEG_INFINITY,
             dirty: true,
             now: 0.0,
@@ -657,6 +669,29 @@ impl StreamClient {
                 (l.scene_id, o)
             })
             .collect())
+    }
+
+    /// The last plan's wants: tile, level and the time it is due (plan time + deadline; the
+    /// plan's time for tiles in view), in the order they are requested.
+    pub fn planned(&self) -> Vec<(TileKey, Level, f64)> {
+        self.wanted
+            .iter()
+            .map(|w| (self.info[w.tile].key, w.level, self.last_plan + w.deadline))
+            .collect()
+    }
+
+    /// The tiles the last plan's predicted views (and the view) selected, with the time each is
+    /// first seen (plan time + seconds), before the planner chose among them.
+    pub fn predicted(&self) -> Vec<(TileKey, f64)> {
+        self.predicted
+            .iter()
+            .map(|&(i, dt)| (self.info[i].key, self.last_plan + dt))
+            .collect()
+    }
+
+    /// Time of the last plan (seconds, the clock of [`Self::update`]).
+    pub fn last_plan_s(&self) -> f64 {
+        self.last_plan
     }
 
     /// The view set of the last camera (see the module docs).

@@ -158,6 +158,12 @@ impl StreamClient {
                 }
             }
         }
+        self.predicted = first
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.is_finite())
+            .map(|(i, t)| (i, *t))
+            .collect();
         // A download in flight keeps its level and is not offered to the planner again (its
         // remaining bytes are the link's `in_flight_bytes`): re-deciding it every plan switched
         // levels and dropped the partial bytes (issue 19: the full-city walk asked for 331
@@ -234,8 +240,10 @@ impl StreamClient {
                 continue;
             };
             let level = self.resume_level(c.tile, level);
+            // The predicted first visibility, not the planner's deadline (at least `urgent_s`):
+            // the wants are requested in this order.
             if seen.insert(c.tile) {
-                wanted.push(self.want(c.tile, level, c.deadline, &frustum));
+                wanted.push(self.want(c.tile, level, first[c.tile], &frustum));
             }
         }
         // Downloads in flight go on while their tile is in view or predicted within the

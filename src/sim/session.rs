@@ -46,6 +46,12 @@ pub struct TickLog {
     pub in_flight: usize,
     /// Plans the client made so far.
     pub plans: u64,
+    /// The last plan's wants ([`StreamClient::planned`]): tile and due time.
+    pub planned: Vec<(TileKey, f64)>,
+    /// The last plan's predicted tiles ([`StreamClient::predicted`]): tile and first-seen time.
+    pub predicted: Vec<(TileKey, f64)>,
+    /// Time of the client's last plan ([`StreamClient::last_plan_s`]).
+    pub last_plan_s: f64,
 }
 
 /// One request the client issued.
@@ -221,6 +227,14 @@ pub fn run_session(
             cache_bytes: s.cache_bytes,
             in_flight: run.net.in_flight(),
             plans: s.plans,
+            planned: run
+                .client
+                .planned()
+                .into_iter()
+                .map(|(k, _, due)| (k, due))
+                .collect(),
+            predicted: run.client.predicted(),
+            last_plan_s: run.client.last_plan_s(),
         });
     }
     let s = run.client.stats();
