@@ -696,14 +696,6 @@ fn oracle_miss_causes_on_the_city_traces() {
             upgrade_bytes as f64 / 1e6
         );
         let mean_lead = lead.iter().sum::<f64>() / lead.len().max(1) as f64;
-        let pct = |r: Ratio| {
-            format!(
-                "{}/{} ({:.1}%)",
-                r.hits,
-                r.n,
-                100.0 * r.rate().unwrap_or(0.0)
-            )
-        };
         eprintln!(
             "| {} | {} | {} | {} | {} ({mean_lead:.2}) | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             label(&tr),
@@ -732,18 +724,20 @@ fn oracle_miss_causes_on_the_city_traces() {
         }
         assert!(ow.hits <= ow.n && why.misses <= why.entries, "{why:?}");
     }
-    let pct = |r: Ratio| {
-        format!(
-            "{}/{} ({:.1}%)",
-            r.hits,
-            r.n,
-            100.0 * r.rate().unwrap_or(0.0)
-        )
-    };
     eprintln!(
         "| all | {} | {} | {} |",
         pct(oracle_all),
         pct(reactive_all),
         sums.map(|v| v.to_string()).join(" | ")
     );
+}
+
+/// `hits/n (pct%)` of a hit ratio, as the tables print it.
+fn pct(r: Ratio) -> String {
+    format!(
+        "{}/{} ({:.1}%)",
+        r.hits,
+        r.n,
+        100.0 * r.rate().unwrap_or(0.0)
+    )
 }
