@@ -203,14 +203,7 @@ fn measure(
         })
         .collect();
     let net = NetModel::constant(10.0, 0.04);
-    let cfg = |p| ClientConfig {
-        max_concurrent: 4,
-        predictor: p,
-        memory_budget_bytes: 256 << 20,
-        width: 1280,
-        height: 720,
-        ..ClientConfig::default()
-    };
+    let cfg = CitySpec::small_client;
     let setups = ["reactive", "linear", "tcn (sigma)", "tcn (mean only)"];
     println!(
         "| traces | client | CHR first-time | WD tiles | WD MB | MB | predictions with a pose over {BLEND_SIGMA_M} m sigma |"

@@ -58,14 +58,7 @@ fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
     let spec = CitySpec::small();
     let city = build_city(&scenes, &tmp.path().join("city"), &spec, None).unwrap();
     let truth = Truth::load(&city.dir.join("tileset.json")).unwrap();
-    let cfg = |p| ClientConfig {
-        max_concurrent: 4,
-        predictor: p,
-        memory_budget_bytes: 256 << 20,
-        width: 1280,
-        height: 720,
-        ..ClientConfig::default()
-    };
+    let cfg = CitySpec::small_client;
     let reactive = chr(
         &truth,
         &cfg(PredictorKind::Reactive),

@@ -25,6 +25,7 @@
 use super::eyenav::{Placement, read_session, session_files};
 use super::split::{EvaluationSet, Split, TuningSet, eyenav_scenes, synthetic_split};
 use super::trace::{TRACE_HZ, Trace};
+use crate::client::{ClientConfig, PredictorKind};
 use crate::convert::{ConvertOptions, convert_scene};
 use crate::frame::UpAxis;
 use crate::frame::geo::Geodetic;
@@ -90,6 +91,19 @@ impl CitySpec {
             stride: 16,
             seed: 3,
             max_splats_per_tile: 4096,
+        }
+    }
+
+    /// The client the small city is streamed with (4 requests in flight, 256 MiB, 1280x720),
+    /// by `tests/sim_city.rs` and `examples/tcn_selection.rs`, with `predictor`.
+    pub fn small_client(predictor: PredictorKind) -> ClientConfig {
+        ClientConfig {
+            max_concurrent: 4,
+            predictor,
+            memory_budget_bytes: 256 << 20,
+            width: 1280,
+            height: 720,
+            ..ClientConfig::default()
         }
     }
 
