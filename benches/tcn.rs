@@ -49,10 +49,7 @@ fn main() {
             eprintln!("tcn bench: '{arg}': expected NAME=FILE.onnx");
             std::process::exit(2);
         };
-        let model = std::fs::read(file)
-            .map_err(|e| format!("{file}: {e}"))
-            .and_then(|b| TrajectoryModel::load(&b, file));
-        let mut p = match model {
+        let mut p = match TrajectoryModel::from_file(std::path::Path::new(file)) {
             Ok(m) => TcnPredictor::new(m),
             Err(e) => {
                 eprintln!("tcn bench: {e}");

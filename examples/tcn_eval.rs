@@ -107,8 +107,7 @@ fn run() -> Result<(), String> {
         preds.push(Box::new(Named("tcn".into(), TcnPredictor::committed()?)));
     }
     for (n, f) in models {
-        let bytes = std::fs::read(&f).map_err(|e| format!("{}: {e}", f.display()))?;
-        let m = TrajectoryModel::load(&bytes, &f.display().to_string())?;
+        let m = TrajectoryModel::from_file(&f)?;
         preds.push(Box::new(Named(n, TcnPredictor::new(m))));
     }
     let hs: Vec<String> = HORIZONS.iter().map(|h| format!("{h} s")).collect();

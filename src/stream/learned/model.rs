@@ -54,6 +54,18 @@ impl TrajectoryModel {
         Ok(TrajectoryModel { net: Arc::new(net) })
     }
 
+    /// Loads a `train.py` ONNX export from a file, reading at most the model limit (a larger
+    /// file is an error naming it, not a read).
+    pub fn from_file(path: &std::path::Path) -> Result<TrajectoryModel, String> {
+        use std::io::Read;
+        let name = path.display().to_string();
+        let mut bytes = vec![];
+        std::fs::File::open(path)
+            .and_then(|f| f.take(MAX_MODEL_BYTES as u64 + 1).read_to_end(&mut bytes))
+            .map_err(|e| format!("{name}: {e}"))?;
+        TrajectoryModel::load(&bytes, &name)
+    }
+
     /// The committed model (loaded once per process).
     pub fn committed() -> Result<TrajectoryModel, String> {
         static MODEL: std::sync::OnceLock<Result<TrajectoryModel, String>> =
@@ -236,6 +248,20 @@ mod tests {
             }
         }
         worst
+    }
+
+    #[test]
+    fn a_model_file_is_read_only_up_to_the_limit() {
+        let dir = tempfile::tempdir().unwrap();
+        let ok = dir.path().join("tcn.onnx");
+        std::fs::write(&ok, TCN_ONNX).unwrap();
+        assert!(TrajectoryModel::from_file(&ok).is_ok());
+        let big = dir.path().join("big.onnx");
+        std::fs::write(&big, vec![0u8; MAX_MODEL_BYTES + 10]).unwrap();
+        let e = TrajectoryModel::from_file(&big).unwrap_err();
+        assert!(e.contains("big.onnx") && e.contains("model limit"), "{e}");
+        let e = TrajectoryModel::from_file(&dir.path().join("none.onnx")).unwrap_err();
+        assert!(e.contains("none.onnx"), "{e}");
     }
 
     #[test]
