@@ -624,14 +624,21 @@ impl StreamClient {
     /// (count, or none on a layer with a parent) is an error naming the tile; a content
     /// without the layer extension in an ADD tileset fades nothing (an ordinary ADD tile).
     pub fn layer_opacities(&self) -> Result<Vec<(u64, Vec<f32>)>, String> {
-        let layers = self.layers();
+        self.layer_opacities_of(&self.layers())
+    }
+
+    /// [`Self::layer_opacities`] of `layers`: [`Self::layers`] with blend factors a viewer
+    /// changed (a time ramp, `layers::ramp`, or a test's hard swap). A scene id that is not a
+    /// decoded layer, or a parent index that is not an earlier layer, is an error naming the tile.
+    pub fn layer_opacities_of(&self, layers: &[LayerDraw]) -> Result<Vec<(u64, Vec<f32>)>, String> {
         let zeros: Vec<Vec<f32>> = layers
             .iter()
             .map(|l| match l.parent {
                 Some(p) => vec![
                     0.0;
-                    self.layer_data
-                        .get(&layers[p].scene_id)
+                    layers
+                        .get(p)
+                        .and_then(|q| self.layer_data.get(&q.scene_id))
                         .map_or(0, |d| d.0.len())
                 ],
                 None => vec![],

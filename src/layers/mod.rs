@@ -3,13 +3,14 @@
 //!
 //! The form (`SPLAT2TILES_layer` primitive extension, ADD refinement, occupancy and blending
 //! rules) is defined in `spec/layered-content.md`; [`glb`] reads and writes it, [`deltas`]
-//! derives the opacity deltas from our LOD, [`blend`] composes what a viewer draws and
-//! [`build`] turns a converted tileset folder into a layered one.
+//! derives the opacity deltas from our LOD, [`blend`] composes what a viewer draws, [`ramp`]
+//! fades in layers that arrive late, and [`build`] turns a converted tileset folder into a layered one.
 
 pub mod blend;
 pub mod build;
 pub mod deltas;
 pub mod glb;
+pub mod ramp;
 pub mod view;
 
 /// Name of the glTF primitive extension that marks a layer and carries its parent's deltas.

@@ -95,7 +95,7 @@ struct App {
     driver: Driver,
     pending: Vec<splat2tiles::client::SceneUpdate>,
     /// Layers whose opacities the renderer holds (layered tilesets).
-    layers: Vec<splat2tiles::client::LayerDraw>,
+    scene: crate::layered::SceneSync,
     fly: FlyCamera,
     root: glam::DMat4,
     cfg: RendererConfig,
@@ -171,12 +171,13 @@ impl App {
         let cam = self.fly.camera(g.config.width, g.config.height, self.root);
         let mut ups = std::mem::take(&mut self.pending);
         ups.extend(self.driver.tick(now, &cam));
-        crate::stream::apply_updates(&mut g.renderer, &g.device, &g.queue, ups, now);
-        if let Err(e) = crate::stream::apply_layer_opacities(
+        if let Err(e) = self.scene.apply(
             &mut g.renderer,
+            &g.device,
             &g.queue,
             self.driver.client(),
-            &mut self.layers,
+            ups,
+            now,
         ) {
             // The stored opacities stay; the tileset is at fault, not the viewer.
             eprintln!("layer error: {e}");
@@ -364,7 +365,7 @@ pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
         size: (w, h),
         driver,
         pending,
-        layers: Vec::new(),
+        scene: crate::layered::SceneSync::default(),
         fly,
         root,
         cfg,

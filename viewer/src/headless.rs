@@ -253,7 +253,7 @@ pub fn run_trace(
     let mut clock = t_boot;
     let mut t_render = t_first;
     let mut peak = 0;
-    let mut layers = Vec::new();
+    let mut scene = crate::layered::SceneSync::default();
     for (k, pose) in trace.poses.iter().enumerate() {
         clock = clock.max(pose.t);
         let cam = Camera::from_pose(w, h, fov, root * pose.world_from_camera());
@@ -263,7 +263,9 @@ pub fn run_trace(
         let mut last = start;
         loop {
             let ups = d.tick(clock, &cam);
-            crate::stream::apply_updates(&mut r, &gpu.device, &gpu.queue, ups, t_render);
+            scene
+                .apply(&mut r, &gpu.device, &gpu.queue, d.client(), ups, t_render)
+                .map_err(|e| anyhow::anyhow!("{url}: {e}"))?;
             if d.is_idle() || (crate::clock::now_ms() - start) / 1e3 > POSE_SETTLE_S {
                 break;
             }
@@ -272,8 +274,6 @@ pub fn run_trace(
             clock += (now - last) / 1e3;
             last = now;
         }
-        crate::stream::apply_layer_opacities(&mut r, &gpu.queue, d.client(), &mut layers)
-            .map_err(|e| anyhow::anyhow!("{url}: {e}"))?;
         let stats = r.render(&gpu.device, &gpu.queue, &target.view, &cam, t_render);
         peak = peak.max(stats.resident);
         let png = out.join(format!("frame_{k:04}.png"));

@@ -13,6 +13,7 @@ pub mod clock;
 pub mod gpu;
 #[cfg(feature = "native")]
 pub mod headless;
+pub mod layered;
 pub mod nav;
 pub mod renderer;
 pub mod sort;

@@ -446,6 +446,8 @@ pub struct SplatRenderer {
     refused: usize,
     skipped: usize,
     table_scratch: Vec<f32>,
+    /// Inserted tiles fade in over `fade_s` (off for layered tilesets: the layer ramp fades).
+    insert_fade: bool,
 }
 
 fn table_texture(device: &wgpu::Device, rows: u32) -> wgpu::Texture {
@@ -626,6 +628,7 @@ impl SplatRenderer {
             refused: 0,
             skipped: 0,
             table_scratch: Vec::new(),
+            insert_fade: true,
         }
     }
 
@@ -634,8 +637,16 @@ impl SplatRenderer {
         &self.cfg
     }
 
+    /// Whether tiles inserted from now on fade in over `fade_s` (default) or are drawn at once:
+    /// layered tilesets set it off, their layers fade in by blend factor and time ramp
+    /// (`crate::layered`). Removed tiles fade out either way.
+    pub fn set_insert_fade(&mut self, on: bool) {
+        self.insert_fade = on;
+    }
+
     /// Adds a tile's splats (tile-local coordinates, as decoded from the glb) with its
-    /// tile-to-world matrix; it fades in over `fade_s`. An id already resident is replaced at once.
+    /// tile-to-world matrix; it fades in over `fade_s` (see [`Self::set_insert_fade`]). An id
+    /// already resident is replaced at once.
     pub fn insert_tile(
         &mut self,
         device: &wgpu::Device,
@@ -663,7 +674,11 @@ impl SplatRenderer {
             chunks: Vec::new(),
             runs: Vec::new(),
             sh_degree: splats.sh_degree.min(self.cfg.max_sh_degree),
-            born: now_s,
+            born: if self.insert_fade {
+                now_s
+            } else {
+                f64::NEG_INFINITY
+            },
             dying: None,
             count: 0,
             inputs: 0,

@@ -4,60 +4,13 @@
 use anyhow::bail;
 use glam::{DMat4, DVec3};
 use splat2tiles::client::native::Driver;
-use splat2tiles::client::{ClientConfig, LayerDraw, SceneUpdate, StreamClient};
+use splat2tiles::client::{ClientConfig, SceneUpdate};
 use splat2tiles::render::camera::Camera;
 
-use crate::renderer::SplatRenderer;
-
-/// Applies the client's scene updates to the renderer at time `now_s` (inserts fade in, removes
-/// fade out, appends grow a tile being downloaded).
-pub fn apply_updates(
-    r: &mut SplatRenderer,
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    updates: Vec<SceneUpdate>,
-    now_s: f64,
-) {
-    for u in updates {
-        match u {
-            SceneUpdate::Insert {
-                tile,
-                splats,
-                tile_to_world,
-                ..
-            } => r.insert_tile(device, queue, tile, &splats, tile_to_world, now_s),
-            SceneUpdate::Append { tile, splats } => {
-                r.append_tile(device, queue, tile, &splats, now_s)
-            }
-            SceneUpdate::Remove { tile } => r.remove_tile(tile, now_s),
-        }
-    }
-}
-
-/// Layered tilesets (`spec/layered-content.md`): writes the effective opacities of the drawn
-/// layers (blend factors and parent-opacity deltas, `StreamClient::layer_opacities`) into the
-/// renderer when the drawn layers or their blend factors changed since `last`. Does nothing for
-/// other tilesets; an inconsistent layer (deltas not matching its parent) leaves the stored
-/// opacities and returns the error.
-pub fn apply_layer_opacities(
-    r: &mut SplatRenderer,
-    queue: &wgpu::Queue,
-    client: &StreamClient,
-    last: &mut Vec<LayerDraw>,
-) -> Result<(), String> {
-    if !client.is_layered() {
-        return Ok(());
-    }
-    let layers = client.layers();
-    if layers == *last {
-        return Ok(());
-    }
-    *last = layers;
-    for (sid, ops) in client.layer_opacities()? {
-        r.set_opacities(queue, sid, &ops);
-    }
-    Ok(())
-}
+/// Applies scene updates to the renderer at time `now_s` (inserts fade in, removes fade out,
+/// appends grow a tile being downloaded); a client's frames go through
+/// [`crate::layered::SceneSync`], which also draws layered tilesets.
+pub use crate::layered::apply_scene_updates as apply_updates;
 
 /// A driver for `url` (path, `file://` or `http://`) planning for `width x height` frames.
 pub fn driver(url: &str, width: u32, height: u32, fov_y_deg: f64, max_sse: f64) -> Driver {
