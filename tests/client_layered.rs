@@ -145,6 +145,29 @@ fn streamed_layers_reach_the_reference_renderers_drawn_set() {
     theirs.sort_by(f32::total_cmp);
     assert_eq!(mine.len(), theirs.len());
     assert_eq!(mine, theirs);
+    // A viewer's own blend factors (`layer_opacities_of`): the client's give the same result;
+    // every child at 0 leaves the base at its stored opacities; a parent index that is not an
+    // earlier layer, or an unknown drawable, is an error naming the tile, not a panic.
+    let mut layers = client.layers();
+    assert_eq!(client.layer_opacities_of(&layers).unwrap(), ops);
+    for l in &mut layers[1..] {
+        l.blend = 0.0;
+    }
+    let base = &client.layer_opacities_of(&layers).unwrap()[0];
+    assert!(base.1.iter().any(|&o| o > 0.0));
+    let mut bad = client.layers();
+    let last = bad.len() - 1;
+    bad[last].parent = Some(last + 5);
+    let e = client.layer_opacities_of(&bad).unwrap_err();
+    assert!(e.contains(&format!("{:?}", bad[last].key)), "{e}");
+    bad[last].parent = Some(0);
+    bad[last].scene_id = u64::MAX;
+    assert!(
+        client
+            .layer_opacities_of(&bad)
+            .unwrap_err()
+            .contains("not decoded")
+    );
 }
 
 #[test]

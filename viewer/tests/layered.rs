@@ -246,3 +246,89 @@ fn a_streamed_level_change_blends_frame_by_frame_where_a_hard_swap_jumps() {
         assert!(s >= 0.97, "frame {k}: SSIM vs the reference {s}");
     }
 }
+
+/// Late layers (`splat2tiles::layers::ramp`): with the camera already deep in the blend band and
+/// a slow link, child layers arrive while their blend factor is well above 0; the viewer draws
+/// each from 0 at its first frame up to the client's factor `LAYER_RAMP_S` later, never stepping
+/// more per frame than the ramp's slope allows, where the client's factor alone pops.
+#[test]
+fn late_layers_ramp_in_over_time_instead_of_popping() {
+    use splat2tiles::client::{Action, ClientConfig, StreamClient};
+    use splat2tiles::layers::ramp::LAYER_RAMP_S;
+    use splat2tiles::sim::transport::{NetModel, SimTransport};
+    use std::collections::HashMap;
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = layered_tileset(dir.path());
+    let ts = load_tileset(&path).unwrap();
+    // The dolly pose where the root's error is 1.6 x MAX_SSE: its children at t = 0.6.
+    let cams = dolly(&ts);
+    let k = (FRAMES as f64 * (1.6 / SSE_FROM).ln() / (SSE_TO / SSE_FROM).ln()).round() as usize;
+    let cam = cams[HOLD + k];
+    let mut net = SimTransport::new(path.parent().unwrap(), NetModel::constant(2.0, 0.05));
+    let cfg = ClientConfig {
+        width: W,
+        height: H,
+        fov_y_deg: FOV,
+        max_sse: MAX_SSE,
+        ..ClientConfig::default()
+    };
+    let mut client = StreamClient::new(&net.tileset_url(), cfg);
+    let mut sync = SceneSync::new(BlendMode::Continuous);
+    let dt = 1.0 / 60.0;
+    // Per scene id: first frame time, client factor then, last drawn factor.
+    let mut seen: HashMap<u64, (f64, f32, f32)> = HashMap::new();
+    let mut late = 0;
+    let mut arrivals = vec![];
+    let mut reached = 0;
+    for frame in 0..(20.0 / dt) as usize {
+        let t = frame as f64 * dt;
+        while let Some(d) = net.next(t) {
+            let a: Vec<Action> = d.into_input().apply(&mut client);
+            net.apply(&a);
+        }
+        let a = client.update(t, &cam);
+        net.apply(&a);
+        let _ = client.take_updates();
+        let want = client.layers();
+        let drawn = sync.drawn_layers(&client, t);
+        for (c, l) in want.iter().zip(&drawn) {
+            match seen.get_mut(&l.scene_id) {
+                None => {
+                    assert_eq!(l.blend, 0.0, "{:?} drawn at once", c.key);
+                    if c.parent.is_some() && c.blend > 0.3 {
+                        late += 1;
+                        arrivals.push((t, c.blend));
+                    }
+                    seen.insert(l.scene_id, (t, c.blend, 0.0));
+                }
+                Some((t0, c0, last)) => {
+                    // The camera is still: the client's factor stays; the drawn one ramps.
+                    assert_eq!(c.blend, *c0);
+                    let slope = *c0 * (dt / LAYER_RAMP_S) as f32 + 1e-5;
+                    assert!(
+                        l.blend >= *last && l.blend - *last <= slope,
+                        "{:?}: {} -> {}",
+                        c.key,
+                        last,
+                        l.blend
+                    );
+                    if t - *t0 >= LAYER_RAMP_S + 1e-9 {
+                        assert_eq!(l.blend, c.blend, "{:?} after the ramp", c.key);
+                    }
+                    if l.blend == c.blend && *last < c.blend {
+                        reached += 1;
+                    }
+                    *last = l.blend;
+                }
+            }
+        }
+    }
+    println!(
+        "{} layers drawn, {late} child layers arrived with a blend factor > 0.3, {reached} ramped up to it",
+        seen.len()
+    );
+    println!("late arrivals (s, client blend factor): {arrivals:.3?}");
+    assert!(late >= 2, "no layer arrived late ({late})");
+    assert_eq!(reached, seen.len(), "every layer reaches its factor");
+}
