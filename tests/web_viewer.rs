@@ -643,3 +643,138 @@ fn web_viewer_runs_the_tcn_predictor() {
     assert!(v["problems"].as_array().unwrap().is_empty(), "{v:#}");
     assert_eq!(u(&v["stats"]["errors"]), 0, "{v:#}");
 }
+
+/// Layered content in the web viewer (`spec/layered-content.md`, "Viewers"): a camera dolly
+/// across a level change (the root's screen-space error from 0.8 to 2.4 x maxSse over 40 poses,
+/// as `viewer/tests/layered.rs` does natively), each pose streamed until idle and settled and
+/// screenshotted: no pose differs from its neighbour by more than the SSIM step, while the same
+/// dolly with `blend=hard` (child layers swapped in at once) does; the last pose matches the CPU
+/// reference's layered render.
+#[test]
+fn web_viewer_blends_a_layered_level_change_pose_by_pose() {
+    use splat2tiles::layers::view::layered_instances;
+    use splat2tiles::render::camera::{Camera, auto_views_with};
+    use splat2tiles::render::cli::{tileset_bounds, tileset_up};
+    use splat2tiles::render::raster::{RenderOptions, render};
+    use splat2tiles::tiling::TileKey;
+    use splat2tiles::tiling::load::load_tileset;
+    const STEP: f64 = 0.02;
+    const POSES: usize = 40;
+    const MAX_SSE: f64 = 16.0;
+    let (w, h, fov) = (256u32, 144u32, 50.0);
+    require_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let ply = tmp.path().join("cloud.ply");
+    write_ply_file(&ply, &random_splats(6000, 1, 10.0, 7));
+    let dir = tmp.path().join("layered");
+    let opts = splat2tiles::convert::ConvertOptions {
+        max_splats_per_tile: 400,
+        scheme: splat2tiles::convert::SchemeChoice::Octree,
+        subtree_levels: Some(2),
+        layers: true,
+        progress: false,
+        ..splat2tiles::convert::ConvertOptions::default()
+    };
+    splat2tiles::convert::convert(&ply, &dir, &opts).expect("convert --layers");
+    let ts = load_tileset(&dir.join("tileset.json")).unwrap();
+    let (lo, hi) = tileset_bounds(&ts).unwrap();
+    let up = tileset_up(&ts);
+    let auto = auto_views_with(lo, hi, up, w, h, fov).remove(1);
+    let root = ts.tiles.iter().find(|t| t.key == TileKey::ROOT).unwrap();
+    let (c, r) = splat2tiles::stream::select::box_sphere(
+        root.bounding_box.as_ref().unwrap(),
+        &ts.root_transform,
+    );
+    let dirn = (auto.center() - c).normalize();
+    let cams: Vec<(String, Camera)> = (0..=POSES)
+        .map(|k| {
+            let s = MAX_SSE * 0.8 * 3f64.powf(k as f64 / POSES as f64);
+            let eye = c + dirn * (root.geometric_error * auto.fy / s + r);
+            let spec = format!(
+                "look-at:{},{},{}:{},{},{}:{},{},{}",
+                eye.x, eye.y, eye.z, c.x, c.y, c.z, up.x, up.y, up.z
+            );
+            (spec, Camera::look_at(w, h, fov, eye, c, up))
+        })
+        .collect();
+    let cams_json = tmp.path().join("cams.json");
+    let specs: Vec<&String> = cams.iter().map(|(s, _)| s).collect();
+    std::fs::write(&cams_json, serde_json::to_string(&specs).unwrap()).unwrap();
+
+    let run_dolly = |blend: &str| -> (Vec<Image>, Value) {
+        let viewing = view(&dir, &tmp.path().join(format!("{blend}-view.log")));
+        let out = tmp.path().join(blend);
+        let o = Command::new("node")
+            .arg(js_dir().join("web_layered.mjs"))
+            .arg(&viewing.base)
+            .arg("--cameras")
+            .arg(&cams_json)
+            .arg("--out")
+            .arg(&out)
+            .args(["--width", &w.to_string(), "--height", &h.to_string()])
+            .args(["--fov", &fov.to_string(), "--blend", blend])
+            .output()
+            .expect("cannot run `node` (install Node >= 20)");
+        drop(viewing);
+        let v = json_of(&o, "web_layered.mjs");
+        assert!(o.status.success() && v["ok"] == true, "{blend}: {v:#}");
+        let frames = v["frames"].as_array().unwrap();
+        assert_eq!(frames.len(), POSES + 1);
+        let imgs = frames
+            .iter()
+            .map(|f| {
+                assert!(f["layered"] == true && u(&f["errors"]) == 0, "{f:#}");
+                Image::load_png(Path::new(f["shot"].as_str().unwrap())).unwrap()
+            })
+            .collect();
+        (imgs, v)
+    };
+    let steps = |imgs: &[Image]| -> Vec<f64> {
+        imgs.windows(2)
+            .map(|p| ssim(&p[0], &p[1]).unwrap())
+            .collect()
+    };
+    let worst = |s: &[f64]| s.iter().copied().fold(1.0, f64::min);
+    let (blended, v) = run_dolly("continuous");
+    let (hard, _) = run_dolly("hard");
+    let (sb, sh) = (steps(&blended), steps(&hard));
+    eprintln!("web blended neighbour SSIM: {sb:.4?}");
+    eprintln!("web hard-swap neighbour SSIM: {sh:.4?}");
+    let first_last = ssim(&blended[0], &blended[POSES]).unwrap();
+    eprintln!(
+        "web worst neighbour SSIM: blended {:.4}, hard swap {:.4}; first vs last {first_last:.4}",
+        worst(&sb),
+        worst(&sh)
+    );
+    let frames = v["frames"].as_array().unwrap();
+    let blends = |k: usize| -> Vec<f64> {
+        frames[k]["layerBlends"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|b| b.as_f64().unwrap())
+            .collect()
+    };
+    // A level change: the base alone first, deeper layers at the end, partly blended between.
+    assert_eq!(blends(0), vec![1.0]);
+    assert!(blends(POSES).len() > 1);
+    assert!(
+        (0..=POSES).any(|k| blends(k).iter().any(|&b| b > 0.1 && b < 0.9)),
+        "no pose blends a layer partly in"
+    );
+    for (k, s) in sb.iter().enumerate() {
+        assert!(*s >= 1.0 - STEP, "web pose {k} -> {}: SSIM {s}", k + 1);
+    }
+    assert!(
+        worst(&sh) < 1.0 - STEP,
+        "the hard swap never jumped: {sh:?}"
+    );
+    let (_, cam) = &cams[POSES];
+    let inst = layered_instances(&ts, cam, MAX_SSE).unwrap();
+    let refs: Vec<(&splat2tiles::splat::Splats, glam::DMat4)> =
+        inst.iter().map(|(s, m)| (s, *m)).collect();
+    let cpu = render(&refs, cam, &RenderOptions::default()).quantized();
+    let s = ssim(&cpu, &blended[POSES]).unwrap();
+    eprintln!("web last pose vs the CPU layered render: SSIM {s:.4}");
+    assert!(s >= MIN_SSIM, "last pose vs the reference: SSIM {s}");
+}

@@ -55,6 +55,8 @@ pub struct SceneSync {
     ramp: LayerRamp,
     /// The layers (with the blend factors drawn) last written into the renderer.
     last: Vec<LayerDraw>,
+    /// Some drawn layer's ramp was below 1 at the last frame.
+    ramping: bool,
 }
 
 impl SceneSync {
@@ -96,11 +98,18 @@ impl SceneSync {
         Ok(&self.last)
     }
 
+    /// Whether some layer drawn at the last frame was still ramping in (its opacities change
+    /// with time alone; a viewer is not settled yet).
+    pub fn ramping(&self) -> bool {
+        self.ramping
+    }
+
     /// The client's layers with the blend factors this viewer draws at `now_s`.
     pub fn drawn_layers(&mut self, client: &StreamClient, now_s: f64) -> Vec<LayerDraw> {
         let mut layers = client.layers();
         let ids: Vec<u64> = layers.iter().map(|l| l.scene_id).collect();
         let ramp = self.ramp.observe(now_s, &ids);
+        self.ramping = self.mode == BlendMode::Continuous && ramp.iter().any(|&f| f < 1.0);
         for (l, f) in layers.iter_mut().zip(ramp) {
             l.blend = match self.mode {
                 BlendMode::Continuous => l.blend * f,

@@ -261,7 +261,7 @@ fn late_layers_ramp_in_over_time_instead_of_popping() {
     let dir = tempfile::tempdir().unwrap();
     let path = layered_tileset(dir.path());
     let ts = load_tileset(&path).unwrap();
-    // The dolly pose where the root's error is 1.6 x MAX_SSE: its children at t = 0.6.
+    // The dolly pose nearest a root error of 1.6 x MAX_SSE: its children at t = 0.59.
     let cams = dolly(&ts);
     let k = (FRAMES as f64 * (1.6 / SSE_FROM).ln() / (SSE_TO / SSE_FROM).ln()).round() as usize;
     let cam = cams[HOLD + k];

@@ -6,10 +6,11 @@ use std::rc::Rc;
 
 use glam::DVec3;
 use serde_json::json;
-use splat2tiles::client::{ClientConfig, PredictorKind, SceneUpdate, StreamClient};
+use splat2tiles::client::{ClientConfig, PredictorKind, StreamClient};
 use splat2tiles::render::camera::{self, Camera};
 use splat2tiles::render::view_spec::{ViewSpec, is_georeferenced};
 use splat2tiles::stream::Level;
+use splat2tiles_viewer::layered::{BlendMode, SceneSync};
 use splat2tiles_viewer::{RendererConfig, SplatRenderer};
 use wasm_bindgen::prelude::*;
 use web_sys::HtmlCanvasElement;
@@ -30,6 +31,9 @@ struct Options {
     walk: bool,
     /// The trajectory predictor (`predictor=reactive|constant-velocity|linear|tcn`).
     predictor: PredictorKind,
+    /// Layered tilesets: blend levels (`blend=continuous`, default) or swap them at once
+    /// (`blend=hard`, the control of the continuity test).
+    blend: BlendMode,
 }
 
 impl Options {
@@ -85,6 +89,15 @@ impl Options {
                 "fly" => false,
                 other => return Err(format!("unknown mode '{other}' (walk, fly)")),
             },
+            blend: match v
+                .get("blend")
+                .and_then(|m| m.as_str())
+                .unwrap_or("continuous")
+            {
+                "continuous" => BlendMode::Continuous,
+                "hard" => BlendMode::HardSwap,
+                other => return Err(format!("unknown blend '{other}' (continuous, hard)")),
+            },
             predictor: match v
                 .get("predictor")
                 .and_then(|m| m.as_str())
@@ -123,6 +136,14 @@ pub struct WebViewer {
     device: wgpu::Device,
     queue: wgpu::Queue,
     renderer: SplatRenderer,
+    /// The client's scene in the renderer (layered tilesets: blend factors and the ramp).
+    scene: SceneSync,
+    /// Blend factors of the layers drawn last frame (layered tilesets; empty otherwise).
+    layer_blends: Vec<f32>,
+    /// Some drawn layer's late-layer ramp is running (`SceneSync::ramping`).
+    ramping: bool,
+    /// The last layer error reported on the console (each new one is reported once).
+    layer_error: Option<String>,
     adapter_info: wgpu::AdapterInfo,
     options: Options,
     controls: Option<FirstPerson>,
@@ -217,6 +238,10 @@ impl WebViewer {
             device,
             queue,
             renderer,
+            scene: SceneSync::new(options.blend),
+            layer_blends: Vec::new(),
+            ramping: false,
+            layer_error: None,
             adapter_info: adapter.get_info(),
             options,
             controls: None,
@@ -364,29 +389,32 @@ impl WebViewer {
         self.view_unplanned = false;
         fetch::dispatch(&self.shared, actions);
         let updates = self.shared.borrow_mut().client.take_updates();
-        for u in updates {
+        if !updates.is_empty() {
             self.last_change = now_s;
-            match u {
-                SceneUpdate::Insert {
-                    tile,
-                    splats,
-                    tile_to_world,
-                    ..
-                } => self.renderer.insert_tile(
-                    &self.device,
-                    &self.queue,
-                    tile,
-                    &splats,
-                    tile_to_world,
-                    now_s,
-                ),
-                SceneUpdate::Append { tile, splats } => {
-                    self.renderer
-                        .append_tile(&self.device, &self.queue, tile, &splats, now_s)
+        }
+        // Shared with the native viewer: updates, then layered opacities (blend + ramp).
+        let s = self.shared.borrow();
+        match self.scene.apply(
+            &mut self.renderer,
+            &self.device,
+            &self.queue,
+            &s.client,
+            updates,
+            now_s,
+        ) {
+            Ok(drawn) => {
+                self.layer_blends = drawn.iter().map(|l| l.blend).collect();
+                self.ramping = self.scene.ramping();
+            }
+            Err(e) => {
+                // The stored opacities stay; the tileset is at fault, not the viewer.
+                if self.layer_error.as_deref() != Some(e.as_str()) {
+                    web_sys::console::error_1(&format!("layer error: {e}").into());
+                    self.layer_error = Some(e);
                 }
-                SceneUpdate::Remove { tile } => self.renderer.remove_tile(tile, now_s),
             }
         }
+        drop(s);
         let frame = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(f)
             | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
@@ -505,7 +533,10 @@ impl WebViewer {
                 && !s.client.has_updates(),
             "settled": !self.view_unplanned
                 && !s.client.has_updates()
+                && !self.ramping
                 && now - self.last_change > self.fade_s + 0.05,
+            "layered": s.client.is_layered(),
+            "layerBlends": self.layer_blends,
         })
     }
 
