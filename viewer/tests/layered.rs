@@ -275,6 +275,8 @@ fn late_layers_ramp_in_over_time_instead_of_popping() {
     };
     let mut client = StreamClient::new(&net.tileset_url(), cfg);
     let mut sync = SceneSync::new(BlendMode::Continuous);
+    // The control mode on the same frames: no ramp, each child at 0 or 1 by its factor.
+    let mut hard = SceneSync::new(BlendMode::HardSwap);
     let dt = 1.0 / 60.0;
     // Per scene id: first frame time, client factor then, last drawn factor.
     let mut seen: HashMap<u64, (f64, f32, f32)> = HashMap::new();
@@ -292,6 +294,13 @@ fn late_layers_ramp_in_over_time_instead_of_popping() {
         let _ = client.take_updates();
         let want = client.layers();
         let drawn = sync.drawn_layers(&client, t);
+        let swapped = hard.drawn_layers(&client, t);
+        assert!(!hard.ramping());
+        let ramping = drawn.iter().zip(&want).any(|(d, c)| d.blend < c.blend);
+        assert_eq!(sync.ramping(), ramping, "at {t} s");
+        for (c, l) in want.iter().zip(&swapped) {
+            assert_eq!(l.blend, if c.blend >= 0.5 { 1.0 } else { 0.0 });
+        }
         for (c, l) in want.iter().zip(&drawn) {
             match seen.get_mut(&l.scene_id) {
                 None => {
