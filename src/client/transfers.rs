@@ -525,6 +525,14 @@ impl StreamClient {
                 continue;
             }
             let pos = self.history.last().map_or(DVec3::ZERO, |p| p.pos);
+            // The tile needed again last (Belady with the prediction): tiles no predicted view
+            // holds first, farthest first; then the ones predicted latest. By distance alone the
+            // flights evicted tiles prefetched for the road ahead (issue 19: 11-14 of flight
+            // 37's misses after warm-up were evicted before they entered).
+            let mut next = vec![f64::INFINITY; self.info.len()];
+            for &(i, dt) in &self.predicted {
+                next[i] = dt;
+            }
             let victim = self
                 .cache
                 .resident()
@@ -534,7 +542,7 @@ impl StreamClient {
                 .max_by(|&a, &b| {
                     let da = self.catalog.tiles[a].bbox.distance(pos);
                     let db = self.catalog.tiles[b].bbox.distance(pos);
-                    da.total_cmp(&db)
+                    next[a].total_cmp(&next[b]).then(da.total_cmp(&db))
                 });
             match victim {
                 Some(v) => {
