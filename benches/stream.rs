@@ -90,6 +90,7 @@ fn main() {
         horizon_steps: 600,
         memory_budget: u64::MAX,
         latency_s: 0.0,
+        bins: 0,
     };
     let dp = min_ms(200, || solve_dp(&req));
     let plan = solve_dp(&req);

@@ -557,6 +557,30 @@ fn oracle_miss_causes_on_the_city_traces() {
                         late += 1;
                     }
                 }
+                for until in [12.0, 15.0, 20.0] {
+                    let due: u64 = jobs
+                        .iter()
+                        .filter(|j| j.0 <= tr.poses[0].t + until)
+                        .map(|j| j.1)
+                        .sum();
+                    eprintln!(
+                        "  DETAIL level {lvl}: {} KB of first entries in ({warm_at:.1}, {until}] s; the link carries {} KB",
+                        due / 1000,
+                        ((tr.poses[0].t + until - warm_at) * 1250.0) as u64
+                    );
+                }
+                // The same, every job fetched (a client that repairs what it missed).
+                let (mut clock2, mut late2) = (warm_at, 0);
+                for (due, b) in &jobs {
+                    clock2 += *b as f64 / 1.25e6;
+                    if clock2 > *due + 1e-9 {
+                        late2 += 1;
+                    }
+                }
+                eprintln!(
+                    "  DETAIL EDF level {lvl}, every entry fetched: {late2} of {} late",
+                    jobs.len()
+                );
                 eprintln!(
                     "  DETAIL EDF level {lvl} from warm-up {warm_at:.1} s: {late} of {} first entries late (max {late_s:.1} s)",
                     jobs.len()
@@ -564,6 +588,68 @@ fn oracle_miss_causes_on_the_city_traces() {
             }
             eprintln!("  DETAIL open requests at late misses by level {open_lvl:?}");
             let t0 = tr.poses[0].t;
+            {
+                // Finished content downloads per second by when their tile first entered the
+                // needed cut: before the request, after its end (lead in s), or never.
+                let mut entry: HashMap<TileKey, f64> = HashMap::new();
+                for (k, n) in needed.iter().enumerate() {
+                    for key in n {
+                        entry.entry(*key).or_insert(tr.poses[k].t);
+                    }
+                }
+                let mut seen = std::collections::HashSet::new();
+                for sec in (0..20).step_by(2) {
+                    let (a, b) = (t0 + sec as f64, t0 + sec as f64 + 2.0);
+                    let (mut before, mut never, mut refetch, mut leads) = (0, 0, 0, vec![]);
+                    let (mut kb, mut n_done, mut aborted) = (0u64, 0u64, 0u64);
+                    for r in oracle
+                        .requests
+                        .iter()
+                        .filter(|r| r.key.is_some() && r.end_s.is_some_and(|e| e >= a && e < b))
+                    {
+                        if r.outcome == splat2tiles::sim::transport::Outcome::Done {
+                            kb += r.bytes / 1000;
+                            n_done += 1;
+                        } else {
+                            aborted += 1;
+                        }
+                    }
+                    eprintln!(
+                        "  DETAIL {sec:2} s: done {n_done} ({} KB mean), ended otherwise {aborted}",
+                        kb / n_done.max(1)
+                    );
+                    for r in oracle.requests.iter().filter(|r| {
+                        r.outcome == splat2tiles::sim::transport::Outcome::Done
+                            && r.end_s.is_some_and(|e| e >= a && e < b)
+                    }) {
+                        let Some(k) = r.key else { continue };
+                        if !seen.insert(k) {
+                            refetch += 1;
+                            continue;
+                        }
+                        match entry.get(&k) {
+                            None => never += 1,
+                            Some(&e) if e <= r.start_s => before += 1,
+                            Some(&e) => leads.push(e - r.end_s.unwrap()),
+                        }
+                    }
+                    leads.sort_by(f64::total_cmp);
+                    let q = |f: f64| {
+                        leads
+                            .get((f * leads.len() as f64) as usize)
+                            .copied()
+                            .unwrap_or(f64::NAN)
+                    };
+                    eprintln!(
+                        "  DETAIL {sec:2}-{} s: first downloads: entered before {before}, never {never}, later {} (lead s p10/p50/p90 {:.1}/{:.1}/{:.1}); repeat downloads {refetch}",
+                        sec + 2,
+                        leads.len(),
+                        q(0.1),
+                        q(0.5),
+                        q(0.9)
+                    );
+                }
+            }
             for sec in 0..20 {
                 let (a, b) = (t0 + sec as f64, t0 + sec as f64 + 1.0);
                 let mut new_b = [0u64; 4];

@@ -1,13 +1,26 @@
-//! DC-DP checks: equals brute force on random small instances; valid, deterministic answers with
+//! DC-DP checks: equals brute force on random small instances (bins of one byte); valid, deterministic answers with
 //! zero bandwidth, passed deadlines, ties, an empty list and a binding memory budget.
 
 use splat2tiles::stream::catalog::{LEVELS, Variant};
-use splat2tiles::stream::plan::{Candidate, Plan, PlanRequest, Planner, capacity_prefix, solve_dp};
+use splat2tiles::stream::plan::{
+    Candidate, Plan, PlanRequest, Planner, capacity_prefix, overhead_bytes, solve_dp,
+};
 use splat2tiles::stream::rng::SplitMix64;
 
+/// The link's cumulative bytes at `t` (linear within a step, flat past the horizon).
+fn carried(c: &[f64], step_s: f64, t: f64) -> f64 {
+    let x = t / step_s;
+    let k = x.floor() as usize;
+    if k + 1 >= c.len() {
+        return c[c.len() - 1];
+    }
+    c[k] + (x - k as f64) * (c[k + 1] - c[k])
+}
+
 /// Exhaustive search: every assignment of skip/level per candidate, downloaded in deadline order
-/// (ties by index) back to back from time 0, each finishing at the first step boundary where the
-/// link has carried its bytes; feasible when every finish step is within the deadline step.
+/// (ties by index) back to back from time 0, each costing its bytes plus the per-request
+/// overhead, rounded up to whole bytes (the DP's bins are one byte on these small links);
+/// feasible when the work up to each download is within what the link carries by its deadline.
 fn brute(req: &PlanRequest) -> f64 {
     let n = req.candidates.len();
     let mut order: Vec<usize> = (0..n).collect();
@@ -18,12 +31,13 @@ fn brute(req: &PlanRequest) -> f64 {
             .then(a.cmp(&b))
     });
     let c = capacity_prefix(req.bandwidth, req.step_s, req.horizon_steps);
-    let lat = (req.latency_s / req.step_s - 1e-9).ceil().max(0.0) as usize;
+    assert!(c[c.len() - 1] <= req.bins as f64, "bins of one byte");
+    let o = overhead_bytes(req, &c);
     let mut best = 0.0f64;
     let total = (LEVELS + 1).pow(n as u32);
     for code in 0..total {
         let mut x = code;
-        let mut start = 0usize;
+        let mut work = 0.0;
         let mut util = 0.0;
         let mut bytes = 0u64;
         let mut ok = true;
@@ -34,21 +48,12 @@ fn brute(req: &PlanRequest) -> f64 {
                 continue;
             }
             let v = req.candidates[i].variants[pick - 1];
-            let s = v.bytes as f64;
-            // Earliest end step e >= start with c[e] - c[start] >= s, then + latency.
-            let Some(e) =
-                (start..=req.horizon_steps).find(|&e| c[e] - c[start] + 1e-9 * s.max(1.0) >= s)
-            else {
-                ok = false;
-                break;
-            };
-            let fin = e + lat;
+            work += (v.bytes as f64 + o - 1e-9).ceil().max(1.0);
             let d = req.candidates[i].deadline;
-            if d < 0.0 || fin > req.horizon_steps || fin as f64 > (d / req.step_s + 1e-9).floor() {
+            if d.is_nan() || d < 0.0 || work > (carried(&c, req.step_s, d) + 1e-9).floor() {
                 ok = false;
                 break;
             }
-            start = fin;
             util += v.utility;
             bytes += v.bytes;
         }
@@ -111,6 +116,7 @@ fn dp_equals_brute_force_on_random_instances() {
             horizon_steps: 30,
             memory_budget: u64::MAX,
             latency_s: latency,
+            bins: 1 << 16,
         };
         let p = solve_dp(&req);
         check_valid(&req, &p);
@@ -136,6 +142,7 @@ fn dp_with_memory_budget_is_feasible_and_close() {
             horizon_steps: 30,
             memory_budget: 8 + rng.below(12) as u64,
             latency_s: 0.0,
+            bins: 1 << 16,
         };
         let p = solve_dp(&req);
         check_valid(&req, &p);
@@ -158,6 +165,7 @@ fn req_with<'a>(cands: &'a [Candidate], bw: &'a [f64]) -> PlanRequest<'a> {
         horizon_steps: 50,
         memory_budget: u64::MAX,
         latency_s: 0.0,
+        bins: 0,
     }
 }
 

@@ -299,6 +299,7 @@ fn table5(seed: u64, scenes: &[Scene]) -> String {
                         horizon_steps: 300,
                         memory_budget: u64::MAX,
                         latency_s: 0.0,
+                        bins: 0,
                     };
                     let reps = 5;
                     let t0 = Instant::now();

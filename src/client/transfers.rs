@@ -71,18 +71,30 @@ impl StreamClient {
                 // Pausing the lowest-priority prefetch for every tile in view aborted more than
                 // half the requests (issue 19), and with no preemption between prefetches ones
                 // due in 8 s held every slot while ones due in 1 s waited.
-                let victim = self
+                // An upgrade in flight (its tile is drawn at a lower level meanwhile) gives way
+                // to a missing tile first: with upgrades of the view never paused, four Best
+                // upgrades held the link while tiles about to enter waited (issue 19, flight 38).
+                let flying = |v: &&Want| {
+                    self.state[v.tile]
+                        .download
+                        .as_ref()
+                        .is_some_and(|d| d.req.is_some())
+                };
+                let upgrade = self
                     .wanted
                     .iter()
-                    .filter(|v| !v.in_view && v.deadline > w.deadline + PREEMPT_GUARD_S)
-                    .filter(|v| {
-                        self.state[v.tile]
-                            .download
-                            .as_ref()
-                            .is_some_and(|d| d.req.is_some())
-                    })
-                    .max_by(|a, b| a.deadline.total_cmp(&b.deadline))
+                    .filter(flying)
+                    .filter(|v| self.cache.level(v.tile).is_some())
+                    .min_by(|a, b| a.priority.total_cmp(&b.priority))
                     .map(|v| v.tile);
+                let victim = upgrade.or_else(|| {
+                    self.wanted
+                        .iter()
+                        .filter(|v| !v.in_view && v.deadline > w.deadline + PREEMPT_GUARD_S)
+                        .filter(flying)
+                        .max_by(|a, b| a.deadline.total_cmp(&b.deadline))
+                        .map(|v| v.tile)
+                });
                 match victim {
                     Some(v) => self.pause(v, actions),
                     None => break,
@@ -513,6 +525,14 @@ impl StreamClient {
                 continue;
             }
             let pos = self.history.last().map_or(DVec3::ZERO, |p| p.pos);
+            // The tile needed again last (Belady with the prediction): tiles no predicted view
+            // holds first, farthest first; then the ones predicted latest. By distance alone the
+            // flights evicted tiles prefetched for the road ahead (issue 19: 11-14 of flight
+            // 37's misses after warm-up were evicted before they entered).
+            let mut next = vec![f64::INFINITY; self.info.len()];
+            for &(i, dt) in &self.predicted {
+                next[i] = dt;
+            }
             let victim = self
                 .cache
                 .resident()
@@ -522,7 +542,7 @@ impl StreamClient {
                 .max_by(|&a, &b| {
                     let da = self.catalog.tiles[a].bbox.distance(pos);
                     let db = self.catalog.tiles[b].bbox.distance(pos);
-                    da.total_cmp(&db)
+                    next[a].total_cmp(&next[b]).then(da.total_cmp(&db))
                 });
             match victim {
                 Some(v) => {

@@ -20,7 +20,7 @@ pub struct PlanStepConfig {
     pub max_sse: f64,
     /// Frustum test.
     pub vis_test: VisTest,
-    /// DP time step (s).
+    /// Time step of the link forecast the DP plans over (s); the DP itself runs over bytes.
     pub step_s: f64,
     /// DP horizon (s).
     pub horizon_s: f64,
@@ -35,6 +35,8 @@ pub struct PlanStepConfig {
     /// concurrency)` of the link free of new bytes (the first request still waits a whole round
     /// trip). 1 (the default): requests one after another, each paying its round trip.
     pub concurrency: usize,
+    /// Byte bins of the DP ([`PlanRequest::bins`]; 0: the default).
+    pub bins: usize,
 }
 
 impl Default for PlanStepConfig {
@@ -49,6 +51,7 @@ impl Default for PlanStepConfig {
             planner: Planner::Dp,
             latency_s: 0.0,
             concurrency: 1,
+            bins: 0,
         }
     }
 }
@@ -216,7 +219,7 @@ pub fn plan_visible_link(
             variants,
         });
     }
-    // Bounded: the DP holds a byte per candidate and step.
+    // Bounded: the link forecast holds one rate per step.
     let steps = (cfg.horizon_s / cfg.step_s)
         .round()
         .clamp(1.0, MAX_PLAN_STEPS as f64) as usize;
@@ -233,6 +236,7 @@ pub fn plan_visible_link(
         horizon_steps: steps,
         memory_budget,
         latency_s: cfg.latency_s / cfg.concurrency.max(1) as f64,
+        bins: cfg.bins,
     };
     let mut plan = cfg.planner.solve(&req);
     let mut chosen = vec![false; cands.len()];
@@ -356,10 +360,11 @@ mod tests {
         assert_ne!(with.fetches[0].level, Level::Best);
     }
 
-    /// The step caps the fetches per second: tiles of 20 KB at 10 Mbit/s (62 per second)
-    /// all due in 1 s.
+    /// No step caps the fetches per second: tiles of 5-20 KB at 10 Mbit/s (62-250 per second)
+    /// all due in 1 s fill the link whatever the forecast's step (a DP over 100 ms steps held
+    /// 10 of them).
     #[test]
-    fn a_finer_step_fits_more_small_tiles() {
+    fn small_tiles_fill_the_link_at_any_step() {
         let v = |b: u64, u: f64| crate::stream::catalog::Variant {
             bytes: b,
             utility: u,
@@ -377,7 +382,7 @@ mod tests {
                 ],
             })
             .collect();
-        let n = |step_s: f64| {
+        let plan = |step_s: f64| {
             solve_dp(&PlanRequest {
                 candidates: &cands,
                 bandwidth: &[1.25e6],
@@ -385,11 +390,15 @@ mod tests {
                 horizon_steps: (2.0 / step_s).round() as usize,
                 memory_budget: u64::MAX,
                 latency_s: 0.0,
+                bins: 0,
             })
-            .fetches
-            .len()
         };
-        assert!(n(0.1) <= 10, "{}", n(0.1));
-        assert!(n(0.01) >= 60, "{}", n(0.01));
+        for step in [0.1, 0.01] {
+            let p = plan(step);
+            assert_eq!(p.fetches.len(), 80, "step {step}");
+            // 1.25 MB by the deadline: within a bin's rounding per download of full.
+            assert!(p.bytes <= 1_250_000 && p.bytes > 1_150_000, "{}", p.bytes);
+            assert!(p.fetches.iter().all(|f| f.finish_s <= 1.0 + 1e-9));
+        }
     }
 }
