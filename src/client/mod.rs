@@ -82,10 +82,10 @@ pub const MAX_TILES: usize = 1 << 20;
 /// Error messages kept in [`ClientStats::last_errors`].
 const KEPT_ERRORS: usize = 32;
 
-/// The client's DP time step (s). A download takes at least one step of the DP's time grid, so
-/// the step caps a plan at `1 / step` fetches a second: at TileSplat's 0.1 s the oracle's plans
-/// held 100 fetches and dropped the rest of a 275-tile burst on the city (issue 19; tiles of
-/// 17-55 KB at Low take 14-44 ms at 10 Mbit/s).
+/// Time step (s) of the link forecast the client's DP plans over. The DP itself runs over bytes
+/// (`stream::plan`), so the step no longer caps the fetches a plan holds; it only sets how finely
+/// a changing forecast and the deadlines are read (it was the DP's grid until issue 19, where
+/// TileSplat's 0.1 s held a plan to 100 fetches on a 275-tile burst).
 pub const PLAN_STEP_S: f64 = 0.02;
 
 /// Which trajectory predictor feeds the planner.
@@ -137,7 +137,7 @@ pub struct ClientConfig {
     pub fallback_s: f64,
     /// Radius of the fallback rule in tileset-frame metres (TileSplat: 100 m; 0: view set only).
     pub fallback_radius_m: f64,
-    /// Planner settings (DP step, horizon, urgent deadline, algorithm, latency).
+    /// Planner settings (forecast step, byte bins, horizon, urgent deadline, algorithm, latency).
     pub plan: PlanStepConfig,
     /// Bandwidth estimate (bytes/s) before the first measurement.
     pub initial_bandwidth: f64,

@@ -173,7 +173,7 @@ fn time_for(c: &[f64], step_s: f64, w: f64) -> f64 {
 
 /// Per-request overhead in bytes: the request latency at the mean rate of the link's busy steps.
 pub fn overhead_bytes(req: &PlanRequest, c: &[f64]) -> f64 {
-    if !(req.latency_s > 0.0) || req.step_s <= 0.0 {
+    if req.latency_s.is_nan() || req.latency_s <= 0.0 || req.step_s <= 0.0 {
         return 0.0;
     }
     let busy = c.windows(2).filter(|w| w[1] > w[0]).count();
