@@ -300,13 +300,13 @@ pub fn write_meshopt_glb(
 
 /// Without the native codecs meshopt tiles cannot be written.
 #[cfg(not(feature = "native"))]
-pub fn write_meshopt_glb_and_plain(
+pub fn write_meshopt_glb_and_decoded(
     splats: &Splats,
     centre: [f64; 3],
     node_matrix: [f64; 16],
     level: &MeshoptLevel,
-) -> Result<(Vec<u8>, Vec<u8>), GlbError> {
-    write_meshopt_glb(splats, centre, node_matrix, level).map(|g| (g, vec![]))
+) -> Result<(Vec<u8>, Splats), GlbError> {
+    write_meshopt_glb(splats, centre, node_matrix, level).map(|g| (g, Splats::new(0)))
 }
 
 /// Writes a splat tile compressed with `EXT_meshopt_compression` (required; the uncompressed
@@ -321,18 +321,79 @@ pub fn write_meshopt_glb(
     Ok(encode_meshopt(splats, centre, node_matrix, level)?.0)
 }
 
-/// [`write_meshopt_glb`] and what [`decompress_meshopt_glb`] makes of it, without running the
-/// (lossless) vertex codec's decoder: the filtered streams are unfiltered where they were made.
+/// [`write_meshopt_glb`] and the tile-relative splats that [`super::read_tile_glb`] reads from
+/// [`decompress_meshopt_glb`] of it, bit for bit (`tests::decoded_matches_the_reader`), built
+/// from the filtered streams where they were made: no vertex-codec decode, no plain glb.
 #[cfg(feature = "native")]
-pub fn write_meshopt_glb_and_plain(
+pub fn write_meshopt_glb_and_decoded(
     splats: &Splats,
     centre: [f64; 3],
     node_matrix: [f64; 16],
     level: &MeshoptLevel,
-) -> Result<(Vec<u8>, Vec<u8>), GlbError> {
+) -> Result<(Vec<u8>, Splats), GlbError> {
     let (glb, filtered) = encode_meshopt(splats, centre, node_matrix, level)?;
-    let plain = decompress_with(&glb, Some(filtered))?;
-    Ok((glb, plain))
+    let degree = splats.sh_degree.min(level.max_sh_degree);
+    Ok((glb, unfiltered_splats(filtered, degree)))
+}
+
+/// The splats held by [`streams`]' filtered bytes (in their order), converted as the glb reader
+/// converts the accessors: f32 as is, normalized i16 rotations over 32767 and renormalised when
+/// not unit within 1e-4, opacities clamped into [0, 1].
+#[cfg(feature = "native")]
+fn unfiltered_splats(filtered: Vec<Vec<u8>>, degree: u8) -> Splats {
+    let floats = |mut bytes: Vec<u8>, stride: usize| -> Vec<f32> {
+        filter_in_place(&mut bytes, stride, "EXPONENTIAL");
+        bytes
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect()
+    };
+    let triples =
+        |v: Vec<f32>| -> Vec<[f32; 3]> { v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() };
+    let mut it = filtered.into_iter();
+    let mut next = || it.next().unwrap_or_default();
+    let positions = floats(next(), 12)
+        .chunks_exact(3)
+        .map(|c| [c[0] as f64, c[1] as f64, c[2] as f64])
+        .collect();
+    let mut rot = next();
+    filter_in_place(&mut rot, 8, "QUATERNION");
+    let rotations = rot
+        .chunks_exact(8)
+        .map(|e| {
+            let q = [0, 1, 2, 3]
+                .map(|c| (i16::from_le_bytes([e[2 * c], e[2 * c + 1]]) as f32 / 32767.0).max(-1.0));
+            let n2: f64 = q.iter().map(|&v| v as f64 * v as f64).sum();
+            if (n2.sqrt() - 1.0).abs() > 1e-4 {
+                crate::splat::normalize_quat(q)
+            } else {
+                q
+            }
+        })
+        .collect();
+    let scales = triples(floats(next(), 12));
+    let opacities = floats(next(), 4)
+        .into_iter()
+        .map(|a| if a.is_nan() { a } else { a.clamp(0.0, 1.0) })
+        .collect();
+    let sh0 = triples(floats(next(), 12));
+    let k = crate::splat::sh_rest_count(degree);
+    let sh_rest = if k > 0 {
+        triples(floats(next(), 12 * k))
+    } else {
+        vec![]
+    };
+    let s = Splats {
+        positions,
+        scales,
+        rotations,
+        opacities,
+        sh0,
+        sh_degree: degree,
+        sh_rest,
+    };
+    s.check_lengths();
+    s
 }
 
 /// The meshopt glb and each compressed bufferView's filtered bytes (before the vertex codec).
@@ -425,12 +486,6 @@ fn encode_meshopt(
 /// bufferView decoded and unfiltered into one BIN chunk) that [`super::read_tile_glb`] reads.
 /// A glb without the extension is returned unchanged.
 pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
-    decompress_with(bytes, None)
-}
-
-/// [`decompress_meshopt_glb`]; with `filtered`, bufferView `i`'s compressed stream is taken as
-/// decoded to `filtered[i]` (what its encoder compressed) instead of being decoded.
-fn decompress_with(bytes: &[u8], mut filtered: Option<Vec<Vec<u8>>>) -> Result<Vec<u8>, GlbError> {
     let chunks = read_glb(bytes)?;
     let mut doc: Gltf = parse_json(&chunks)?;
     if !doc
@@ -478,16 +533,8 @@ fn decompress_with(bytes: &[u8], mut filtered: Option<Vec<Vec<u8>>>) -> Result<V
                         "count * byteStride is implausible",
                     ));
                 }
-                let known = filtered
-                    .as_mut()
-                    .and_then(|f| f.get_mut(i))
-                    .map(std::mem::take)
-                    .filter(|d| d.len() as u64 == count * stride);
-                let mut data = match known {
-                    Some(d) => d,
-                    None => decode_attributes(src, count as usize, stride as usize)
-                        .ok_or_else(|| GlbError::invalid(&path, NO_DECODE))?,
-                };
+                let mut data = decode_attributes(src, count as usize, stride as usize)
+                    .ok_or_else(|| GlbError::invalid(&path, NO_DECODE))?;
                 let filter = ext.get("filter").and_then(Value::as_str).unwrap_or("NONE");
                 if !filter_in_place(&mut data, stride as usize, filter) {
                     return Err(GlbError::invalid(
@@ -673,6 +720,45 @@ mod tests {
     }
     use crate::encode::tile::{IDENTITY, read_tile_glb};
     use crate::splat::{Splat, normalize_quat};
+
+    /// What [`write_meshopt_glb_and_decoded`] returns is what the reader decodes from the glb
+    /// (vertex codec, filters, accessors), bit for bit: both levels, every SH degree, opacities
+    /// at and beyond the ends, positions far from the centre.
+    #[cfg(feature = "native")]
+    #[test]
+    fn decoded_matches_the_reader() {
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        let mut f = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for degree in 0..=3u8 {
+            let mut s = Splats::new(degree);
+            let k = crate::splat::sh_rest_count(degree);
+            for i in 0..700 {
+                let splat = Splat {
+                    position: [6.4e6 + f() * 80.0, -3.0e5 + f(), f() * 1e-3],
+                    scale: [1e-4 + f() as f32, f() as f32 * 3.0 + 1e-6, 0.01],
+                    rotation: normalize_quat([f() as f32 - 0.5, f() as f32, -(f() as f32), 0.3]),
+                    opacity: [0.0, 1.0, f() as f32][i % 3],
+                    sh0: [f() as f32 - 0.5, 2.0 * f() as f32, -(f() as f32)],
+                };
+                let rest: Vec<[f32; 3]> = (0..k).map(|_| [f() as f32 - 0.5; 3]).collect();
+                s.push(splat, &rest);
+            }
+            let centre = [6.4e6 + 40.0, -3.0e5, 0.0];
+            for level in [HIGH, MEDIUM] {
+                let (glb, decoded) =
+                    write_meshopt_glb_and_decoded(&s, centre, IDENTITY, &level).unwrap();
+                let read = read_tile_glb(&decompress_meshopt_glb(&glb).unwrap())
+                    .unwrap()
+                    .splats;
+                assert_eq!(decoded, read, "SH degree {degree}, {level:?}");
+            }
+        }
+    }
 
     #[test]
     fn high_and_medium_decode_within_their_bit_depths() {
