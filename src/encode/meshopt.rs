@@ -140,26 +140,9 @@ fn min_max3(v: &[f32]) -> (Vec<f64>, Vec<f64>) {
 
 #[cfg(feature = "native")]
 /// Encodes a meshopt ATTRIBUTES stream (bitstream version 0, the one EXT_meshopt_compression
-/// allows).
+/// allows): the Rust port of the C encoder, byte-identical to it ([`super::vertex_codec`]).
 fn encode_attributes(data: &[u8], stride: usize) -> Vec<u8> {
-    let count = data.len() / stride;
-    // SAFETY: the bound is computed for this count and stride; the encoder writes at most
-    // `bound` bytes into `out` and reads `count * stride` bytes of `data`.
-    unsafe {
-        let bound = meshopt::ffi::meshopt_encodeVertexBufferBound(count, stride);
-        let mut out = vec![0u8; bound];
-        let n = meshopt::ffi::meshopt_encodeVertexBufferLevel(
-            out.as_mut_ptr(),
-            out.len(),
-            data.as_ptr().cast(),
-            count,
-            stride,
-            2,
-            0,
-        );
-        out.truncate(n);
-        out
-    }
+    super::vertex_codec::encode_vertex_buffer_v0(data, stride)
 }
 
 /// Decodes a meshopt ATTRIBUTES stream (bitstream version 0) into `count * stride` bytes with

@@ -8,6 +8,7 @@ pub mod prefix;
 pub mod spz2;
 pub mod table6;
 pub mod tile;
+pub mod vertex_codec;
 
 pub use glb::GlbError;
 pub use prefix::decode_prefix;
