@@ -1,7 +1,7 @@
 //! meshopt's vertex codec encoder, bitstream version 0 (the `EXT_meshopt_compression` ATTRIBUTES
 //! mode), in Rust: byte-identical to meshoptimizer's `meshopt_encodeVertexBufferLevel(.., 0)`.
-// The C encoder measures each 16-byte group four times with scalar loops; this one counts a
-// group's out-of-range bytes once per bit width, and was the largest part of the High/Medium cost.
+// The C encoder measures each 16-byte group byte by byte for every width; this one counts a
+// group's bytes at or above each width's sentinel eight at a time (SWAR), for every target.
 
 /// First byte of a version-0 stream.
 const HEADER: u8 = 0xa0;
@@ -35,61 +35,92 @@ pub fn encode_vertex_buffer_v0(data: &[u8], stride: usize) -> Vec<u8> {
     );
     let count = data.len() / stride;
     let bs = block_size(stride);
-    // Header, per block and byte a group header and at most the bytes, the tail.
-    let bound = 1 + count.div_ceil(bs) * stride * ((bs / GROUP).div_ceil(4) + bs) + TAIL_MIN;
-    let mut out = Vec::with_capacity(bound.max(stride + 1));
-    out.push(HEADER);
+    // Header; per block and byte column the group headers and at most a literal per group; the
+    // tail; a group of slack for the unconditional stores of `encode_bytes`.
+    let columns = count.div_ceil(bs) * stride;
+    let bound = 1 + columns * ((bs / GROUP).div_ceil(4) + bs) + TAIL_MIN.max(stride) + GROUP;
+    let mut out = vec![0u8; bound];
+    out[0] = HEADER;
+    let mut pos = 1;
     let first = &data[..stride.min(data.len())];
     let mut last = [0u8; 256];
     last[..first.len()].copy_from_slice(first);
-    let mut deltas = [0u8; BLOCK_MAX];
+    // Four byte columns at a time (strides are multiples of 4): their deltas from the previous
+    // vertex, zigzagged, computed in one u32 per vertex.
+    let mut deltas = [[0u8; BLOCK_MAX]; 4];
     for block in data.chunks(bs * stride) {
         let n = block.len() / stride;
         let aligned = n.next_multiple_of(GROUP);
         // Past the block's vertices the groups hold zeros.
-        deltas[n..aligned].fill(0);
-        for k in 0..stride {
-            let mut p = last[k];
-            for (d, v) in deltas.iter_mut().zip(block[k..].iter().step_by(stride)) {
-                let x = v.wrapping_sub(p);
-                *d = (x << 1) ^ (0u8.wrapping_sub(x >> 7));
-                p = *v;
+        for column in &mut deltas {
+            column[n..aligned].fill(0);
+        }
+        for k in (0..stride).step_by(4) {
+            let word = |b: &[u8]| u32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]);
+            let mut p = word(&last);
+            for (i, row) in block.chunks_exact(stride).enumerate() {
+                let v = word(row);
+                let z = zigzag_bytes(sub_bytes(v, p)).to_le_bytes();
+                for (column, z) in deltas.iter_mut().zip(z) {
+                    column[i] = z;
+                }
+                p = v;
             }
-            encode_bytes(&mut out, &deltas[..aligned]);
+            for column in &deltas {
+                pos = encode_bytes(&mut out, pos, &column[..aligned]);
+            }
         }
         last[..stride].copy_from_slice(&block[(n - 1) * stride..]);
     }
-    if stride < TAIL_MIN {
-        out.resize(out.len() + TAIL_MIN - stride, 0);
-    }
-    if count > 0 {
-        out.extend_from_slice(first);
-    } else {
-        out.resize(out.len() + stride, 0);
-    }
+    let pad = TAIL_MIN.saturating_sub(stride);
+    out[pos..pos + pad].fill(0);
+    pos += pad;
+    out[pos..pos + stride].fill(0);
+    out[pos..pos + first.len()].copy_from_slice(first);
+    out.truncate(pos + stride);
     out
 }
 
-/// Appends one byte column of a block (a multiple of [`GROUP`] bytes): 2-bit headers, then
-/// each group at the width that is shortest (ties go to the previous group's width, never
-/// replacing literals), as meshopt's `encodeBytes` with version 0's widths.
-fn encode_bytes(out: &mut Vec<u8>, buffer: &[u8]) {
+/// `a - b` in each byte (wrapping, no borrow between bytes).
+fn sub_bytes(a: u32, b: u32) -> u32 {
+    const HIGH: u32 = 0x8080_8080;
+    ((a | HIGH).wrapping_sub(b & !HIGH)) ^ ((a ^ !b) & HIGH)
+}
+
+/// meshopt's byte zigzag (`(x << 1) ^ -(x >> 7)`) in each byte.
+fn zigzag_bytes(x: u32) -> u32 {
+    ((x << 1) & 0xfefe_fefe) ^ (((x >> 7) & 0x0101_0101) * 0xff)
+}
+
+/// Bytes 0x80 where the byte of `w` is at least `0x80 - t` (`t` repeated in every byte).
+fn at_least(w: u64, t: u64) -> u64 {
+    const LOW7: u64 = 0x7f7f_7f7f_7f7f_7f7f;
+    const HIGH: u64 = 0x8080_8080_8080_8080;
+    // The low 7 bits plus `t` carry into bit 7 exactly when they reach the threshold; bytes
+    // with bit 7 set are above any threshold. No byte's sum leaves its byte.
+    (((w & LOW7) + t) | w) & HIGH
+}
+
+/// Writes one byte column of a block (a multiple of [`GROUP`] bytes) at `pos` of `out` and
+/// returns the end: 2-bit headers, then each group at the width that is shortest (ties go to the
+/// previous group's width, never replacing literals), as meshopt's `encodeBytes` with version
+/// 0's widths. Stores up to [`GROUP`] bytes past the end (`out` has the slack).
+fn encode_bytes(out: &mut [u8], mut pos: usize, buffer: &[u8]) -> usize {
+    const REP: u64 = 0x0101_0101_0101_0101;
     let groups = buffer.len() / GROUP;
-    let header = out.len();
-    out.resize(header + groups.div_ceil(4), 0);
+    let header = pos;
+    out[pos..pos + groups.div_ceil(4)].fill(0);
+    pos += groups.div_ceil(4);
     let mut last_bits = u32::MAX;
     for (g, group) in buffer.chunks_exact(GROUP).enumerate() {
-        let group: &[u8; GROUP] = group.try_into().expect("whole groups");
-        let (mut any, mut over2, mut over4) = (0u8, 0usize, 0usize);
-        for &b in group {
-            any |= b;
-            over2 += (b >= 3) as usize;
-            over4 += (b >= 15) as usize;
-        }
+        let w = [0, 8].map(|o| u64::from_le_bytes(group[o..o + 8].try_into().expect("8 bytes")));
+        // Bytes at or above the 2- and 4-bit sentinels (3, 15) go out whole after the packed ones.
+        let over2 = w.map(|w| at_least(w, (0x80 - 3) * REP));
+        let over4 = w.map(|w| at_least(w, (0x80 - 15) * REP));
         let sizes = [
-            if any == 0 { 0 } else { usize::MAX },
-            GROUP * 2 / 8 + over2,
-            GROUP * 4 / 8 + over4,
+            if w[0] | w[1] == 0 { 0 } else { usize::MAX },
+            GROUP * 2 / 8 + (over2[0].count_ones() + over2[1].count_ones()) as usize,
+            GROUP * 4 / 8 + (over4[0].count_ones() + over4[1].count_ones()) as usize,
         ];
         let (mut best, mut best_size) = (3usize, GROUP);
         for (bitk, &size) in sizes.iter().enumerate() {
@@ -101,24 +132,49 @@ fn encode_bytes(out: &mut Vec<u8>, buffer: &[u8]) {
         }
         out[header + g / 4] |= (best << ((g % 4) * 2)) as u8;
         let bits = BITS[best];
-        match bits {
-            0 => {}
-            8 => out.extend_from_slice(group),
-            _ => {
-                let sentinel = (1u8 << bits) - 1;
-                let per = (8 / bits) as usize;
-                for chunk in group.chunks_exact(per) {
-                    let mut byte = 0u8;
-                    for &b in chunk {
-                        byte = (byte << bits) | b.min(sentinel);
-                    }
-                    out.push(byte);
-                }
-                out.extend(group.iter().filter(|&&b| b >= sentinel));
+        let (over, sentinel) = match bits {
+            0 => {
+                last_bits = bits;
+                continue;
             }
+            8 => {
+                out[pos..pos + GROUP].copy_from_slice(group);
+                pos += GROUP;
+                last_bits = bits;
+                continue;
+            }
+            2 => (over2, 3u8),
+            _ => (over4, 15u8),
+        };
+        // Every byte capped at the sentinel.
+        let capped: [u64; 2] = [0, 1].map(|h| {
+            let m = (over[h] >> 7) * 0xff;
+            (w[h] & !m) | (sentinel as u64 * REP & m)
+        });
+        for c in capped {
+            if bits == 2 {
+                // Four 2-bit values per byte, the first in the top bits: one multiply gathers
+                // bytes 0..4 of each half at bits 30, 28, 26, 24 (no two terms overlap).
+                const GATHER: u64 = (1 << 30) | (1 << 20) | (1 << 10) | 1;
+                for half in [c & 0xffff_ffff, c >> 32] {
+                    out[pos] = ((half * GATHER) >> 24) as u8;
+                    pos += 1;
+                }
+            } else {
+                for j in 0..4 {
+                    let pair = c >> (16 * j);
+                    out[pos] = (((pair & 0xf) << 4) | ((pair >> 8) & 0xf)) as u8;
+                    pos += 1;
+                }
+            }
+        }
+        for &b in group {
+            out[pos] = b;
+            pos += (b >= sentinel) as usize;
         }
         last_bits = bits;
     }
+    pos
 }
 
 #[cfg(all(test, feature = "native"))]
