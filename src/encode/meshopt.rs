@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use serde_json::{Map, Value, json};
 
+use super::exp_filter::{ExpMode, encode_exp};
 use super::glb::{GlbError, parse_json, read_glb, write_gltf_glb};
 use super::gltf::{
     Accessor, AccessorType, Buffer, BufferView, ComponentType, EXT_MESHOPT_COMPRESSION, Gltf,
@@ -17,8 +18,6 @@ use super::tile::{
     splat_document,
 };
 use crate::splat::Splats;
-#[cfg(feature = "native")]
-use meshopt::EncodeExpMode;
 
 /// Bit depths of one level. Positions and DC colour are fixed point over the tile (the
 /// EXPONENTIAL filter with one exponent per component for the whole stream, as Table 6 quantises
@@ -101,18 +100,10 @@ fn spec(semantic: String, kind: AccessorType, component: ComponentType, offset: 
 }
 
 #[cfg(feature = "native")]
-fn words<const N: usize>(v: &[[u32; N]]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(v.len() * N * 4);
-    for w in v.iter().flatten() {
-        out.extend_from_slice(&w.to_le_bytes());
-    }
-    out
-}
-
-#[cfg(feature = "native")]
-/// Encodes floats with the EXPONENTIAL filter; returns the filtered bytes.
-fn exp3(v: &[[f32; 3]], bits: i32, mode: EncodeExpMode) -> Vec<u8> {
-    words(&meshopt::encode_filter_exp::<3>(v, bits, mode))
+/// Encodes floats with the EXPONENTIAL filter (the Rust port, byte-identical to the C one);
+/// returns the filtered bytes.
+fn exp3(v: &[[f32; 3]], bits: i32, mode: ExpMode) -> Vec<u8> {
+    encode_exp(v, bits, mode)
 }
 
 #[cfg(feature = "native")]
@@ -186,7 +177,7 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
         .iter()
         .map(|p| [0, 1, 2].map(|a| (p[a] - centre[a]) as f32))
         .collect();
-    let pos_bytes = exp3(&rel, level.position_bits, EncodeExpMode::SharedComponent);
+    let pos_bytes = exp3(&rel, level.position_bits, ExpMode::SharedComponent);
     let pos_dec = unfilter_exp(pos_bytes.clone());
     let mut pos = spec(ATTR_POSITION.into(), Vec3, F32, 0);
     pos.min_max = Some(min_max3(&pos_dec));
@@ -199,14 +190,10 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
     let mut rot = spec(ATTR_ROTATION.into(), Vec4, I16, 0);
     rot.normalized = true;
 
-    let scale_bytes = exp3(&splats.scales, level.scale_bits, EncodeExpMode::Separate);
+    let scale_bytes = exp3(&splats.scales, level.scale_bits, ExpMode::Separate);
     let op: Vec<[f32; 1]> = splats.opacities.iter().map(|&a| [a]).collect();
-    let op_bytes = words(&meshopt::encode_filter_exp::<1>(
-        &op,
-        level.opacity_bits,
-        EncodeExpMode::Separate,
-    ));
-    let sh0_bytes = exp3(&splats.sh0, level.sh0_bits, EncodeExpMode::SharedComponent);
+    let op_bytes = encode_exp(&op, level.opacity_bits, ExpMode::Separate);
+    let sh0_bytes = exp3(&splats.sh0, level.sh0_bits, ExpMode::SharedComponent);
 
     let mut out = vec![
         Stream {
@@ -247,7 +234,7 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
         let kept: Vec<[f32; 3]> = (0..n)
             .flat_map(|i| splats.sh_rest[i * k_in..i * k_in + k].iter().copied())
             .collect();
-        let bytes = exp3(&kept, level.sh_rest_bits, EncodeExpMode::SharedVector);
+        let bytes = exp3(&kept, level.sh_rest_bits, ExpMode::SharedVector);
         let mut accs = vec![];
         for l in 1..=degree {
             for c in 0..=2 * l {
@@ -656,11 +643,7 @@ mod tests {
         let v: Vec<[f32; 3]> = (0..500)
             .map(|i| [i as f32 * 0.37 - 9.0, (i as f32).sin(), 1e-3 * i as f32])
             .collect();
-        let enc = words(&meshopt::encode_filter_exp::<3>(
-            &v,
-            11,
-            EncodeExpMode::SharedVector,
-        ));
+        let enc = encode_exp(&v, 11, ExpMode::SharedVector);
         let mut rust = enc.clone();
         assert!(filter_in_place(&mut rust, 12, "EXPONENTIAL"));
         let mut c = enc;
