@@ -29,8 +29,6 @@ fn optexp2(e: i32) -> f32 {
 /// (1..=24) under `mode`: 4 bytes per value, element after element.
 pub fn encode_exp<const N: usize>(data: &[[f32; N]], bits: i32, mode: ExpMode) -> Vec<u8> {
     debug_assert!((1..=24).contains(&bits));
-    const MMASK: i32 = (1 << 24) - 1;
-    const MMAX: i32 = MMASK >> 1;
     let mut component = [if mode == ExpMode::Separate {
         0
     } else {
@@ -43,31 +41,47 @@ pub fn encode_exp<const N: usize>(data: &[[f32; N]], bits: i32, mode: ExpMode) -
             }
         }
     }
-    let mut out = Vec::with_capacity(data.len() * N * 4);
-    for v in data {
-        let exps: [i32; N] = match mode {
-            ExpMode::SharedComponent => component,
-            ExpMode::SharedVector => [v.iter().fold(MIN_EXP, |e, &x| e.max(optlog2(x))); N],
-            ExpMode::Separate => {
+    let mut out = vec![0u8; data.len() * N * 4];
+    let elements = data.iter().zip(out.chunks_exact_mut(N * 4));
+    match mode {
+        ExpMode::SharedComponent => {
+            for (v, o) in elements {
+                put(o, v, &component, bits);
+            }
+        }
+        ExpMode::SharedVector => {
+            for (v, o) in elements {
+                let e = v.iter().fold(MIN_EXP, |e, &x| e.max(optlog2(x)));
+                put(o, v, &[e; N], bits);
+            }
+        }
+        ExpMode::Separate => {
+            for (v, o) in elements {
                 for (c, &x) in component.iter_mut().zip(v) {
                     if x != 0.0 {
                         *c = MIN_EXP.max(optlog2(x));
                     }
                 }
-                component
+                put(o, v, &component, bits);
             }
-        };
-        for (&x, e) in v.iter().zip(exps) {
-            // The mantissa scaled to a `bits`-bit signed integer, rounded half away from zero
-            // in f32 as the C code does, clamped so that rounding up cannot overflow.
-            let exp = e - (bits - 1);
-            let half = if x >= 0.0 { 0.5f32 } else { -0.5 };
-            let m = ((x * optexp2(-exp) + half) as i32).min(MMAX);
-            let word = (m & MMASK) as u32 | (exp as u32) << 24;
-            out.extend_from_slice(&word.to_le_bytes());
         }
     }
     out
+}
+
+/// Writes the words of one element `v` with exponents `exps` into `out` (4 bytes per value).
+fn put<const N: usize>(out: &mut [u8], v: &[f32; N], exps: &[i32; N], bits: i32) {
+    const MMASK: i32 = (1 << 24) - 1;
+    const MMAX: i32 = MMASK >> 1;
+    for ((o, &x), &e) in out.chunks_exact_mut(4).zip(v).zip(exps) {
+        // The mantissa scaled to a `bits`-bit signed integer, rounded half away from zero in
+        // f32 as the C code does, clamped so that rounding up cannot overflow.
+        let exp = e - (bits - 1);
+        let half = if x >= 0.0 { 0.5f32 } else { -0.5 };
+        let m = ((x * optexp2(-exp) + half) as i32).min(MMAX);
+        let word = (m & MMASK) as u32 | (exp as u32) << 24;
+        o.copy_from_slice(&word.to_le_bytes());
+    }
 }
 
 #[cfg(all(test, feature = "native"))]
