@@ -29,7 +29,9 @@ fn block_size(stride: usize) -> usize {
 /// tile writers pass their own streams).
 pub fn encode_vertex_buffer_v0(data: &[u8], stride: usize) -> Vec<u8> {
     assert!(
-        (4..=256).contains(&stride) && stride % 4 == 0 && data.len() % stride == 0,
+        (4..=256).contains(&stride)
+            && stride.is_multiple_of(4)
+            && data.len().is_multiple_of(stride),
         "vertex stride {stride} for {} bytes",
         data.len()
     );
@@ -56,7 +58,7 @@ pub fn encode_vertex_buffer_v0(data: &[u8], stride: usize) -> Vec<u8> {
             column[n..aligned].fill(0);
         }
         for k in (0..stride).step_by(4) {
-            let word = |b: &[u8]| u32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]);
+            let word = |b: &[u8]| u32::from_le_bytes(b[k..k + 4].try_into().expect("4 bytes"));
             let mut p = word(&last);
             for (i, row) in block.chunks_exact(stride).enumerate() {
                 let v = word(row);
@@ -149,7 +151,7 @@ fn encode_bytes(out: &mut [u8], mut pos: usize, buffer: &[u8]) -> usize {
         // Every byte capped at the sentinel.
         let capped: [u64; 2] = [0, 1].map(|h| {
             let m = (over[h] >> 7) * 0xff;
-            (w[h] & !m) | (sentinel as u64 * REP & m)
+            (w[h] & !m) | ((sentinel as u64 * REP) & m)
         });
         for c in capped {
             if bits == 2 {
