@@ -231,10 +231,15 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
     if degree > 0 {
         let k_in = splats.rest_per_splat();
         let k = crate::splat::sh_rest_count(degree);
-        let kept: Vec<[f32; 3]> = (0..n)
-            .flat_map(|i| splats.sh_rest[i * k_in..i * k_in + k].iter().copied())
-            .collect();
-        let bytes = exp3(&kept, level.sh_rest_bits, ExpMode::SharedVector);
+        // Every coefficient kept (High at SH3): the input's own array, without a copy.
+        let bytes = if k == k_in {
+            exp3(&splats.sh_rest, level.sh_rest_bits, ExpMode::SharedVector)
+        } else {
+            let kept: Vec<[f32; 3]> = (0..n)
+                .flat_map(|i| splats.sh_rest[i * k_in..i * k_in + k].iter().copied())
+                .collect();
+            exp3(&kept, level.sh_rest_bits, ExpMode::SharedVector)
+        };
         let mut accs = vec![];
         for l in 1..=degree {
             for c in 0..=2 * l {
@@ -311,20 +316,25 @@ pub fn write_meshopt_glb_and_decoded(
 /// not unit within 1e-4, opacities clamped into [0, 1].
 #[cfg(feature = "native")]
 fn unfiltered_splats(filtered: Vec<Vec<u8>>, degree: u8) -> Splats {
-    let floats = |mut bytes: Vec<u8>, stride: usize| -> Vec<f32> {
+    // Each stream unfiltered in place, then read as triples (or single floats).
+    let unfilter = |mut bytes: Vec<u8>, stride: usize| -> Vec<u8> {
         filter_in_place(&mut bytes, stride, "EXPONENTIAL");
         bytes
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    let f32_at = |b: &[u8], a: usize| {
+        f32::from_le_bytes([b[4 * a], b[4 * a + 1], b[4 * a + 2], b[4 * a + 3]])
+    };
+    let triples = |bytes: Vec<u8>| -> Vec<[f32; 3]> {
+        bytes
+            .chunks_exact(12)
+            .map(|e| [0, 1, 2].map(|a| f32_at(e, a)))
             .collect()
     };
-    let triples =
-        |v: Vec<f32>| -> Vec<[f32; 3]> { v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() };
     let mut it = filtered.into_iter();
     let mut next = || it.next().unwrap_or_default();
-    let positions = floats(next(), 12)
-        .chunks_exact(3)
-        .map(|c| [c[0] as f64, c[1] as f64, c[2] as f64])
+    let positions = unfilter(next(), 12)
+        .chunks_exact(12)
+        .map(|e| [0, 1, 2].map(|a| f32_at(e, a) as f64))
         .collect();
     let mut rot = next();
     filter_in_place(&mut rot, 8, "QUATERNION");
@@ -341,15 +351,18 @@ fn unfiltered_splats(filtered: Vec<Vec<u8>>, degree: u8) -> Splats {
             }
         })
         .collect();
-    let scales = triples(floats(next(), 12));
-    let opacities = floats(next(), 4)
-        .into_iter()
-        .map(|a| if a.is_nan() { a } else { a.clamp(0.0, 1.0) })
+    let scales = triples(unfilter(next(), 12));
+    let opacities = unfilter(next(), 4)
+        .chunks_exact(4)
+        .map(|b| {
+            let a = f32_at(b, 0);
+            if a.is_nan() { a } else { a.clamp(0.0, 1.0) }
+        })
         .collect();
-    let sh0 = triples(floats(next(), 12));
+    let sh0 = triples(unfilter(next(), 12));
     let k = crate::splat::sh_rest_count(degree);
     let sh_rest = if k > 0 {
-        triples(floats(next(), 12 * k))
+        triples(unfilter(next(), 12 * k))
     } else {
         vec![]
     };
@@ -376,13 +389,15 @@ fn encode_meshopt(
 ) -> Result<(Vec<u8>, Vec<Vec<u8>>), GlbError> {
     check_writable(splats, centre)?;
     let n = splats.len();
-    let mut bin = Vec::new();
+    let streams = streams(splats, centre, level);
+    // The compressed streams are smaller than the filtered ones: no reallocation.
+    let mut bin = Vec::with_capacity(streams.iter().map(|s| s.data.len() + 4).sum());
     let mut views = Vec::new();
     let mut accessors = Vec::new();
     let mut attributes = BTreeMap::new();
     let mut fallback_len = 0u64;
     let mut filtered = Vec::new();
-    for (vi, s) in streams(splats, centre, level).into_iter().enumerate() {
+    for (vi, s) in streams.into_iter().enumerate() {
         let compressed = encode_attributes(&s.data, s.stride);
         bin.resize(bin.len().next_multiple_of(4), 0);
         let mut ext = Map::new();
