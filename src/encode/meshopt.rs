@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use serde_json::{Map, Value, json};
 
+use super::exp_filter::{ExpMode, encode_exp};
 use super::glb::{GlbError, parse_json, read_glb, write_gltf_glb};
 use super::gltf::{
     Accessor, AccessorType, Buffer, BufferView, ComponentType, EXT_MESHOPT_COMPRESSION, Gltf,
@@ -17,8 +18,6 @@ use super::tile::{
     splat_document,
 };
 use crate::splat::Splats;
-#[cfg(feature = "native")]
-use meshopt::EncodeExpMode;
 
 /// Bit depths of one level. Positions and DC colour are fixed point over the tile (the
 /// EXPONENTIAL filter with one exponent per component for the whole stream, as Table 6 quantises
@@ -101,18 +100,10 @@ fn spec(semantic: String, kind: AccessorType, component: ComponentType, offset: 
 }
 
 #[cfg(feature = "native")]
-fn words<const N: usize>(v: &[[u32; N]]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(v.len() * N * 4);
-    for w in v.iter().flatten() {
-        out.extend_from_slice(&w.to_le_bytes());
-    }
-    out
-}
-
-#[cfg(feature = "native")]
-/// Encodes floats with the EXPONENTIAL filter; returns the filtered bytes.
-fn exp3(v: &[[f32; 3]], bits: i32, mode: EncodeExpMode) -> Vec<u8> {
-    words(&meshopt::encode_filter_exp::<3>(v, bits, mode))
+/// Encodes floats with the EXPONENTIAL filter (the Rust port, byte-identical to the C one);
+/// returns the filtered bytes.
+fn exp3(v: &[[f32; 3]], bits: i32, mode: ExpMode) -> Vec<u8> {
+    encode_exp(v, bits, mode)
 }
 
 #[cfg(feature = "native")]
@@ -140,26 +131,9 @@ fn min_max3(v: &[f32]) -> (Vec<f64>, Vec<f64>) {
 
 #[cfg(feature = "native")]
 /// Encodes a meshopt ATTRIBUTES stream (bitstream version 0, the one EXT_meshopt_compression
-/// allows).
+/// allows): the Rust port of the C encoder, byte-identical to it ([`super::vertex_codec`]).
 fn encode_attributes(data: &[u8], stride: usize) -> Vec<u8> {
-    let count = data.len() / stride;
-    // SAFETY: the bound is computed for this count and stride; the encoder writes at most
-    // `bound` bytes into `out` and reads `count * stride` bytes of `data`.
-    unsafe {
-        let bound = meshopt::ffi::meshopt_encodeVertexBufferBound(count, stride);
-        let mut out = vec![0u8; bound];
-        let n = meshopt::ffi::meshopt_encodeVertexBufferLevel(
-            out.as_mut_ptr(),
-            out.len(),
-            data.as_ptr().cast(),
-            count,
-            stride,
-            2,
-            0,
-        );
-        out.truncate(n);
-        out
-    }
+    super::vertex_codec::encode_vertex_buffer_v0(data, stride)
 }
 
 /// Decodes a meshopt ATTRIBUTES stream (bitstream version 0) into `count * stride` bytes with
@@ -203,7 +177,7 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
         .iter()
         .map(|p| [0, 1, 2].map(|a| (p[a] - centre[a]) as f32))
         .collect();
-    let pos_bytes = exp3(&rel, level.position_bits, EncodeExpMode::SharedComponent);
+    let pos_bytes = exp3(&rel, level.position_bits, ExpMode::SharedComponent);
     let pos_dec = unfilter_exp(pos_bytes.clone());
     let mut pos = spec(ATTR_POSITION.into(), Vec3, F32, 0);
     pos.min_max = Some(min_max3(&pos_dec));
@@ -216,14 +190,10 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
     let mut rot = spec(ATTR_ROTATION.into(), Vec4, I16, 0);
     rot.normalized = true;
 
-    let scale_bytes = exp3(&splats.scales, level.scale_bits, EncodeExpMode::Separate);
+    let scale_bytes = exp3(&splats.scales, level.scale_bits, ExpMode::Separate);
     let op: Vec<[f32; 1]> = splats.opacities.iter().map(|&a| [a]).collect();
-    let op_bytes = words(&meshopt::encode_filter_exp::<1>(
-        &op,
-        level.opacity_bits,
-        EncodeExpMode::Separate,
-    ));
-    let sh0_bytes = exp3(&splats.sh0, level.sh0_bits, EncodeExpMode::SharedComponent);
+    let op_bytes = encode_exp(&op, level.opacity_bits, ExpMode::Separate);
+    let sh0_bytes = exp3(&splats.sh0, level.sh0_bits, ExpMode::SharedComponent);
 
     let mut out = vec![
         Stream {
@@ -261,10 +231,15 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
     if degree > 0 {
         let k_in = splats.rest_per_splat();
         let k = crate::splat::sh_rest_count(degree);
-        let kept: Vec<[f32; 3]> = (0..n)
-            .flat_map(|i| splats.sh_rest[i * k_in..i * k_in + k].iter().copied())
-            .collect();
-        let bytes = exp3(&kept, level.sh_rest_bits, EncodeExpMode::SharedVector);
+        // Every coefficient kept (High at SH3): the input's own array, without a copy.
+        let bytes = if k == k_in {
+            exp3(&splats.sh_rest, level.sh_rest_bits, ExpMode::SharedVector)
+        } else {
+            let kept: Vec<[f32; 3]> = (0..n)
+                .flat_map(|i| splats.sh_rest[i * k_in..i * k_in + k].iter().copied())
+                .collect();
+            exp3(&kept, level.sh_rest_bits, ExpMode::SharedVector)
+        };
         let mut accs = vec![];
         for l in 1..=degree {
             for c in 0..=2 * l {
@@ -300,13 +275,13 @@ pub fn write_meshopt_glb(
 
 /// Without the native codecs meshopt tiles cannot be written.
 #[cfg(not(feature = "native"))]
-pub fn write_meshopt_glb_and_plain(
+pub fn write_meshopt_glb_and_decoded(
     splats: &Splats,
     centre: [f64; 3],
     node_matrix: [f64; 16],
     level: &MeshoptLevel,
-) -> Result<(Vec<u8>, Vec<u8>), GlbError> {
-    write_meshopt_glb(splats, centre, node_matrix, level).map(|g| (g, vec![]))
+) -> Result<(Vec<u8>, Splats), GlbError> {
+    write_meshopt_glb(splats, centre, node_matrix, level).map(|g| (g, Splats::new(0)))
 }
 
 /// Writes a splat tile compressed with `EXT_meshopt_compression` (required; the uncompressed
@@ -321,18 +296,87 @@ pub fn write_meshopt_glb(
     Ok(encode_meshopt(splats, centre, node_matrix, level)?.0)
 }
 
-/// [`write_meshopt_glb`] and what [`decompress_meshopt_glb`] makes of it, without running the
-/// (lossless) vertex codec's decoder: the filtered streams are unfiltered where they were made.
+/// [`write_meshopt_glb`] and the tile-relative splats that [`super::read_tile_glb`] reads from
+/// [`decompress_meshopt_glb`] of it, bit for bit (`tests::decoded_matches_the_reader`), built
+/// from the filtered streams where they were made: no vertex-codec decode, no plain glb.
 #[cfg(feature = "native")]
-pub fn write_meshopt_glb_and_plain(
+pub fn write_meshopt_glb_and_decoded(
     splats: &Splats,
     centre: [f64; 3],
     node_matrix: [f64; 16],
     level: &MeshoptLevel,
-) -> Result<(Vec<u8>, Vec<u8>), GlbError> {
+) -> Result<(Vec<u8>, Splats), GlbError> {
     let (glb, filtered) = encode_meshopt(splats, centre, node_matrix, level)?;
-    let plain = decompress_with(&glb, Some(filtered))?;
-    Ok((glb, plain))
+    let degree = splats.sh_degree.min(level.max_sh_degree);
+    Ok((glb, unfiltered_splats(filtered, degree)))
+}
+
+/// The splats held by [`streams`]' filtered bytes (in their order), converted as the glb reader
+/// converts the accessors: f32 as is, normalized i16 rotations over 32767 and renormalised when
+/// not unit within 1e-4, opacities clamped into [0, 1].
+#[cfg(feature = "native")]
+fn unfiltered_splats(filtered: Vec<Vec<u8>>, degree: u8) -> Splats {
+    // Each stream unfiltered in place, then read as triples (or single floats).
+    let unfilter = |mut bytes: Vec<u8>, stride: usize| -> Vec<u8> {
+        filter_in_place(&mut bytes, stride, "EXPONENTIAL");
+        bytes
+    };
+    let f32_at = |b: &[u8], a: usize| {
+        f32::from_le_bytes([b[4 * a], b[4 * a + 1], b[4 * a + 2], b[4 * a + 3]])
+    };
+    let triples = |bytes: Vec<u8>| -> Vec<[f32; 3]> {
+        bytes
+            .chunks_exact(12)
+            .map(|e| [0, 1, 2].map(|a| f32_at(e, a)))
+            .collect()
+    };
+    let mut it = filtered.into_iter();
+    let mut next = || it.next().unwrap_or_default();
+    let positions = unfilter(next(), 12)
+        .chunks_exact(12)
+        .map(|e| [0, 1, 2].map(|a| f32_at(e, a) as f64))
+        .collect();
+    let mut rot = next();
+    filter_in_place(&mut rot, 8, "QUATERNION");
+    let rotations = rot
+        .chunks_exact(8)
+        .map(|e| {
+            let q = [0, 1, 2, 3]
+                .map(|c| (i16::from_le_bytes([e[2 * c], e[2 * c + 1]]) as f32 / 32767.0).max(-1.0));
+            let n2: f64 = q.iter().map(|&v| v as f64 * v as f64).sum();
+            if (n2.sqrt() - 1.0).abs() > 1e-4 {
+                crate::splat::normalize_quat(q)
+            } else {
+                q
+            }
+        })
+        .collect();
+    let scales = triples(unfilter(next(), 12));
+    let opacities = unfilter(next(), 4)
+        .chunks_exact(4)
+        .map(|b| {
+            let a = f32_at(b, 0);
+            if a.is_nan() { a } else { a.clamp(0.0, 1.0) }
+        })
+        .collect();
+    let sh0 = triples(unfilter(next(), 12));
+    let k = crate::splat::sh_rest_count(degree);
+    let sh_rest = if k > 0 {
+        triples(unfilter(next(), 12 * k))
+    } else {
+        vec![]
+    };
+    let s = Splats {
+        positions,
+        scales,
+        rotations,
+        opacities,
+        sh0,
+        sh_degree: degree,
+        sh_rest,
+    };
+    s.check_lengths();
+    s
 }
 
 /// The meshopt glb and each compressed bufferView's filtered bytes (before the vertex codec).
@@ -345,13 +389,15 @@ fn encode_meshopt(
 ) -> Result<(Vec<u8>, Vec<Vec<u8>>), GlbError> {
     check_writable(splats, centre)?;
     let n = splats.len();
-    let mut bin = Vec::new();
+    let streams = streams(splats, centre, level);
+    // The compressed streams are smaller than the filtered ones: no reallocation.
+    let mut bin = Vec::with_capacity(streams.iter().map(|s| s.data.len() + 4).sum());
     let mut views = Vec::new();
     let mut accessors = Vec::new();
     let mut attributes = BTreeMap::new();
     let mut fallback_len = 0u64;
     let mut filtered = Vec::new();
-    for (vi, s) in streams(splats, centre, level).into_iter().enumerate() {
+    for (vi, s) in streams.into_iter().enumerate() {
         let compressed = encode_attributes(&s.data, s.stride);
         bin.resize(bin.len().next_multiple_of(4), 0);
         let mut ext = Map::new();
@@ -425,12 +471,6 @@ fn encode_meshopt(
 /// bufferView decoded and unfiltered into one BIN chunk) that [`super::read_tile_glb`] reads.
 /// A glb without the extension is returned unchanged.
 pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
-    decompress_with(bytes, None)
-}
-
-/// [`decompress_meshopt_glb`]; with `filtered`, bufferView `i`'s compressed stream is taken as
-/// decoded to `filtered[i]` (what its encoder compressed) instead of being decoded.
-fn decompress_with(bytes: &[u8], mut filtered: Option<Vec<Vec<u8>>>) -> Result<Vec<u8>, GlbError> {
     let chunks = read_glb(bytes)?;
     let mut doc: Gltf = parse_json(&chunks)?;
     if !doc
@@ -478,16 +518,8 @@ fn decompress_with(bytes: &[u8], mut filtered: Option<Vec<Vec<u8>>>) -> Result<V
                         "count * byteStride is implausible",
                     ));
                 }
-                let known = filtered
-                    .as_mut()
-                    .and_then(|f| f.get_mut(i))
-                    .map(std::mem::take)
-                    .filter(|d| d.len() as u64 == count * stride);
-                let mut data = match known {
-                    Some(d) => d,
-                    None => decode_attributes(src, count as usize, stride as usize)
-                        .ok_or_else(|| GlbError::invalid(&path, NO_DECODE))?,
-                };
+                let mut data = decode_attributes(src, count as usize, stride as usize)
+                    .ok_or_else(|| GlbError::invalid(&path, NO_DECODE))?;
                 let filter = ext.get("filter").and_then(Value::as_str).unwrap_or("NONE");
                 if !filter_in_place(&mut data, stride as usize, filter) {
                     return Err(GlbError::invalid(
@@ -626,11 +658,7 @@ mod tests {
         let v: Vec<[f32; 3]> = (0..500)
             .map(|i| [i as f32 * 0.37 - 9.0, (i as f32).sin(), 1e-3 * i as f32])
             .collect();
-        let enc = words(&meshopt::encode_filter_exp::<3>(
-            &v,
-            11,
-            EncodeExpMode::SharedVector,
-        ));
+        let enc = encode_exp(&v, 11, ExpMode::SharedVector);
         let mut rust = enc.clone();
         assert!(filter_in_place(&mut rust, 12, "EXPONENTIAL"));
         let mut c = enc;
@@ -673,6 +701,45 @@ mod tests {
     }
     use crate::encode::tile::{IDENTITY, read_tile_glb};
     use crate::splat::{Splat, normalize_quat};
+
+    /// What [`write_meshopt_glb_and_decoded`] returns is what the reader decodes from the glb
+    /// (vertex codec, filters, accessors), bit for bit: both levels, every SH degree, opacities
+    /// at and beyond the ends, positions far from the centre.
+    #[cfg(feature = "native")]
+    #[test]
+    fn decoded_matches_the_reader() {
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        let mut f = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for degree in 0..=3u8 {
+            let mut s = Splats::new(degree);
+            let k = crate::splat::sh_rest_count(degree);
+            for i in 0..700 {
+                let splat = Splat {
+                    position: [6.4e6 + f() * 80.0, -3.0e5 + f(), f() * 1e-3],
+                    scale: [1e-4 + f() as f32, f() as f32 * 3.0 + 1e-6, 0.01],
+                    rotation: normalize_quat([f() as f32 - 0.5, f() as f32, -(f() as f32), 0.3]),
+                    opacity: [0.0, 1.0, f() as f32][i % 3],
+                    sh0: [f() as f32 - 0.5, 2.0 * f() as f32, -(f() as f32)],
+                };
+                let rest: Vec<[f32; 3]> = (0..k).map(|_| [f() as f32 - 0.5; 3]).collect();
+                s.push(splat, &rest);
+            }
+            let centre = [6.4e6 + 40.0, -3.0e5, 0.0];
+            for level in [HIGH, MEDIUM] {
+                let (glb, decoded) =
+                    write_meshopt_glb_and_decoded(&s, centre, IDENTITY, &level).unwrap();
+                let read = read_tile_glb(&decompress_meshopt_glb(&glb).unwrap())
+                    .unwrap()
+                    .splats;
+                assert_eq!(decoded, read, "SH degree {degree}, {level:?}");
+            }
+        }
+    }
 
     #[test]
     fn high_and_medium_decode_within_their_bit_depths() {

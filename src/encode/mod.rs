@@ -1,6 +1,7 @@
 //! glTF 2.0 / glb encoding of splat tiles with `KHR_gaussian_splatting`: own JSON structs,
 //! GLB framing, tile writers (float, interleaved, meshopt, SPZ_2) and their readers.
 
+pub mod exp_filter;
 pub mod glb;
 pub mod gltf;
 pub mod meshopt;
@@ -8,6 +9,7 @@ pub mod prefix;
 pub mod spz2;
 pub mod table6;
 pub mod tile;
+pub mod vertex_codec;
 
 pub use glb::GlbError;
 pub use prefix::decode_prefix;

@@ -199,6 +199,22 @@ impl Splats {
 
     /// Index of the first splat holding a NaN or infinite value, if any.
     pub fn first_non_finite(&self) -> Option<usize> {
+        // Every value finite (what a tile writer is given): whole columns at a time, without
+        // the per-splat early exits; only otherwise the splat is looked for.
+        let all = |v: &[f32]| v.iter().fold(true, |ok, x| ok & x.is_finite());
+        let finite = self
+            .positions
+            .iter()
+            .flatten()
+            .fold(true, |ok, x| ok & x.is_finite())
+            && all(self.scales.as_flattened())
+            && all(self.rotations.as_flattened())
+            && all(&self.opacities)
+            && all(self.sh0.as_flattened())
+            && all(self.sh_rest.as_flattened());
+        if finite {
+            return None;
+        }
         (0..self.len()).find(|&i| !self.is_finite(i))
     }
 

@@ -17,7 +17,7 @@ pub use utility::utilities;
 use crate::encode::GlbError;
 use crate::encode::gltf::EXT_MESHOPT_COMPRESSION;
 use crate::encode::meshopt::{
-    HIGH, MEDIUM, decompress_meshopt_glb, write_meshopt_glb, write_meshopt_glb_and_plain,
+    HIGH, MEDIUM, decompress_meshopt_glb, write_meshopt_glb, write_meshopt_glb_and_decoded,
 };
 use crate::encode::spz2::{
     SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
@@ -120,9 +120,7 @@ impl Variant {
                 return Ok((glb, relative(splats, centre)));
             }
         };
-        let (glb, plain) = write_meshopt_glb_and_plain(splats, centre, node_matrix, level)?;
-        let decoded = read_tile_glb(&plain)?.splats;
-        Ok((glb, decoded))
+        write_meshopt_glb_and_decoded(splats, centre, node_matrix, level)
     }
 }
 
