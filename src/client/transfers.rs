@@ -533,17 +533,14 @@ impl StreamClient {
             for &(i, dt) in &self.predicted {
                 next[i] = dt;
             }
-            let victim = self
-                .cache
-                .resident()
-                .map(|(i, _)| i)
-                .filter(|&i| !self.in_view[i] && !self.drawn[i])
-                .filter(|&i| !self.has_resident_descendant(i))
-                .max_by(|&a, &b| {
-                    let da = self.catalog.tiles[a].bbox.distance(pos);
-                    let db = self.catalog.tiles[b].bbox.distance(pos);
-                    next[a].total_cmp(&next[b]).then(da.total_cmp(&db))
-                });
+            let victim = eviction_victim(
+                self.cache
+                    .resident()
+                    .map(|(i, _)| i)
+                    .filter(|&i| !self.in_view[i] && !self.drawn[i])
+                    .filter(|&i| !self.has_resident_descendant(i))
+                    .map(|i| (i, next[i], self.catalog.tiles[i].bbox.distance(pos))),
+            );
             match victim {
                 Some(v) => {
                     self.cache.remove(&self.catalog, v);
@@ -568,5 +565,42 @@ impl StreamClient {
             stack.extend(self.catalog.tiles[c].children.iter().copied());
         }
         false
+    }
+}
+
+/// The tile to evict among `(tile, seconds to its next predicted use (infinity: none), distance)`:
+/// the one needed again last, farthest first among equals, then the higher index (NaN counts as
+/// needed now and near).
+fn eviction_victim(candidates: impl Iterator<Item = (usize, f64, f64)>) -> Option<usize> {
+    let key = |v: f64| if v.is_nan() { f64::NEG_INFINITY } else { v };
+    candidates
+        .max_by(|a, b| {
+            key(a.1)
+                .total_cmp(&key(b.1))
+                .then(key(a.2).total_cmp(&key(b.2)))
+                .then(a.0.cmp(&b.0))
+        })
+        .map(|c| c.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::eviction_victim;
+
+    #[test]
+    fn evicts_the_tile_needed_again_last_then_the_farthest() {
+        // A far tile the prediction needs in 2 s stays; a near one never predicted goes.
+        let c = [(0, 2.0, 500.0), (1, f64::INFINITY, 10.0), (2, 8.0, 20.0)];
+        assert_eq!(eviction_victim(c.into_iter()), Some(1));
+        // Without a prediction (all infinite): the farthest, as before.
+        let c = [(0, f64::INFINITY, 5.0), (1, f64::INFINITY, 50.0)];
+        assert_eq!(eviction_victim(c.into_iter()), Some(1));
+        // All predicted: the latest use.
+        let c = [(0, 1.0, 90.0), (1, 6.5, 1.0), (2, 3.0, 40.0)];
+        assert_eq!(eviction_victim(c.into_iter()), Some(1));
+        // NaN never wins over a finite key; ties go to the higher tile index; none: none.
+        let c = [(3, f64::NAN, f64::NAN), (4, 0.5, 1.0), (2, 0.5, 1.0)];
+        assert_eq!(eviction_victim(c.into_iter()), Some(4));
+        assert_eq!(eviction_victim(std::iter::empty()), None);
     }
 }
