@@ -100,8 +100,9 @@ fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
     // scored 192/262 = 0.73 with every miss in those 5 s); what it misses now is the cold start
     // (the link still busy with the first view), nothing later. 238/262 = 0.908 before the
     // churn fixes of issue 19 (in-flight downloads kept, missing tiles before upgrades,
-    // earliest-deadline-first preemption), 244/262 = 0.931 after.
-    assert!(o >= 0.92, "oracle {o:.3} below 0.92");
+    // earliest-deadline-first preemption), 244/262 = 0.931 after, 252/262 = 0.962 with imminent
+    // prefetches before repairs of missed tiles (issue 19, `issue-19-bytes`).
+    assert!(o >= 0.95, "oracle {o:.3} below 0.95");
     assert!(r <= 0.1, "reactive {r:.3} above 0.1");
     let late = why_o.at_s.iter().filter(|&&t| t >= 5.0).count();
     assert!(
