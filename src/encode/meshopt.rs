@@ -708,13 +708,8 @@ mod tests {
     #[cfg(feature = "native")]
     #[test]
     fn decoded_matches_the_reader() {
-        let mut x = 0x2545_F491_4F6C_DD1Du64;
-        let mut f = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::stream::rng::SplitMix64::new(0x2545_F491_4F6C_DD1Du64);
+        let mut f = move || rng.f64();
         for degree in 0..=3u8 {
             let mut s = Splats::new(degree);
             let k = crate::splat::sh_rest_count(degree);

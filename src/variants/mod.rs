@@ -511,13 +511,8 @@ mod tests {
     /// decodes from the glb, bit for bit, at every SH degree and far from the centre.
     #[test]
     fn best_decodes_to_the_relative_splats() {
-        let mut x = 0x9E37_79B9_7F4A_7C15u64;
-        let mut f = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::stream::rng::SplitMix64::new(0x9E37_79B9_7F4A_7C15u64);
+        let mut f = move || rng.f64();
         for degree in 0..=3u8 {
             let mut s = Splats::with_capacity(degree, 200);
             let k = crate::splat::sh_rest_count(degree);
