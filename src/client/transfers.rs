@@ -511,6 +511,9 @@ impl StreamClient {
     /// descendant). Returns whether they fit.
     pub(super) fn make_room(&mut self, need: u64) -> bool {
         let budget = self.cfg.memory_budget_bytes;
+        // Seconds to each tile's next predicted use (infinity: none), built at the first
+        // eviction and kept for the rest (the prediction does not change meanwhile).
+        let mut next: Option<Vec<f64>> = None;
         while self.held_bytes() + need > budget {
             let paused = (0..self.state.len())
                 .filter(|&i| {
@@ -529,10 +532,13 @@ impl StreamClient {
             // holds first, farthest first; then the ones predicted latest. By distance alone the
             // flights evicted tiles prefetched for the road ahead (issue 19: 11-14 of flight
             // 37's misses after warm-up were evicted before they entered).
-            let mut next = vec![f64::INFINITY; self.info.len()];
-            for &(i, dt) in &self.predicted {
-                next[i] = dt;
-            }
+            let next = next.get_or_insert_with(|| {
+                let mut v = vec![f64::INFINITY; self.info.len()];
+                for &(i, dt) in &self.predicted {
+                    v[i] = dt;
+                }
+                v
+            });
             let victim = eviction_victim(
                 self.cache
                     .resident()
