@@ -989,8 +989,8 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             v["accessors"][a]["count"] = json!(n - 1);
         })
     });
-    m.insert("layered_delta_below_minus_one", |t| {
-        poke_delta(&layer_glb(t, 1, 0), 0, -1.5)
+    m.insert("layered_delta_not_finite", |t| {
+        poke_delta(&layer_glb(t, 1, 0), 0, f32::NAN)
     });
     m.insert("layered_deltas_sum_below_minus_one", |t| {
         poke_delta(&layer_glb(t, 1, 0), 0, -1.0);

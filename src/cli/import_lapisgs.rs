@@ -9,13 +9,15 @@ use std::path::PathBuf;
 
 /// Arguments of `import-lapisgs`.
 #[derive(Debug, Args)]
-#[command(after_help = "Each level's PLY must start with the previous level's splats, equal in every
+#[command(
+    after_help = "Each level's PLY must start with the previous level's splats, equal in every
 property but opacity (LapisGS freezes them and trains only their opacity); the
 level-k file's new splats follow. Give the files coarse to fine, e.g.:
   splat2tiles import-lapisgs res8/point_cloud.ply res4/point_cloud.ply \\
       res2/point_cloud.ply res1/point_cloud.ply -o lapis/
 LapisGS level k becomes tree level k (ADD refinement, one layer per tile); the
-opacity later levels give earlier splats becomes SPLAT2TILES_layer deltas.")]
+opacity later levels give earlier splats becomes SPLAT2TILES_layer deltas."
+)]
 pub struct ImportLapisArgs {
     /// The levels' PLY files, coarsest (the base layer) first.
     #[arg(required = true, num_args = 1..)]

@@ -11,9 +11,7 @@
 //! (`spec/layered-content.md`, "Importing LapisGS-trained layers").
 
 use super::frame::{FrameAccum, Layout};
-use super::tileset::{
-    TreeTile, build_tree, finish_tree, tileset_json, write_subtrees,
-};
+use super::tileset::{TreeTile, build_tree, finish_tree, tileset_json, write_subtrees};
 use super::{ConvertError, ConvertOptions, ConvertReport, io_err, region};
 use crate::frame::geo::Geodetic;
 use crate::frame::{UpAxis, source_to_tileset};
@@ -215,7 +213,12 @@ pub fn import_lapisgs(
     let n = s.len();
     // Each splat's own level, its tile, and its stored opacity (in its own level's file).
     let own: Vec<usize> = (0..n)
-        .map(|i| counts.iter().position(|&c| i < c).expect("i < the last count"))
+        .map(|i| {
+            counts
+                .iter()
+                .position(|&c| i < c)
+                .expect("i < the last count")
+        })
         .collect();
     let mut contents: BTreeMap<TileKey, Vec<usize>> = BTreeMap::new();
     let mut home: Vec<TileKey> = Vec::with_capacity(n);
@@ -328,7 +331,11 @@ pub fn import_lapisgs(
             *e = r.get(r.len() / 2).map_or(0.0, |&v| f64::from(v)).max(1e-9);
         }
         let mut tiles: HashMap<TileKey, TreeTile> = HashMap::new();
-        let keys: Vec<TileKey> = contents.keys().chain(placeholders.keys()).copied().collect();
+        let keys: Vec<TileKey> = contents
+            .keys()
+            .chain(placeholders.keys())
+            .copied()
+            .collect();
         let parents: std::collections::HashSet<TileKey> =
             keys.iter().filter_map(|k| k.parent()).collect();
         for k in keys {
@@ -363,12 +370,13 @@ pub fn import_lapisgs(
                     }
                 }
             }
-            let layered = add_layer_v2(&bytes, k.level, parent.as_deref(), &anc).map_err(
-                |source| LayerError::Glb {
-                    path: path.clone(),
-                    source,
-                },
-            )?;
+            let layered =
+                add_layer_v2(&bytes, k.level, parent.as_deref(), &anc).map_err(|source| {
+                    LayerError::Glb {
+                        path: path.clone(),
+                        source,
+                    }
+                })?;
             std::fs::write(&path, &layered).map_err(io_err(&path, "writing"))?;
             let size = layered.len() as u64;
             let old = facts.variant_bytes[Variant::Best.index()] as u64;

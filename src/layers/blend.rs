@@ -71,7 +71,7 @@ pub enum ComposeError {
 /// `T_L` (the product of the blend factors from the base down to `L`),
 /// `T_L * min(1, o_i * max(0, 1 + sum over drawn descendant layers c with deltas for L of
 /// (T_c / T_L) * delta_c[i]))`, where `T_c / T_L` is the product of the blend factors below `L`
-/// down to `c` (`t_c` for a child, as in format v1). Deltas are taken as `max(-1, d)` (non-finite: 0).
+/// down to `c` (`t_c` for a child, as in format v1). A non-finite delta counts as 0.
 pub fn effective_opacities(layers: &[DrawnLayer<'_>]) -> Result<Vec<Vec<f32>>, ComposeError> {
     let blend = |l: &DrawnLayer<'_>| {
         if l.blend.is_finite() {
@@ -80,7 +80,7 @@ pub fn effective_opacities(layers: &[DrawnLayer<'_>]) -> Result<Vec<Vec<f32>>, C
             0.0
         }
     };
-    let delta = |d: f32| if d.is_finite() { d.max(-1.0) } else { 0.0 };
+    let delta = |d: f32| if d.is_finite() { d } else { 0.0 };
     let mut cumulative = vec![1.0f32; layers.len()];
     let mut fade: Vec<Vec<f32>> = layers.iter().map(|l| vec![1.0; l.splats.len()]).collect();
     for (k, l) in layers.iter().enumerate() {

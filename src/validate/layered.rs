@@ -242,17 +242,19 @@ pub(crate) fn validate(ctx: &mut Ctx<'_>, file: &Path) {
     }
 }
 
-/// Whether every delta is finite and >= -1; reports `LAYER_DELTA_OUT_OF_RANGE` on the accessor
-/// at `apath` otherwise.
+/// Whether every delta is finite; reports `LAYER_DELTA_OUT_OF_RANGE` on the accessor at `apath`
+/// otherwise. Single deltas may be below -1 (format v2: a LapisGS splat whose opacity rose at
+/// one level may fall by more than its stored opacity at a later one); their sums per splat
+/// are checked against -1.
 fn delta_values_ok(ctx: &mut Ctx<'_>, apath: &str, deltas: &[f32]) -> bool {
-    let ok = |v: &f32| v.is_finite() && *v >= -1.0;
+    let ok = |v: &f32| v.is_finite();
     let Some((i, v)) = deltas.iter().enumerate().find(|(_, v)| !ok(v)) else {
         return true;
     };
     let bad = deltas.iter().filter(|v| !ok(v)).count();
     ctx.push(Issue::LAYER_DELTA_OUT_OF_RANGE(
         apath.to_string(),
-        format!("{bad} deltas below -1 or not finite, the first at index {i}: {v}"),
+        format!("{bad} deltas are not finite, the first at index {i}: {v}"),
     ));
     false
 }
