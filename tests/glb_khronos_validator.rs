@@ -158,6 +158,38 @@ fn v2_layers_with_sparse_and_ancestor_deltas_pass_the_khronos_validator() {
     validate_without_errors(dir.path(), &cases);
 }
 
+/// Every tile of a LapisGS import (`import-lapisgs`: base, placeholder-free dense levels with
+/// parent and ancestor deltas, sparse where that is smaller) passes the Khronos validator.
+#[test]
+fn lapisgs_import_tiles_pass_the_khronos_validator() {
+    use splat2tiles::convert::{ConvertOptions, SchemeChoice, import_lapisgs};
+    require_node_modules();
+    let dir = tempfile::tempdir().unwrap();
+    let (_, files) = common::lapis::dense(dir.path());
+    let out = dir.path().join("lapis");
+    let opts = ConvertOptions {
+        scheme: SchemeChoice::Octree,
+        layers: true,
+        progress: false,
+        ..ConvertOptions::default()
+    };
+    import_lapisgs(&files, &out, &opts).unwrap();
+    let tiles: Vec<(String, Vec<u8>)> = common::files_under(&out, "glb")
+        .iter()
+        .map(|p| {
+            let name = p
+                .strip_prefix(&out)
+                .unwrap()
+                .to_string_lossy()
+                .replace('/', "_");
+            (name, std::fs::read(p).unwrap())
+        })
+        .collect();
+    assert!(tiles.len() > 9, "{} tiles", tiles.len());
+    let named: Vec<(&str, Vec<u8>)> = tiles.iter().map(|(n, b)| (n.as_str(), b.clone())).collect();
+    validate_without_errors(dir.path(), &named);
+}
+
 /// Negative control: the harness must report a real defect (a wrong POSITION max) as an error.
 #[test]
 fn harness_reports_a_broken_tile() {

@@ -5,6 +5,8 @@
 
 mod common;
 
+use common::lapis::{dense, levels, write_levels};
+
 use splat2tiles::convert::{ConvertOptions, LapisReport, SchemeChoice, import_lapisgs};
 use splat2tiles::layers::blend::{DrawnLayer, effective_opacities};
 use splat2tiles::layers::glb::{LayerInfo, read_layer};
@@ -18,40 +20,7 @@ use splat2tiles::tiling::TileKey;
 use splat2tiles::tiling::load::load_tileset;
 use splat2tiles::validate::{ValidateOptions, validate_tileset};
 use std::collections::{BTreeMap, HashMap};
-use std::path::{Path, PathBuf};
-
-/// LapisGS-like levels over `all` (each level = the first `sizes[k]` splats): level `k` keeps
-/// level `k-1`'s splats in order, changes the opacity of those `change(k, i)` selects (to a new
-/// value in [0.02, 0.99]), and appends its own. Returns each level's splats.
-fn levels(all: &Splats, sizes: &[usize], change: impl Fn(usize, usize) -> bool) -> Vec<Splats> {
-    let mut out: Vec<Splats> = vec![];
-    for (k, &n) in sizes.iter().enumerate() {
-        let mut s = all.select(&(0..n).collect::<Vec<_>>());
-        if k > 0 {
-            let prev = &out[k - 1];
-            for i in 0..prev.len() {
-                s.opacities[i] = if change(k, i) {
-                    0.02 + 0.97 * (((i * 7919 + k * 104_729) % 1000) as f32 / 1000.0)
-                } else {
-                    prev.opacities[i]
-                };
-            }
-        }
-        out.push(s);
-    }
-    out
-}
-
-fn write_levels(dir: &Path, lv: &[Splats]) -> Vec<PathBuf> {
-    lv.iter()
-        .enumerate()
-        .map(|(k, s)| {
-            let p = dir.join(format!("level{k}.ply"));
-            common::write_ply_file(&p, s);
-            p
-        })
-        .collect()
-}
+use std::path::Path;
 
 fn opts() -> ConvertOptions {
     ConvertOptions {
@@ -61,15 +30,6 @@ fn opts() -> ConvertOptions {
         progress: false,
         ..ConvertOptions::default()
     }
-}
-
-/// The dense set: 3 levels (600 / 2000 / 5000 splats) over a 10 x 10 x 6 box; every cell of
-/// levels 1 and 2 gets new splats; half the earlier splats change opacity at each level.
-fn dense(dir: &Path) -> (Vec<Splats>, Vec<PathBuf>) {
-    let all = common::random_splats(5000, 1, 10.0, 21);
-    let lv = levels(&all, &[600, 2000, 5000], |k, i| (i + k) % 2 == 0);
-    let files = write_levels(dir, &lv);
-    (lv, files)
 }
 
 /// An imported tileset's layers, parents first: key, splats (source frame), layer.
