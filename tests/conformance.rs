@@ -1090,6 +1090,10 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
         let (p, a, v) = lapis_sparse(t);
         poke_sparse(&p, a, &v, "values", 0, (-5.0f32).to_le_bytes());
     });
+    m.insert("lapis_ancestor_delta_raises_above_one", |t| {
+        let (p, a, v) = lapis_sparse(t);
+        poke_sparse(&p, a, &v, "values", 0, 1000.0f32.to_le_bytes());
+    });
     m.insert("layered_deltas_sum_below_minus_one", |t| {
         poke_delta(&layer_glb(t, 1, 0), 0, -1.0);
         poke_delta(&layer_glb(t, 1, 1), 0, -1.0);

@@ -258,6 +258,8 @@ catalogue! {
     /// A sparse delta accessor's indices are out of range, not strictly increasing, or not
     /// UNSIGNED_INT (or its sparse storage is out of bounds).
     LAYER_SPARSE_INVALID => Error,
+    /// A splat's stored opacity times (1 + its descendants' deltas) exceeds 1 (drawn capped at 1).
+    LAYER_OPACITY_ABOVE_ONE => Warning,
 }
 
 #[cfg(test)]

@@ -26,6 +26,8 @@ struct Content {
     splats: u64,
     /// Its layer, or why the extension could not be read.
     layer: Result<Option<LayerInfo>, GlbError>,
+    /// The file (decoded again only when positive deltas may raise its opacities above 1).
+    path: std::path::PathBuf,
 }
 
 fn read_content(path: &Path, name: String, limit: u64) -> Option<Content> {
@@ -50,6 +52,7 @@ fn read_content(path: &Path, name: String, limit: u64) -> Option<Content> {
         name,
         splats,
         layer,
+        path: path.to_path_buf(),
     })
 }
 
@@ -238,6 +241,34 @@ pub(crate) fn validate(ctx: &mut Ctx<'_>, file: &Path) {
                 contents[&parent].name.clone(),
                 format!("the deltas its descendant layers give splat {i} add up to {v} (below -1): it would be faded below zero"),
             ));
+        }
+        // Positive sums: with every layer drawn, o * (1 + sum) above 1 is capped (drawn at 1).
+        if s.iter().any(|v| *v > 0.0) {
+            let c = &contents[&parent];
+            let Some(tile) = std::fs::read(&c.path)
+                .ok()
+                .and_then(|b| crate::encode::read_tile_glb(&b).ok())
+            else {
+                continue;
+            };
+            let over: Vec<(usize, f32)> = tile
+                .splats
+                .opacities
+                .iter()
+                .zip(&s)
+                .map(|(o, d)| o * (1.0 + d))
+                .enumerate()
+                .filter(|(_, a)| *a > 1.0 + DELTA_SUM_TOLERANCE)
+                .collect();
+            if let Some(&(i, a)) = over.first() {
+                ctx.push(Issue::LAYER_OPACITY_ABOVE_ONE(
+                    c.name.clone(),
+                    format!(
+                        "{} splats reach an opacity above 1 with every descendant layer drawn (capped at 1), the first splat {i} at {a}",
+                        over.len()
+                    ),
+                ));
+            }
         }
     }
 }
