@@ -16,7 +16,9 @@ fn main() -> anyhow::Result<()> {
         anyhow::bail!("usage: lapis_levels SCENE OUT_DIR [LEVELS]");
     };
     let levels: usize = match args.get(2) {
-        Some(l) => l.parse().map_err(|e| anyhow::anyhow!("LEVELS '{l}': {e}"))?,
+        Some(l) => l
+            .parse()
+            .map_err(|e| anyhow::anyhow!("LEVELS '{l}': {e}"))?,
         None => 4,
     };
     anyhow::ensure!((1..=8).contains(&levels), "LEVELS must be 1..=8");

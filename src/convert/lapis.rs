@@ -222,8 +222,8 @@ pub fn import_lapisgs(
         .collect();
     let mut contents: BTreeMap<TileKey, Vec<usize>> = BTreeMap::new();
     let mut home: Vec<TileKey> = Vec::with_capacity(n);
-    for i in 0..n {
-        let k = cell(&layout, s.positions[i], own[i] as u32);
+    for (i, (p, &l)) in s.positions.iter().zip(&own).enumerate() {
+        let k = cell(&layout, *p, l as u32);
         contents.entry(k).or_default().push(i);
         home.push(k);
     }

@@ -52,7 +52,7 @@ fn splat_primitive(doc: &Gltf) -> Option<(usize, usize)> {
 
 /// Appends `bytes` to `bin` (4-aligned) as a new bufferView of buffer 0; returns its index.
 fn push_view(doc: &mut Gltf, bin: &mut Vec<u8>, bytes: &[u8]) -> u32 {
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let offset = bin.len() as u64;
