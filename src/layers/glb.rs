@@ -541,7 +541,7 @@ mod tests {
         let bad: Vec<(Vec<u8>, &str)> = vec![
             (
                 edited(&g, |v| {
-                    ext(v)["ancestorOpacityDeltas"][0]["level"] = json!(2)
+                    ext(v)["ancestorOpacityDeltas"][0]["level"] = json!(-2)
                 }),
                 "/ancestorOpacityDeltas/0/level",
             ),
