@@ -6,8 +6,9 @@ use crate::encode::glb::{GlbChunks, GlbError, parse_json, read_glb, write_gltf_g
 use crate::encode::gltf::{Accessor, AccessorType, BufferView, ComponentType, Gltf};
 use serde_json::{Value, json};
 
-/// Most values one delta accessor may declare (a sparse accessor's count costs no bytes in the
-/// file, so it is bounded here before anything is allocated): 2^24 splats per ancestor content.
+/// Most values the delta accessors of one layer may declare in all (a sparse or all-zero
+/// accessor's count costs no bytes in the file, so counts are bounded here before anything is
+/// allocated): 2^24, 64 MiB of deltas per layer.
 pub const MAX_DELTA_COUNT: u64 = 1 << 24;
 
 /// A tile's layer, as its glb declares it.
@@ -211,9 +212,15 @@ pub fn read_layer(glb: &[u8]) -> Result<Option<LayerInfo>, GlbError> {
         delta_accessor_path: None,
         ancestor_opacity_deltas: vec![],
     };
+    let mut budget = MAX_DELTA_COUNT;
     if let Some(acc) = ext.get("parentOpacityDelta") {
-        let (deltas, apath) =
-            read_deltas(&doc, &chunks, acc, &format!("{path}/parentOpacityDelta"))?;
+        let (deltas, apath) = read_deltas(
+            &doc,
+            &chunks,
+            acc,
+            &format!("{path}/parentOpacityDelta"),
+            &mut budget,
+        )?;
         info.parent_opacity_delta = Some(deltas);
         info.delta_accessor_path = Some(apath);
     }
@@ -240,8 +247,13 @@ pub fn read_layer(glb: &[u8]) -> Result<Option<LayerInfo>, GlbError> {
             let acc = e.get("accessor").ok_or_else(|| {
                 GlbError::invalid(format!("{epath}/accessor"), "an accessor is required")
             })?;
-            let (deltas, accessor_path) =
-                read_deltas(&doc, &chunks, acc, &format!("{epath}/accessor"))?;
+            let (deltas, accessor_path) = read_deltas(
+                &doc,
+                &chunks,
+                acc,
+                &format!("{epath}/accessor"),
+                &mut budget,
+            )?;
             info.ancestor_opacity_deltas.push(AncestorDeltas {
                 level: j,
                 deltas,
@@ -307,12 +319,14 @@ fn f32s(b: &[u8]) -> impl Iterator<Item = f32> + '_ {
 }
 
 /// Reads the FLOAT SCALAR delta accessor `acc` refers to (dense, sparse, or all zeros without
-/// a bufferView); returns its values and its JSON path. `at` is the path of the reference.
+/// a bufferView); returns its values and its JSON path. `at` is the path of the reference;
+/// `budget` is what is left of [`MAX_DELTA_COUNT`] for this layer.
 fn read_deltas(
     doc: &Gltf,
     chunks: &GlbChunks<'_>,
     acc: &Value,
     at: &str,
+    budget: &mut u64,
 ) -> Result<(Vec<f32>, String), GlbError> {
     let index = acc
         .as_u64()
@@ -331,15 +345,17 @@ fn read_deltas(
             "opacity deltas must be a FLOAT SCALAR accessor (not normalized)",
         ));
     }
-    if a.count > MAX_DELTA_COUNT {
+    if a.count > *budget {
         return Err(GlbError::invalid(
             format!("{apath}/count"),
             format!(
-                "{} deltas exceed the {MAX_DELTA_COUNT} this reader accepts",
+                "{} deltas exceed what is left ({budget}) of the {MAX_DELTA_COUNT} this reader accepts per layer",
                 a.count
             ),
         ));
     }
+    *budget -= a.count;
+
     let bin = chunks.bin.unwrap_or(&[]);
     let mut values = match a.buffer_view {
         Some(vi) => f32s(words(doc, bin, vi.into(), a.byte_offset, a.count, &apath)?).collect(),
@@ -594,6 +610,22 @@ mod tests {
                     v["accessors"][a]["sparse"]["indices"]["componentType"] = json!(5123);
                 }),
                 "/sparse/indices/componentType",
+            ),
+            (
+                // Three all-zero accessors of 2^23 values: no bytes in the file, 96 MiB if read.
+                edited(&g, |v| {
+                    let n = v["accessors"].as_array().unwrap().len();
+                    let list: Vec<Value> = (0..3)
+                        .map(|j| json!({"level": j + 10, "accessor": n + j}))
+                        .collect();
+                    ext(v)["ancestorOpacityDeltas"] = Value::Array(list);
+                    for _ in 0..3 {
+                        v["accessors"].as_array_mut().unwrap().push(
+                            json!({"componentType": 5126, "count": 1u64 << 23, "type": "SCALAR"}),
+                        );
+                    }
+                }),
+                "per layer",
             ),
             (poked_index(&g, idx_view, 1, 3), "index 1 is 3"),
             (poked_index(&g, idx_view, 1, 50), "index 1 is 50"),
