@@ -619,8 +619,9 @@ impl StreamClient {
     }
 
     /// The opacity each drawn layer's splats are drawn with (scene id, one value per splat in
-    /// the drawable's order): `layers::blend::effective_opacities` of [`Self::layers`], and 0
-    /// for splats under the occupancy threshold. A layer whose deltas do not match its parent
+    /// the drawable's order): `layers::blend::effective_opacities` of [`Self::layers`] (each
+    /// layer's parent deltas and, format v2, its ancestor deltas), and 0 for splats under the
+    /// occupancy threshold. A layer whose deltas do not match its parent
     /// (count, or none on a layer with a parent) is an error naming the tile; a content
     /// without the layer extension in an ADD tileset fades nothing (an ordinary ADD tile).
     pub fn layer_opacities(&self) -> Result<Vec<(u64, Vec<f32>)>, String> {

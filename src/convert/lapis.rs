@@ -157,7 +157,10 @@ pub fn import_lapisgs(
             why: ": no level files given".into(),
         });
     };
-    let mut scenes: Vec<Scene> = Vec::with_capacity(inputs.len());
+    // Only the previous level's scene is kept while reading (for the prefix rule); of the
+    // others, their opacities.
+    let mut opacities: Vec<Vec<f32>> = Vec::with_capacity(inputs.len());
+    let mut prev: Option<Scene> = None;
     for (k, f) in inputs.iter().enumerate() {
         let s = io::read_path_limited(f, opts.memory_limit)?;
         if let Some(i) = (0..s.splats.len()).find(|&i| !s.splats.is_finite(i)) {
@@ -169,20 +172,21 @@ pub fn import_lapisgs(
                 ),
             ));
         }
-        if k > 0 {
-            check_prefix(&scenes[k - 1], &s, &inputs[k - 1], f)?;
+        if let Some(p) = &prev {
+            check_prefix(p, &s, &inputs[k - 1], f)?;
         }
-        scenes.push(s);
+        opacities.push(s.splats.opacities.clone());
+        prev = Some(s);
     }
-    let levels = scenes.len();
-    let last = &scenes[levels - 1];
+    let levels = opacities.len();
+    let last = prev.expect("at least one level");
     if last.splats.is_empty() {
         return Err(ConvertError::Empty {
             file: last_file.display().to_string(),
             why: String::new(),
         });
     }
-    let counts: Vec<usize> = scenes.iter().map(|s| s.splats.len()).collect();
+    let counts: Vec<usize> = opacities.iter().map(Vec::len).collect();
     let up = opts.up_axis.unwrap_or_else(|| {
         last.format
             .default_up_axis()
@@ -278,14 +282,11 @@ pub fn import_lapisgs(
     };
     for k in 1..levels {
         for i in 0..counts[k - 1] {
-            let (o_prev, o_k) = (
-                scenes[k - 1].splats.opacities[i],
-                scenes[k].splats.opacities[i],
-            );
+            let (o_prev, o_k) = (opacities[k - 1][i], opacities[k][i]);
             if o_prev == o_k {
                 continue;
             }
-            let stored = scenes[own[i]].splats.opacities[i];
+            let stored = opacities[own[i]][i];
             if stored <= 0.0 {
                 report.dropped += 1;
                 continue;
@@ -343,7 +344,7 @@ pub fn import_lapisgs(
                 Some(ids) => {
                     let mut t = s.select(ids);
                     for (j, &i) in ids.iter().enumerate() {
-                        t.opacities[j] = scenes[own[i]].splats.opacities[i];
+                        t.opacities[j] = opacities[own[i]][i];
                     }
                     t
                 }
