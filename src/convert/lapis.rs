@@ -322,7 +322,7 @@ pub fn import_lapisgs(
     let relocate = |e: ConvertError| e.relocated(&dir, output);
     let result = (|| -> Result<(BTreeMap<TileKey, TreeTile>, u32), ConvertError> {
         // Geometric error of a level-k layer: the 3-sigma radius (median over level k+1's new
-        // splats) of the detail that refining brings.
+        // splats) of the detail that refining brings, and at least twice level k+1's error.
         let mut level_error = vec![0.0f64; levels];
         for (k, e) in level_error.iter_mut().enumerate().take(levels - 1) {
             let mut r: Vec<f32> = (counts[k]..counts[k + 1])
@@ -330,6 +330,11 @@ pub fn import_lapisgs(
                 .collect();
             r.sort_by(f32::total_cmp);
             *e = r.get(r.len() / 2).map_or(0.0, |&v| f64::from(v)).max(1e-9);
+        }
+        // At least twice the next level's: LapisGS trains each level at half the resolution
+        // of the next, so each level is refined twice as far away as the next one.
+        for k in (0..levels.saturating_sub(2)).rev() {
+            level_error[k] = level_error[k].max(2.0 * level_error[k + 1]);
         }
         let mut tiles: HashMap<TileKey, TreeTile> = HashMap::new();
         let keys: Vec<TileKey> = contents
