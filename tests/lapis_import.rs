@@ -311,3 +311,50 @@ fn a_level_breaking_the_prefix_rule_is_refused_with_file_splat_and_byte() {
     assert_eq!(v["dropped"], serde_json::json!(0));
     common::assert_valid_with_extents(&out);
 }
+
+/// LapisGS eq. 4 frame by frame: level 2 blended in with t = 0, 0.1, ..., 1 (CPU reference
+/// renders at 160x120); neighbouring frames stay within an SSIM step of 0.02 while the first and
+/// last frames differ by more (the change is real), and t = 0 / t = 1 render as levels 1 / 2.
+#[test]
+fn blending_in_a_level_changes_frames_continuously() {
+    let dir = tempfile::tempdir().unwrap();
+    let (lv, files) = dense(dir.path());
+    let out = dir.path().join("lapis");
+    import_lapisgs(&files, &out, &opts()).unwrap();
+    let imp = imported(&out.join("tileset.json"));
+    let (lo, hi) = finite_bounds(&lv[2]).unwrap();
+    let cam = auto_views_with(lo, hi, glam::DVec3::NEG_Y, 160, 120, 50.0)
+        .into_iter()
+        .nth(1)
+        .unwrap();
+    let id = glam::DMat4::IDENTITY;
+    let frame = |t: f32| {
+        let mut drawn = vec![];
+        for ((_, s, _), (_, ops)) in imp
+            .tiles
+            .iter()
+            .zip(imp.effective(2, |l| if l == 2 { t } else { 1.0 }))
+        {
+            let mut s = s.clone();
+            s.opacities = ops;
+            drawn.push(s);
+        }
+        let refs: Vec<(&Splats, glam::DMat4)> = drawn.iter().map(|s| (s, id)).collect();
+        render(&refs, &cam, &RenderOptions::default())
+    };
+    let frames: Vec<_> = (0..=10).map(|i| frame(i as f32 / 10.0)).collect();
+    let mut worst = 1.0f64;
+    for w in frames.windows(2) {
+        worst = worst.min(ssim(&w[0], &w[1]).unwrap());
+    }
+    let ends = ssim(&frames[0], &frames[10]).unwrap();
+    eprintln!("worst neighbour SSIM {worst:.4}, first vs last {ends:.4}");
+    assert!(worst >= 0.98, "a step of SSIM {worst}");
+    assert!(
+        ends < worst,
+        "first vs last {ends} is no bigger a change than a step"
+    );
+    let level = |k: usize| render(&[(&lv[k], id)], &cam, &RenderOptions::default());
+    assert!(ssim(&frames[0], &level(1)).unwrap() >= 0.999);
+    assert!(ssim(&frames[10], &level(2)).unwrap() >= 0.999);
+}
