@@ -1070,6 +1070,13 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
                 ["level"] = json!(1);
         })
     });
+    m.insert("lapis_ancestor_level_u32_max", |t| {
+        let (p, _, _) = lapis_sparse(t);
+        edit_glb_at(&p, |v| {
+            v["meshes"][0]["primitives"][0]["extensions"][LAYER]["ancestorOpacityDeltas"][0]
+                ["level"] = json!(u32::MAX);
+        })
+    });
     m.insert("lapis_ancestor_count_one_more", |t| {
         let (p, a, _) = lapis_sparse(t);
         edit_glb_at(&p, |v| {

@@ -185,7 +185,7 @@ pub(crate) fn validate(ctx: &mut Ctx<'_>, file: &Path) {
         for (n, a) in layer.ancestor_opacity_deltas.iter().enumerate() {
             let epath = format!("{ext}/ancestorOpacityDeltas/{n}");
             let apath = format!("{}#{}", c.name, a.accessor_path);
-            if a.level + 1 >= key.level {
+            if u64::from(a.level) + 1 >= u64::from(key.level) {
                 ctx.push(Issue::LAYER_ANCESTOR_INVALID(
                     format!("{epath}/level"),
                     format!(
