@@ -358,3 +358,42 @@ fn blending_in_a_level_changes_frames_continuously() {
     assert!(ssim(&frames[0], &level(1)).unwrap() >= 0.999);
     assert!(ssim(&frames[10], &level(2)).unwrap() >= 0.999);
 }
+
+/// The other tilings: a quadtree and a georeferenced (Web-Mercator) import of the dense set
+/// validate and still draw the last level exactly.
+#[test]
+fn quadtree_and_georeferenced_imports_validate_and_draw_the_last_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let (lv, files) = dense(dir.path());
+    let origin = splat2tiles::frame::geo::Geodetic::parse("2.2945,48.8584,35").unwrap();
+    for (name, o) in [
+        (
+            "quad",
+            ConvertOptions {
+                scheme: SchemeChoice::Quadtree,
+                ..opts()
+            },
+        ),
+        (
+            "geo",
+            ConvertOptions {
+                origin: Some(origin),
+                ..opts()
+            },
+        ),
+    ] {
+        let out = dir.path().join(name);
+        let r = import_lapisgs(&files, &out, &o).unwrap();
+        assert_eq!(r.scheme, "QUADTREE", "{name}");
+        let tileset = out.join("tileset.json");
+        let report = validate_tileset(&tileset, &ValidateOptions::default()).unwrap();
+        assert!(
+            report.codes().is_empty(),
+            "{name}: {}",
+            report.to_text(name)
+        );
+        let imp = imported(&tileset);
+        let n = assert_opacities(&imp, &lv[2], 2, |_| 1.0, |i| lv[2].opacities[i]);
+        assert_eq!((n, r.dropped), (5000, 0), "{name}: {r:?}");
+    }
+}
