@@ -18,6 +18,9 @@ struct Cli {
 enum Command {
     /// Convert a PLY, .splat or .spz scene into an implicit 3D Tiles 1.1 tileset.
     Convert(cli::convert::ConvertArgs),
+    /// Import LapisGS-trained levels (one PLY per level, coarse to fine) as a layered tileset.
+    #[command(name = "import-lapisgs")]
+    ImportLapisgs(cli::import_lapisgs::ImportLapisArgs),
     /// Merge the parts of a sharded conversion (`convert --plan`) into one tileset.
     Merge(cli::shard::MergeArgs),
     /// Check a tileset (JSON, subtrees, metadata, every KHR_gaussian_splatting glb) and report issues.
@@ -40,6 +43,7 @@ fn main() {
     let args = Cli::parse();
     let code = match args.command {
         Command::Convert(a) => cli::convert::run(a),
+        Command::ImportLapisgs(a) => cli::import_lapisgs::run(a),
         Command::Merge(a) => cli::shard::run_merge(a),
         Command::Validate(a) => cli::validate::run(a),
         Command::Render(a) => report(render_cli::run_render(&a)),

@@ -218,3 +218,80 @@ fn a_layer_whose_ancestor_is_missing_is_never_drawn() {
     }
     assert!(client.stats().errors > 0);
 }
+
+/// A LapisGS import (format v2: ancestor deltas, sparse accessors, positive deltas) streamed
+/// through the client: the same layers as the reference selection, the same effective
+/// opacities as the CPU reference (`layered_instances`), and fully refined, every splat of the
+/// last level's file at its opacity there.
+#[test]
+fn a_lapisgs_import_streams_with_the_reference_opacities() {
+    use splat2tiles::convert::import_lapisgs;
+    let dir = tempfile::tempdir().unwrap();
+    let (lv, files) = common::lapis::dense(dir.path());
+    let out = dir.path().join("lapis");
+    let opts = ConvertOptions {
+        scheme: SchemeChoice::Octree,
+        subtree_levels: Some(2),
+        layers: true,
+        progress: false,
+        ..ConvertOptions::default()
+    };
+    import_lapisgs(&files, &out, &opts).unwrap();
+    let ts = load_tileset(&out.join("tileset.json")).unwrap();
+    let (cam, max_sse) = interesting_view(&ts);
+    let sorted = |mut v: Vec<f32>| {
+        v.retain(|&o| o > 0.0);
+        v.sort_by(f32::total_cmp);
+        v
+    };
+    for (max_sse, full) in [(max_sse, false), (1e-9, true)] {
+        let (client, _) = stream(&out, config(max_sse), &cam, 20.0, |_| {});
+        assert_eq!(client.stats().errors, 0, "{:?}", client.stats().last_errors);
+        let got: BTreeSet<(TileKey, u32)> = client
+            .layers()
+            .iter()
+            .map(|l| (l.key, l.blend.to_bits()))
+            .collect();
+        assert_eq!(got, reference(&ts, &cam, max_sse));
+        let mine = sorted(
+            client
+                .layer_opacities()
+                .unwrap()
+                .into_iter()
+                .flat_map(|(_, o)| o)
+                .collect(),
+        );
+        let theirs = sorted(
+            layered_instances(&ts, &cam, max_sse)
+                .unwrap()
+                .iter()
+                .flat_map(|(s, _)| s.opacities.clone())
+                .collect(),
+        );
+        assert_eq!(mine, theirs);
+        if full {
+            // Every layer drawn at blend 1: the last level's opacities (occupancy rule applied).
+            assert_eq!(
+                client.layers().len(),
+                ts.tiles.iter().filter(|t| t.content.is_some()).count()
+            );
+            let want = sorted(
+                lv[2]
+                    .opacities
+                    .iter()
+                    .map(|&o| {
+                        if o < splat2tiles::layers::OCCUPANCY_THRESHOLD {
+                            0.0
+                        } else {
+                            o
+                        }
+                    })
+                    .collect(),
+            );
+            assert_eq!(mine.len(), want.len());
+            for (a, b) in mine.iter().zip(&want) {
+                assert!((a - b).abs() <= 1e-5, "{a} vs {b}");
+            }
+        }
+    }
+}

@@ -57,6 +57,37 @@ fn base(name: &str) -> PathBuf {
         common::write_ply_file(&p, &common::random_splats(n, deg, 10.0, seed));
         p
     };
+    if name == "lapis_import" {
+        // 3 LapisGS-like levels (300 / 1000 / 3000 splats): every level keeps the previous
+        // one's splats and changes the opacity of half of them.
+        let all = common::random_splats(3000, 1, 10.0, 31);
+        let mut prev: Option<splat2tiles::splat::Splats> = None;
+        let mut files = vec![];
+        for (k, n) in [300usize, 1000, 3000].into_iter().enumerate() {
+            let mut s = all.select(&(0..n).collect::<Vec<_>>());
+            if let Some(p) = &prev {
+                for i in 0..p.len() {
+                    s.opacities[i] = if (i + k) % 2 == 0 {
+                        0.05 + 0.9 * ((i * 37 + k * 11) % 100) as f32 / 100.0
+                    } else {
+                        p.opacities[i]
+                    };
+                }
+            }
+            let f = scratch().join(format!("lapis{k}.ply"));
+            common::write_ply_file(&f, &s);
+            files.push(f);
+            prev = Some(s);
+        }
+        let o = ConvertOptions {
+            layers: true,
+            ..opts(400, SchemeChoice::Octree, Some(2), None)
+        };
+        splat2tiles::convert::import_lapisgs(&files, &out, &o)
+            .unwrap_or_else(|e| panic!("importing base {name}: {e}"));
+        map.insert(name.to_string(), out.clone());
+        return out;
+    }
     let (input, o) = match name {
         "small_octree" => (
             gen_ply(6000, 1, 7),
@@ -346,6 +377,45 @@ fn poke_delta(p: &Path, i: usize, val: f32) {
         + acc["byteOffset"].as_u64().unwrap_or(0) as usize
         + i * 4;
     bytes[at..at + 4].copy_from_slice(&val.to_le_bytes());
+    std::fs::write(p, bytes).unwrap();
+}
+
+/// A level-2 layer of the `lapis_import` base with an `ancestorOpacityDeltas` entry stored
+/// sparse with at least 2 values: its path, the entry's accessor and the JSON.
+fn lapis_sparse(t: &Ts) -> (PathBuf, usize, Value) {
+    let under = t.dir.join("tiles/best/2");
+    let mut all: Vec<PathBuf> = t
+        .glbs()
+        .into_iter()
+        .filter(|p| p.starts_with(&under))
+        .collect();
+    all.sort();
+    for p in all {
+        let bytes = std::fs::read(&p).unwrap();
+        let c = read_glb(&bytes).unwrap();
+        let v: Value = serde_json::from_slice(c.json).unwrap();
+        let e = &v["meshes"][0]["primitives"][0]["extensions"][LAYER]["ancestorOpacityDeltas"][0];
+        if let Some(a) = e["accessor"].as_u64() {
+            let acc = &v["accessors"][a as usize];
+            if acc["sparse"]["count"].as_u64().unwrap_or(0) >= 2 {
+                return (p, a as usize, v);
+            }
+        }
+    }
+    panic!("no level-2 layer with a sparse ancestor accessor of 2+ values")
+}
+
+/// Writes `val` into word `k` of the sparse `part` (`indices` or `values`) of accessor `a`.
+fn poke_sparse(p: &Path, a: usize, v: &Value, part: &str, k: usize, val: [u8; 4]) {
+    let mut bytes = std::fs::read(p).unwrap();
+    let c = read_glb(&bytes).unwrap();
+    let sp = &v["accessors"][a]["sparse"][part];
+    let view = &v["bufferViews"][sp["bufferView"].as_u64().unwrap() as usize];
+    let at = c.bin_offset
+        + view["byteOffset"].as_u64().unwrap_or(0) as usize
+        + sp["byteOffset"].as_u64().unwrap_or(0) as usize
+        + k * 4;
+    bytes[at..at + 4].copy_from_slice(&val);
     std::fs::write(p, bytes).unwrap();
 }
 
@@ -989,8 +1059,47 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             v["accessors"][a]["count"] = json!(n - 1);
         })
     });
-    m.insert("layered_delta_positive", |t| {
-        poke_delta(&layer_glb(t, 1, 0), 0, 0.5)
+    m.insert("layered_delta_not_finite", |t| {
+        poke_delta(&layer_glb(t, 1, 0), 0, f32::NAN)
+    });
+    // Format v2 (base `lapis_import`).
+    m.insert("lapis_ancestor_level_not_above_parent", |t| {
+        let (p, _, _) = lapis_sparse(t);
+        edit_glb_at(&p, |v| {
+            v["meshes"][0]["primitives"][0]["extensions"][LAYER]["ancestorOpacityDeltas"][0]
+                ["level"] = json!(1);
+        })
+    });
+    m.insert("lapis_ancestor_level_u32_max", |t| {
+        let (p, _, _) = lapis_sparse(t);
+        edit_glb_at(&p, |v| {
+            v["meshes"][0]["primitives"][0]["extensions"][LAYER]["ancestorOpacityDeltas"][0]
+                ["level"] = json!(u32::MAX);
+        })
+    });
+    m.insert("lapis_ancestor_count_one_more", |t| {
+        let (p, a, _) = lapis_sparse(t);
+        edit_glb_at(&p, |v| {
+            let n = v["accessors"][a]["count"].as_u64().unwrap();
+            v["accessors"][a]["count"] = json!(n + 1);
+        })
+    });
+    m.insert("lapis_sparse_index_out_of_range", |t| {
+        let (p, a, v) = lapis_sparse(t);
+        let n = v["accessors"][a]["sparse"]["count"].as_u64().unwrap() as usize;
+        poke_sparse(&p, a, &v, "indices", n - 1, 1_000_000u32.to_le_bytes());
+    });
+    m.insert("lapis_sparse_indices_not_increasing", |t| {
+        let (p, a, v) = lapis_sparse(t);
+        poke_sparse(&p, a, &v, "indices", 1, 0u32.to_le_bytes());
+    });
+    m.insert("lapis_ancestor_delta_sum_below_minus_one", |t| {
+        let (p, a, v) = lapis_sparse(t);
+        poke_sparse(&p, a, &v, "values", 0, (-5.0f32).to_le_bytes());
+    });
+    m.insert("lapis_ancestor_delta_raises_above_one", |t| {
+        let (p, a, v) = lapis_sparse(t);
+        poke_sparse(&p, a, &v, "values", 0, 1000.0f32.to_le_bytes());
     });
     m.insert("layered_deltas_sum_below_minus_one", |t| {
         poke_delta(&layer_glb(t, 1, 0), 0, -1.0);

@@ -113,6 +113,83 @@ fn layered_tiles_pass_the_khronos_validator() {
     validate_without_errors(dir.path(), &cases);
 }
 
+/// Format v2 layers: sparse `parentOpacityDelta` and `ancestorOpacityDeltas` (UNSIGNED_INT
+/// indices + FLOAT values in the BIN chunk), positive deltas, and an all-zero accessor without
+/// a bufferView.
+#[test]
+fn v2_layers_with_sparse_and_ancestor_deltas_pass_the_khronos_validator() {
+    use splat2tiles::layers::glb::{add_layer_v2, read_layer};
+    require_node_modules();
+    let dir = tempfile::tempdir().unwrap();
+    let child = write_tile_glb(&tile(1, 40), [100.5, -50.0, 1.5], IDENTITY);
+    let mut parent = vec![0.0f32; 60];
+    parent[5] = 1.5;
+    parent[59] = -0.25;
+    let mut grand = vec![0.0f32; 500];
+    for i in (0..500).step_by(37) {
+        grand[i] = i as f32 / 100.0 - 1.0;
+    }
+    let zeros = vec![0.0f32; 9];
+    let dense: Vec<f32> = (0..60).map(|i| i as f32 / 60.0).collect();
+    let cases = [
+        (
+            "v2_sparse.glb",
+            add_layer_v2(&child, 3, Some(&parent), &[(0, &grand), (1, &zeros)]).unwrap(),
+        ),
+        (
+            "v2_dense_parent.glb",
+            add_layer_v2(&child, 2, Some(&dense), &[(0, &grand)]).unwrap(),
+        ),
+    ];
+    let back = read_layer(&cases[0].1).unwrap().unwrap();
+    assert_eq!(back.parent_opacity_delta.as_deref(), Some(&parent[..]));
+    assert_eq!(back.ancestor_opacity_deltas[0].deltas, grand);
+    assert_eq!(back.ancestor_opacity_deltas[1].deltas, zeros);
+    // The first case really is sparse (the point of this test).
+    let c = read_glb(&cases[0].1).unwrap();
+    let v: serde_json::Value = serde_json::from_slice(c.json).unwrap();
+    let sparse = v["accessors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|a| a.get("sparse").is_some())
+        .count();
+    assert_eq!(sparse, 2, "{v}");
+    validate_without_errors(dir.path(), &cases);
+}
+
+/// Every tile of a LapisGS import (`import-lapisgs`: base, placeholder-free dense levels with
+/// parent and ancestor deltas, sparse where that is smaller) passes the Khronos validator.
+#[test]
+fn lapisgs_import_tiles_pass_the_khronos_validator() {
+    use splat2tiles::convert::{ConvertOptions, SchemeChoice, import_lapisgs};
+    require_node_modules();
+    let dir = tempfile::tempdir().unwrap();
+    let (_, files) = common::lapis::dense(dir.path());
+    let out = dir.path().join("lapis");
+    let opts = ConvertOptions {
+        scheme: SchemeChoice::Octree,
+        layers: true,
+        progress: false,
+        ..ConvertOptions::default()
+    };
+    import_lapisgs(&files, &out, &opts).unwrap();
+    let tiles: Vec<(String, Vec<u8>)> = common::files_under(&out, "glb")
+        .iter()
+        .map(|p| {
+            let name = p
+                .strip_prefix(&out)
+                .unwrap()
+                .to_string_lossy()
+                .replace('/', "_");
+            (name, std::fs::read(p).unwrap())
+        })
+        .collect();
+    assert!(tiles.len() > 9, "{} tiles", tiles.len());
+    let named: Vec<(&str, Vec<u8>)> = tiles.iter().map(|(n, b)| (n.as_str(), b.clone())).collect();
+    validate_without_errors(dir.path(), &named);
+}
+
 /// Negative control: the harness must report a real defect (a wrong POSITION max) as an error.
 #[test]
 fn harness_reports_a_broken_tile() {

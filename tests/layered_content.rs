@@ -91,6 +91,7 @@ fn layered_output_validates_and_its_layers_reproduce_the_finer_level() {
         parent: None,
         deltas: None,
         blend: 1.0,
+        ancestors: &[],
     }];
     for (s, d) in &kids {
         layers.push(DrawnLayer {
@@ -98,6 +99,7 @@ fn layered_output_validates_and_its_layers_reproduce_the_finer_level() {
             parent: Some(0),
             deltas: Some(d),
             blend: 1.0,
+            ancestors: &[],
         });
     }
     let drawn = drawn_layers(&layers).unwrap();

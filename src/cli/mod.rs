@@ -2,6 +2,7 @@
 //! so that `main.rs` only parses and maps results to exit codes.
 
 pub mod convert;
+pub mod import_lapisgs;
 pub mod serve;
 pub mod shard;
 pub mod simulate;

@@ -431,7 +431,7 @@ pub struct StreamClient {
     /// Blend factor of each tile of the view set (layered; 0 elsewhere).
     blend: Vec<f32>,
     /// Per drawable of a layered tileset: its stored splats and its parent-opacity deltas.
-    layer_data: HashMap<u64, (Splats, Option<Vec<f32>>)>,
+    layer_data: HashMap<u64, (Splats, Option<crate::layers::glb::LayerInfo>)>,
     wanted: Vec<Want>,
     /// The last plan's predicted views: tile and seconds until first seen (0: in view).
     predicted: Vec<(usize, f64)>,
@@ -622,8 +622,9 @@ impl StreamClient {
     }
 
     /// The opacity each drawn layer's splats are drawn with (scene id, one value per splat in
-    /// the drawable's order): `layers::blend::effective_opacities` of [`Self::layers`], and 0
-    /// for splats under the occupancy threshold. A layer whose deltas do not match its parent
+    /// the drawable's order): `layers::blend::effective_opacities` of [`Self::layers`] (each
+    /// layer's parent deltas and, format v2, its ancestor deltas), and 0 for splats under the
+    /// occupancy threshold. A layer whose deltas do not match its parent
     /// (count, or none on a layer with a parent) is an error naming the tile; a content
     /// without the layer extension in an ADD tileset fades nothing (an ordinary ADD tile).
     pub fn layer_opacities(&self) -> Result<Vec<(u64, Vec<f32>)>, String> {
@@ -648,21 +649,34 @@ impl StreamClient {
             })
             .collect();
         let mut drawn = Vec::with_capacity(layers.len());
-        for (l, z) in layers.iter().zip(&zeros) {
-            let (splats, deltas) = self
+        let mut ancestors = Vec::with_capacity(layers.len());
+        for l in layers {
+            let (_, info) = self
                 .layer_data
                 .get(&l.scene_id)
                 .ok_or_else(|| format!("tile {:?}: layer not decoded", l.key))?;
+            ancestors.push(crate::layers::view::ancestor_deltas(
+                l.key.level,
+                info.as_ref(),
+            ));
+        }
+        for ((l, z), a) in layers.iter().zip(&zeros).zip(&ancestors) {
+            let (splats, info) = &self.layer_data[&l.scene_id];
+            let deltas = info
+                .as_ref()
+                .and_then(|i| i.parent_opacity_delta.as_deref());
             drawn.push(crate::layers::blend::DrawnLayer {
                 splats,
                 parent: l.parent,
-                deltas: l.parent.map(|_| deltas.as_deref().unwrap_or(z)),
+                deltas: l.parent.map(|_| deltas.unwrap_or(z)),
                 blend: l.blend,
+                ancestors: a,
             });
         }
         let ops = crate::layers::blend::effective_opacities(&drawn).map_err(|e| {
             let k = match e {
                 crate::layers::blend::ComposeError::BadParent(k)
+                | crate::layers::blend::ComposeError::BadAncestor(k)
                 | crate::layers::blend::ComposeError::DeltaCount { layer: k, .. } => k,
             };
             format!("tile {:?}: {e}", layers[k].key)

@@ -134,8 +134,7 @@ impl StreamClient {
                 if self.layered {
                     match crate::layers::glb::read_layer(bytes) {
                         Ok(layer) => {
-                            let deltas = layer.and_then(|l| l.parent_opacity_delta);
-                            self.layer_data.insert(sid, (splats.clone(), deltas));
+                            self.layer_data.insert(sid, (splats.clone(), layer));
                         }
                         Err(e) => {
                             let msg = format!("tile {:?}: layer: {e}", self.info[i].key);

@@ -5,6 +5,7 @@
 //! stays within `--memory-limit` (ARCHITECTURE.md "Out-of-core conversion").
 
 mod frame;
+mod lapis;
 mod layered;
 mod merge;
 mod part;
@@ -28,6 +29,7 @@ use crate::tiling::TileKey;
 use crate::variants::{ContentError, ContentFacts, VariantOptions};
 use frame::{FrameAccum, Layout};
 use indicatif::{ProgressBar, ProgressStyle};
+pub use lapis::{LapisReport, import_lapisgs};
 use layered::layer_tree;
 pub use merge::{MergeReport, merge_parts};
 pub use part::{PartPhase, PartReport, convert_part};
@@ -263,6 +265,14 @@ pub enum ConvertError {
     /// `--layers`: the contents could not be layered.
     #[error(transparent)]
     Layers(#[from] crate::layers::build::LayerError),
+    /// `import-lapisgs`: the level files do not form LapisGS levels.
+    #[error("{file}: {why}")]
+    Lapis {
+        /// The level file at fault.
+        file: String,
+        /// Why (naming the splat and its byte offset where one is at fault).
+        why: String,
+    },
 }
 
 impl ConvertError {

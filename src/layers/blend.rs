@@ -31,6 +31,18 @@ pub struct DrawnLayer<'a> {
     pub deltas: Option<&'a [f32]>,
     /// Its blend factor `t` in [0, 1] (the base layer: 1).
     pub blend: f32,
+    /// Format v2: its deltas for ancestor layers above the parent (`&[]` for v1 layers).
+    pub ancestors: &'a [AncestorDelta<'a>],
+}
+
+/// A layer's opacity deltas for one ancestor layer above its parent.
+#[derive(Debug, Clone, Copy)]
+pub struct AncestorDelta<'a> {
+    /// How far up the ancestor is: 2 = the grand-parent (the parent's deltas are
+    /// [`DrawnLayer::deltas`]).
+    pub up: usize,
+    /// One delta per splat of that ancestor.
+    pub deltas: &'a [f32],
 }
 
 /// Why layers cannot be composed.
@@ -39,8 +51,12 @@ pub enum ComposeError {
     /// A parent index does not point at an earlier layer.
     #[error("layer {0}: its parent must be an earlier layer")]
     BadParent(usize),
-    /// A layer with a parent has no deltas, or their count is not the parent's splat count.
-    #[error("layer {layer}: {deltas} deltas for a parent of {parent} splats")]
+    /// An ancestor entry points above the base layer (or at the parent itself).
+    #[error("layer {0}: an ancestor delta entry points at no ancestor above its parent")]
+    BadAncestor(usize),
+    /// A layer with a parent has no deltas, or their count is not the parent's (or an
+    /// ancestor's) splat count.
+    #[error("layer {layer}: {deltas} deltas for a parent/ancestor of {parent} splats")]
     DeltaCount {
         /// The layer.
         layer: usize,
@@ -53,16 +69,22 @@ pub enum ComposeError {
 
 /// Effective opacity of every splat of every layer: for layer `L` with cumulative blend
 /// `T_L` (the product of the blend factors from the base down to `L`),
-/// `T_L * o_i * max(0, 1 + sum over drawn child layers c of t_c * delta_c[i])`.
+/// `T_L * min(1, o_i * max(0, 1 + sum over drawn descendant layers c with deltas for L of
+/// (T_c / T_L) * delta_c[i]))`, where `T_c / T_L` is the product of the blend factors below `L`
+/// down to `c` (`t_c` for a child, as in format v1). A non-finite delta counts as 0.
 pub fn effective_opacities(layers: &[DrawnLayer<'_>]) -> Result<Vec<Vec<f32>>, ComposeError> {
-    let mut cumulative = vec![1.0f32; layers.len()];
-    let mut fade: Vec<Vec<f32>> = layers.iter().map(|l| vec![1.0; l.splats.len()]).collect();
-    for (k, l) in layers.iter().enumerate() {
-        let t = if l.blend.is_finite() {
+    let blend = |l: &DrawnLayer<'_>| {
+        if l.blend.is_finite() {
             l.blend.clamp(0.0, 1.0)
         } else {
             0.0
-        };
+        }
+    };
+    let delta = |d: f32| if d.is_finite() { d } else { 0.0 };
+    let mut cumulative = vec![1.0f32; layers.len()];
+    let mut fade: Vec<Vec<f32>> = layers.iter().map(|l| vec![1.0; l.splats.len()]).collect();
+    for (k, l) in layers.iter().enumerate() {
+        let t = blend(l);
         match l.parent {
             None => cumulative[k] = t,
             Some(p) if p < k => {
@@ -81,11 +103,29 @@ pub fn effective_opacities(layers: &[DrawnLayer<'_>]) -> Result<Vec<Vec<f32>>, C
                     });
                 }
                 for (f, &di) in fade[p].iter_mut().zip(d) {
-                    *f += t * if di.is_finite() {
-                        di.clamp(-1.0, 0.0)
-                    } else {
-                        0.0
-                    };
+                    *f += t * delta(di);
+                }
+                for a in l.ancestors {
+                    // Walk up `a.up` generations, multiplying the blend factors passed.
+                    if a.up < 2 {
+                        return Err(ComposeError::BadAncestor(k));
+                    }
+                    let (mut at, mut ratio) = (p, t);
+                    for _ in 1..a.up {
+                        ratio *= blend(&layers[at]);
+                        at = layers[at].parent.ok_or(ComposeError::BadAncestor(k))?;
+                    }
+                    let n = layers[at].splats.len();
+                    if a.deltas.len() != n {
+                        return Err(ComposeError::DeltaCount {
+                            layer: k,
+                            deltas: a.deltas.len(),
+                            parent: n,
+                        });
+                    }
+                    for (f, &di) in fade[at].iter_mut().zip(a.deltas) {
+                        *f += ratio * delta(di);
+                    }
                 }
             }
             Some(_) => return Err(ComposeError::BadParent(k)),
@@ -100,7 +140,7 @@ pub fn effective_opacities(layers: &[DrawnLayer<'_>]) -> Result<Vec<Vec<f32>>, C
                 .opacities
                 .iter()
                 .zip(f)
-                .map(|(&o, f)| c * o * f.max(0.0))
+                .map(|(&o, f)| (c * o * f.max(0.0)).min(c))
                 .collect()
         })
         .collect())
@@ -171,24 +211,28 @@ mod tests {
                 parent: None,
                 deltas: None,
                 blend: 1.0,
+                ancestors: &[],
             },
             DrawnLayer {
                 splats: &a,
                 parent: Some(0),
                 deltas: Some(&da),
                 blend: 0.5,
+                ancestors: &[],
             },
             DrawnLayer {
                 splats: &b,
                 parent: Some(0),
                 deltas: Some(&db),
                 blend: 1.0,
+                ancestors: &[],
             },
             DrawnLayer {
                 splats: &g,
                 parent: Some(1),
                 deltas: Some(&dg),
                 blend: 1.0,
+                ancestors: &[],
             },
         ];
         let o = effective_opacities(&layers).unwrap();
@@ -215,6 +259,114 @@ mod tests {
     }
 
     #[test]
+    fn ancestor_deltas_reproduce_each_level_and_eq4_between() {
+        // LapisGS-like: a base splat at 0.2, raised to 0.5 by level 1 and 0.9 by level 2
+        // (d = (o_k - o_{k-1}) / o_0), level 1 adds a splat at 0.6 lowered to 0.3 by level 2.
+        let base = splats(&[0.2]);
+        let l1 = splats(&[0.6]);
+        let l2 = splats(&[0.7]);
+        let d1 = [(0.5f32 - 0.2) / 0.2];
+        let d2 = [(0.3f32 - 0.6) / 0.6];
+        let d2_0 = [(0.9f32 - 0.5) / 0.2];
+        let anc = [AncestorDelta {
+            up: 2,
+            deltas: &d2_0,
+        }];
+        let chain = |t1: f32, t2: f32| {
+            let layers = [
+                DrawnLayer {
+                    splats: &base,
+                    parent: None,
+                    deltas: None,
+                    blend: 1.0,
+                    ancestors: &[],
+                },
+                DrawnLayer {
+                    splats: &l1,
+                    parent: Some(0),
+                    deltas: Some(&d1),
+                    blend: t1,
+                    ancestors: &[],
+                },
+                DrawnLayer {
+                    splats: &l2,
+                    parent: Some(1),
+                    deltas: Some(&d2),
+                    blend: t2,
+                    ancestors: &anc,
+                },
+            ];
+            effective_opacities(&layers).unwrap()
+        };
+        let close = |a: f32, b: f32| assert!((a - b).abs() < 1e-6, "{a} vs {b}");
+        let o = chain(1.0, 1.0);
+        close(o[0][0], 0.9);
+        close(o[1][0], 0.3);
+        close(o[2][0], 0.7);
+        // Level 2 half in: every changed opacity is the midpoint of levels 1 and 2 (eq. 4).
+        let o = chain(1.0, 0.5);
+        close(o[0][0], 0.7);
+        close(o[1][0], 0.45);
+        close(o[2][0], 0.35);
+        // Level 2 not drawn: level 1 exactly.
+        let o = chain(1.0, 0.0);
+        close(o[0][0], 0.5);
+        close(o[1][0], 0.6);
+        // A delta raising past 1 is capped at T_L.
+        let big = [10.0f32];
+        let capped = [
+            DrawnLayer {
+                splats: &base,
+                parent: None,
+                deltas: None,
+                blend: 1.0,
+                ancestors: &[],
+            },
+            DrawnLayer {
+                splats: &l1,
+                parent: Some(0),
+                deltas: Some(&big),
+                blend: 1.0,
+                ancestors: &[],
+            },
+        ];
+        assert_eq!(effective_opacities(&capped).unwrap()[0], vec![1.0]);
+        // An ancestor entry above the base, or a wrong count, is refused.
+        let up3 = [AncestorDelta {
+            up: 3,
+            deltas: &d2_0,
+        }];
+        let short = [AncestorDelta { up: 2, deltas: &[] }];
+        for (a, want) in [
+            (&up3[..], ComposeError::BadAncestor(2)),
+            (
+                &short[..],
+                ComposeError::DeltaCount {
+                    layer: 2,
+                    deltas: 0,
+                    parent: 1,
+                },
+            ),
+        ] {
+            let layers = [
+                capped[0],
+                DrawnLayer {
+                    deltas: Some(&d1),
+                    ..capped[1]
+                },
+                DrawnLayer {
+                    splats: &l2,
+                    parent: Some(1),
+                    deltas: Some(&d2),
+                    blend: 1.0,
+                    ancestors: a,
+                },
+            ];
+            assert_eq!(effective_opacities(&layers), Err(want));
+        }
+    }
+
+    #[test]
     fn mismatched_layers_are_refused() {
         let base = splats(&[0.8, 0.5]);
         let a = splats(&[0.6]);
@@ -224,12 +376,14 @@ mod tests {
                 parent: None,
                 deltas: None,
                 blend: 1.0,
+                ancestors: &[],
             },
             DrawnLayer {
                 splats: &a,
                 parent: Some(0),
                 deltas: Some(&[-1.0]),
                 blend: 1.0,
+                ancestors: &[],
             },
         ];
         assert_eq!(
@@ -245,6 +399,7 @@ mod tests {
             parent: Some(0),
             deltas: None,
             blend: 1.0,
+            ancestors: &[],
         }];
         assert_eq!(
             effective_opacities(&forward),

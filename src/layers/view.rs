@@ -2,7 +2,7 @@
 //! reached, ADD), each child's blend factor from its parent's screen-space error (eq. 4), and
 //! their splats at effective opacity, ready for `render::raster::render`.
 
-use super::blend::{DrawnLayer, blend_factor, drawn_layers};
+use super::blend::{AncestorDelta, DrawnLayer, blend_factor, drawn_layers};
 use super::glb::read_layer;
 use crate::encode::read_tile_glb;
 use crate::render::camera::Camera;
@@ -101,22 +101,31 @@ pub fn layered_instances(
             std::fs::read(&l.path).with_context(|| format!("{}: cannot read", l.path.display()))?;
         let tile = read_tile_glb(&bytes).with_context(|| l.path.display().to_string())?;
         let layer = read_layer(&bytes).with_context(|| l.path.display().to_string())?;
-        let deltas = layer.and_then(|x| x.parent_opacity_delta);
-        decoded.push((tile, deltas));
+        decoded.push((tile, layer));
     }
+    let ancestors: Vec<Vec<AncestorDelta<'_>>> = picked
+        .iter()
+        .zip(&decoded)
+        .map(|(l, (_, layer))| ancestor_deltas(l.key.level, layer.as_ref()))
+        .collect();
     let layers: Vec<DrawnLayer<'_>> = picked
         .iter()
         .zip(&decoded)
-        .map(|(l, (tile, deltas))| DrawnLayer {
+        .zip(&ancestors)
+        .map(|((l, (tile, layer)), a)| DrawnLayer {
             splats: &tile.splats,
             parent: l.parent,
-            deltas: deltas.as_deref(),
+            deltas: layer
+                .as_ref()
+                .and_then(|x| x.parent_opacity_delta.as_deref()),
             blend: l.blend,
+            ancestors: a,
         })
         .collect();
     let drawn = drawn_layers(&layers).map_err(|e| {
         let at = match &e {
             super::blend::ComposeError::BadParent(k)
+            | super::blend::ComposeError::BadAncestor(k)
             | super::blend::ComposeError::DeltaCount { layer: k, .. } => picked[*k].path.display(),
         };
         anyhow::anyhow!("{at}: {e}")
@@ -126,4 +135,22 @@ pub fn layered_instances(
         .zip(&decoded)
         .map(|(s, (tile, _))| (s, crate::render::cli::content_model(ts, &tile.node_matrix)))
         .collect())
+}
+
+/// The ancestor deltas of a layer at tile level `level` (format v2), each as the number of
+/// generations up to its ancestor; empty for a v1 layer or none. An ancestor level at or
+/// above `level` (refused by `read_layer`) gives `up` 0, which composing refuses.
+pub fn ancestor_deltas(
+    level: u32,
+    layer: Option<&super::glb::LayerInfo>,
+) -> Vec<AncestorDelta<'_>> {
+    layer.map_or(vec![], |l| {
+        l.ancestor_opacity_deltas
+            .iter()
+            .map(|a| AncestorDelta {
+                up: level.saturating_sub(a.level) as usize,
+                deltas: &a.deltas,
+            })
+            .collect()
+    })
 }

@@ -36,8 +36,8 @@ pub struct Truth {
     spheres: Vec<Option<(DVec3, f64)>>,
     index: HashMap<TileKey, usize>,
     content: HashMap<(usize, Level), (Splats, DMat4)>,
-    /// Parent-opacity deltas of each decoded Best content (layered tilesets).
-    deltas: HashMap<usize, Option<Vec<f32>>>,
+    /// The layer each decoded Best content declares (layered tilesets; its opacity deltas).
+    deltas: HashMap<usize, Option<crate::layers::glb::LayerInfo>>,
 }
 
 impl CutTree for Truth {
@@ -169,8 +169,7 @@ impl Truth {
             if level == Level::Best {
                 let layer = crate::layers::glb::read_layer(&bytes)
                     .with_context(|| p.display().to_string())?;
-                self.deltas
-                    .insert(i, layer.and_then(|l| l.parent_opacity_delta));
+                self.deltas.insert(i, layer);
             }
             self.content.insert((i, level), (splats, m));
         }
@@ -239,18 +238,37 @@ impl Truth {
                 })
             })
             .collect();
+        let ancestors: Vec<Vec<crate::layers::blend::AncestorDelta<'_>>> = picked
+            .iter()
+            .map(|&(i, _, _)| match fade {
+                true => crate::layers::view::ancestor_deltas(
+                    self.ts.tiles[i].key.level,
+                    self.deltas[&i].as_ref(),
+                ),
+                false => vec![],
+            })
+            .collect();
         let dl: Vec<crate::layers::blend::DrawnLayer<'_>> = picked
             .iter()
             .zip(&zeros)
+            .zip(&ancestors)
             .map(
-                |(&(i, parent, blend), z)| crate::layers::blend::DrawnLayer {
+                |((&(i, parent, blend), z), a)| crate::layers::blend::DrawnLayer {
                     splats: &self.content[&(i, Level::Best)].0,
                     parent,
-                    deltas: parent.map(|_| match (fade, &self.deltas[&i]) {
-                        (true, Some(d)) => d.as_slice(),
-                        _ => z.as_slice(),
+                    deltas: parent.map(|_| {
+                        match (
+                            fade,
+                            self.deltas[&i]
+                                .as_ref()
+                                .and_then(|l| l.parent_opacity_delta.as_ref()),
+                        ) {
+                            (true, Some(d)) => d.as_slice(),
+                            _ => z.as_slice(),
+                        }
                     }),
                     blend: if parent.is_some() { blend } else { 1.0 },
+                    ancestors: a,
                 },
             )
             .collect();

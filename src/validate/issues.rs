@@ -246,12 +246,20 @@ catalogue! {
     LAYER_LEVEL_MISMATCH => Error,
     /// An enhancement layer's parent tile has no content to adjust.
     LAYER_PARENT_MISSING => Error,
-    /// parentOpacityDelta's count is not the parent layer's splat count.
+    /// A delta accessor's count is not the splat count of the layer it adjusts (parent or ancestor).
     LAYER_DELTA_COUNT_MISMATCH => Error,
-    /// An opacity delta outside [-1, 0] (or not finite).
+    /// An opacity delta below -1 (or not finite).
     LAYER_DELTA_OUT_OF_RANGE => Error,
-    /// The deltas the child layers give one parent splat add up to less than -1.
+    /// The deltas the descendant layers give one splat add up to less than -1.
     LAYER_DELTA_SUM_OUT_OF_RANGE => Error,
+    /// An ancestorOpacityDeltas entry names a level not below the layer's level - 1, or an
+    /// ancestor tile without content.
+    LAYER_ANCESTOR_INVALID => Error,
+    /// A sparse delta accessor's indices are out of range, not strictly increasing, or not
+    /// UNSIGNED_INT (or its sparse storage is out of bounds).
+    LAYER_SPARSE_INVALID => Error,
+    /// A splat's stored opacity times (1 + its descendants' deltas) exceeds 1 (drawn capped at 1).
+    LAYER_OPACITY_ABOVE_ONE => Warning,
 }
 
 #[cfg(test)]

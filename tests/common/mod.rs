@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod city;
+pub mod lapis;
 pub mod scenes;
 pub mod splat_file;
 
