@@ -377,7 +377,9 @@ fn oracle_miss_causes_on_the_city_traces() {
             run_session(&dir, c, &tr.poses, &net, opts)
         };
         let oracle = run("oracle");
-        let reactive = run("reactive");
+        // `SECOND=linear` (or another predictor) in place of reactive in the second column.
+        let second = std::env::var("SECOND").unwrap_or_else(|_| "reactive".into());
+        let reactive = run(&second);
         let ((ow, of), why) = warm(&oracle);
         let ((rw, _), _) = warm(&reactive);
         oracle_first.hits += of.hits;

@@ -381,9 +381,6 @@ struct Want {
     in_view: bool,
     /// Seconds until the tile is needed (0: in view).
     deadline: f64,
-    /// The planner could not fit it before its deadline (it was added because it is due
-    /// within `urgent_s`): it goes after the prefetches that can still be on time.
-    late: bool,
 }
 
 /// The streaming client (see the module docs).

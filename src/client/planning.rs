@@ -8,24 +8,21 @@ const PREFETCH_BEFORE_REPAIR_S: f64 = 0.5;
 
 /// Request order of a want, smaller first: missing tiles before upgrades of held ones; among
 /// each, with a prediction (`predicting`) a prefetch due within `PREFETCH_BEFORE_REPAIR_S`, then
-/// tiles in view, then the other prefetches, then prefetches the planner could not fit before
-/// their deadline (`Want::late`).
+/// tiles in view, then the other prefetches.
 ///
 /// - Missing tiles in view before prefetches further out, and upgrades last: with upgrades of
 ///   the view ahead of prefetches, tiles due in 1 s waited behind Low -> Best upgrades and were
 ///   requested after they entered (issue 19: the oracle's "late" misses on the walk).
 /// - An imminent prefetch before the repair of a tile already missed in view: the hole is
-///   there either way, the prefetch keeps one from opening. On the city's flight 38 (a burst
-///   that outruns the link) the oracle held 254/404 of the entries after warm-up with repairs
-///   first and 328/404 with this.
-/// - A late prefetch after every other want for a missing tile: fetching it in deadline order
-///   makes the ones that can still be on time late as well (overload: the fewest late jobs is
-///   Moore-Hodgson's rule, EDF with the jobs that cannot make it set aside). Flight 38: 328 ->
-///   360/404; all six city traces 93.5% -> 95.8% (issue 19). Once in view it is a repair.
+///   there either way, the prefetch keeps one from opening (overload: late work must not make
+///   more work late). On the city's flight 38 (a burst that outruns the link) the oracle held
+///   254/404 of the entries after warm-up with repairs first and 328/404 with this.
+/// - Tried, not kept: prefetches the planner left out as not fitting before their deadline
+///   (added because due within `urgent_s`) after every other missing tile (Moore-Hodgson's
+///   rule): the oracle 93.5% -> 95.8% after warm-up on the city, but linear 65.8% -> 61.3%,
+///   tcn 28.5% -> 20.0% (BENCHMARKS.md, "Flight 38 is beyond the link").
 fn want_group(w: &Want, held: bool, predicting: bool) -> (bool, u8) {
-    let class = if w.late && !w.in_view {
-        3
-    } else if predicting && !w.in_view && w.deadline <= PREFETCH_BEFORE_REPAIR_S {
+    let class = if predicting && !w.in_view && w.deadline <= PREFETCH_BEFORE_REPAIR_S {
         0
     } else if w.in_view {
         1
@@ -281,9 +278,7 @@ impl StreamClient {
             // The predicted first visibility, not the planner's deadline (at least `urgent_s`):
             // the wants are requested in this order.
             if seen.insert(c.tile) {
-                let mut w = self.want(c.tile, level, first[c.tile], &frustum);
-                w.late = !f.finish_s.is_finite();
-                wanted.push(w);
+                wanted.push(self.want(c.tile, level, first[c.tile], &frustum));
             }
         }
         // Downloads in flight go on while their tile is in view or predicted within the
@@ -395,7 +390,6 @@ impl StreamClient {
             priority: priority as f32,
             in_view,
             deadline,
-            late: false,
         }
     }
 }
@@ -404,31 +398,27 @@ impl StreamClient {
 mod tests {
     use super::*;
 
-    fn want(in_view: bool, deadline: f64, late: bool) -> Want {
+    fn want(in_view: bool, deadline: f64) -> Want {
         Want {
             tile: 0,
             level: Level::Low,
             priority: 0.5,
             in_view,
             deadline,
-            late,
         }
     }
 
     #[test]
-    fn late_prefetches_go_after_on_time_ones_and_repairs_and_before_upgrades() {
-        let soon = want(false, 0.2, false);
-        let repair = want(true, 0.0, false);
-        let later = want(false, 3.0, false);
-        let late = want(false, 0.3, true);
+    fn imminent_prefetches_then_repairs_then_prefetches_then_upgrades() {
+        let soon = want(false, 0.2);
+        let repair = want(true, 0.0);
+        let later = want(false, 3.0);
         let g = |w: &Want, held| want_group(w, held, true);
         assert!(g(&soon, false) < g(&repair, false));
         assert!(g(&repair, false) < g(&later, false));
-        assert!(g(&later, false) < g(&late, false));
-        // Every missing tile, late or not, before any upgrade.
-        assert!(g(&late, false) < g(&soon, true));
-        // A late want in view is a repair; without a prediction repairs come first.
-        assert_eq!(g(&want(true, 0.0, true), false), g(&repair, false));
+        // Every missing tile before any upgrade.
+        assert!(g(&later, false) < g(&soon, true));
+        // Without a prediction, repairs come first.
         assert!(want_group(&repair, false, false) < want_group(&soon, false, false));
     }
 }
