@@ -41,25 +41,11 @@ pub struct ConvertArgs {
     /// Deepest tree level (local scenes, default 16) or Web-Mercator zoom (georeferenced, default 30).
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=30))]
     pub max_depth: Option<u32>,
-    /// Which input axis points up: +x, -x, +y, -y, +z, -z [default: -y for .ply/.splat, +y for .spz].
-    #[arg(long, allow_hyphen_values = true)]
-    pub up_axis: Option<UpAxis>,
-    /// Turn the scene about its up axis by this many degrees (counter-clockwise from above).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub heading: f64,
-    /// Georeference the scene: lon,lat[,height] (degrees, metres) of its origin. Tiles then form a
-    /// Web-Mercator quadtree and the root carries an ECEF transform.
-    #[arg(long, value_parser = Geodetic::parse, allow_hyphen_values = true)]
-    pub origin: Option<Geodetic>,
-    /// Subdivision of local scenes.
-    #[arg(long, value_enum, default_value_t = SchemeChoice::Auto)]
-    pub scheme: SchemeChoice,
+    #[command(flatten)]
+    pub frame: FrameArgs,
     /// What to do with splats holding NaN or infinite values.
     #[arg(long, value_enum, default_value_t = NonFinitePolicy::Drop)]
     pub non_finite: NonFinitePolicy,
-    /// Levels per subtree file [default: 6 for quadtrees, 4 for octrees].
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
-    pub subtree_levels: Option<u32>,
     /// Do not build level-of-detail parents (parent tiles stay empty).
     #[arg(long)]
     pub no_lod: bool,
@@ -114,17 +100,56 @@ pub struct ConvertArgs {
     pub quiet: bool,
 }
 
+/// The scene's frame and tiling: options shared by `convert` and `import-lapisgs`.
+#[derive(Debug, Args)]
+pub struct FrameArgs {
+    /// Which input axis points up: +x, -x, +y, -y, +z, -z [default: -y for .ply/.splat, +y for .spz].
+    #[arg(long, allow_hyphen_values = true)]
+    pub up_axis: Option<UpAxis>,
+    /// Turn the scene about its up axis by this many degrees (counter-clockwise from above).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub heading: f64,
+    /// Georeference the scene: lon,lat[,height] (degrees, metres) of its origin. Tiles then form a
+    /// Web-Mercator quadtree and the root carries an ECEF transform.
+    #[arg(long, value_parser = Geodetic::parse, allow_hyphen_values = true)]
+    pub origin: Option<Geodetic>,
+    /// Subdivision of local scenes.
+    #[arg(long, value_enum, default_value_t = SchemeChoice::Auto)]
+    pub scheme: SchemeChoice,
+    /// Levels per subtree file [default: 6 for quadtrees, 4 for octrees].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub subtree_levels: Option<u32>,
+}
+
+impl FrameArgs {
+    /// Why these options cannot be used (a heading that is not a finite number), if so.
+    pub fn check(&self) -> Result<(), &'static str> {
+        if self.heading.is_finite() {
+            Ok(())
+        } else {
+            Err("--heading must be a finite number of degrees")
+        }
+    }
+
+    /// `opts` with these options set.
+    pub fn apply(&self, opts: ConvertOptions) -> ConvertOptions {
+        ConvertOptions {
+            up_axis: self.up_axis,
+            heading_deg: self.heading,
+            origin: self.origin,
+            scheme: self.scheme,
+            subtree_levels: self.subtree_levels,
+            ..opts
+        }
+    }
+}
+
 /// The conversion options the arguments ask for.
 fn options(args: &ConvertArgs) -> ConvertOptions {
-    ConvertOptions {
+    args.frame.apply(ConvertOptions {
         max_splats_per_tile: args.max_splats as usize,
         max_depth: args.max_depth,
-        up_axis: args.up_axis,
-        heading_deg: args.heading,
-        origin: args.origin,
-        scheme: args.scheme,
         non_finite: args.non_finite,
-        subtree_levels: args.subtree_levels,
         keep_index_map: false,
         progress: !args.quiet && std::io::stderr().is_terminal(),
         lod: LodOptions {
@@ -144,7 +169,8 @@ fn options(args: &ConvertArgs) -> ConvertOptions {
             .bytes(),
         partition: None,
         layers: args.layers,
-    }
+        ..ConvertOptions::default()
+    })
 }
 
 /// `--partition views:DIR`: the trace folder.
@@ -157,8 +183,8 @@ fn parse_partition(s: &str) -> Result<PathBuf, String> {
 
 /// Runs `convert`; returns the process exit code.
 pub fn run(args: ConvertArgs) -> i32 {
-    if !args.heading.is_finite() {
-        eprintln!("splat2tiles: --heading must be a finite number of degrees");
+    if let Err(why) = args.frame.check() {
+        eprintln!("splat2tiles: {why}");
         return super::EXIT_FAILURE;
     }
     let mut opts = options(&args);

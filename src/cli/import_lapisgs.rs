@@ -1,9 +1,8 @@
 //! `splat2tiles import-lapisgs`: LapisGS-trained levels (one PLY per level) into a layered
 //! tileset (format v2, `spec/layered-content.md`), with a summary of what was carried or dropped.
 
-use crate::convert::{ConvertOptions, SchemeChoice, import_lapisgs};
-use crate::frame::UpAxis;
-use crate::frame::geo::Geodetic;
+use super::convert::FrameArgs;
+use crate::convert::{ConvertOptions, import_lapisgs};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -26,21 +25,8 @@ pub struct ImportLapisArgs {
     /// one is complete); nothing is written when a level is refused.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Which input axis points up: +x, -x, +y, -y, +z, -z [default: -y].
-    #[arg(long, allow_hyphen_values = true)]
-    pub up_axis: Option<UpAxis>,
-    /// Turn the scene about its up axis by this many degrees (counter-clockwise from above).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub heading: f64,
-    /// Georeference the scene: lon,lat[,height] of its origin (Web-Mercator quadtree).
-    #[arg(long, value_parser = Geodetic::parse, allow_hyphen_values = true)]
-    pub origin: Option<Geodetic>,
-    /// Subdivision of local scenes.
-    #[arg(long, value_enum, default_value_t = SchemeChoice::Auto)]
-    pub scheme: SchemeChoice,
-    /// Levels per subtree file [default: 6 for quadtrees, 4 for octrees].
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
-    pub subtree_levels: Option<u32>,
+    #[command(flatten)]
+    pub frame: FrameArgs,
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -51,19 +37,14 @@ pub struct ImportLapisArgs {
 
 /// Runs `import-lapisgs`; returns the process exit code.
 pub fn run(args: ImportLapisArgs) -> i32 {
-    if !args.heading.is_finite() {
-        eprintln!("splat2tiles: --heading must be a finite number of degrees");
+    if let Err(why) = args.frame.check() {
+        eprintln!("splat2tiles: {why}");
         return super::EXIT_FAILURE;
     }
-    let opts = ConvertOptions {
-        up_axis: args.up_axis,
-        heading_deg: args.heading,
-        origin: args.origin,
-        scheme: args.scheme,
-        subtree_levels: args.subtree_levels,
+    let opts = args.frame.apply(ConvertOptions {
         layers: true,
         ..ConvertOptions::default()
-    };
+    });
     crate::output::install_interrupt_handler();
     match import_lapisgs(&args.levels, &args.output, &opts) {
         Ok(r) => {
