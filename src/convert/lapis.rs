@@ -11,7 +11,9 @@
 //! (`spec/layered-content.md`, "Importing LapisGS-trained layers").
 
 use super::frame::{FrameAccum, Layout};
-use super::tileset::{TreeTile, build_tree, finish_tree, tileset_json, write_subtrees};
+use super::tileset::{
+    TreeTile, build_tree, finish_tree, tileset_json, write_subtrees, write_tileset_json,
+};
 use super::{ConvertError, ConvertOptions, ConvertReport, io_err, region};
 use crate::frame::geo::Geodetic;
 use crate::frame::{UpAxis, source_to_tileset};
@@ -399,13 +401,7 @@ pub fn import_lapisgs(
         }
         let mut tree = build_tree(tiles);
         finish_tree(&mut tree);
-        let subtree_levels = opts
-            .subtree_levels
-            .unwrap_or(match layout.scheme {
-                crate::tiling::Scheme::Quadtree => 6,
-                crate::tiling::Scheme::Octree => 4,
-            })
-            .clamp(1, levels as u32);
+        let subtree_levels = opts.subtree_levels_for(layout.scheme, levels as u32);
         Ok((tree, subtree_levels))
     })();
     let (tree, subtree_levels) = result.map_err(relocate)?;
@@ -435,15 +431,11 @@ pub fn import_lapisgs(
         &opts.variants,
     );
     tileset.root.refine = Some("ADD".into());
-    let json = serde_json::to_vec_pretty(&tileset).expect("tileset serialises");
-    let path = dir.join("tileset.json");
-    std::fs::write(&path, &json)
-        .map_err(io_err(&path, "writing"))
-        .map_err(relocate)?;
+    let json_bytes = write_tileset_json(&tileset, &dir).map_err(relocate)?;
     staging.commit()?;
     report.tiles = tree.len();
     report.content_tiles = tree.values().filter(|t| t.has_content).count();
-    report.bytes = content_bytes + subtree_bytes + json.len() as u64;
+    report.bytes = content_bytes + subtree_bytes + json_bytes;
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
 }

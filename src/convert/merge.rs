@@ -9,7 +9,9 @@ use super::region::{RegionCtx, RootContent, WrittenParent};
 use super::shard::{arr_key, bad, parse, read_bounded};
 use super::spill::Codec;
 use super::store::ContentStore;
-use super::tileset::{TreeTile, build_tree, finish_tree, tileset_json, view_error, write_subtrees};
+use super::tileset::{
+    TreeTile, build_tree, finish_tree, tileset_json, view_error, write_subtrees, write_tileset_json,
+};
 use super::{ConvertError, ConvertReport, SPILL_DIR, apply_parents, io_err};
 use crate::output::Staging;
 use crate::tiling::{Scheme, TileKey};
@@ -263,13 +265,7 @@ pub fn merge_parts(
             }
         }
     }
-    let subtree_levels = opts
-        .subtree_levels
-        .unwrap_or(match scheme {
-            Scheme::Quadtree => 6,
-            Scheme::Octree => 4,
-        })
-        .clamp(1, conv.levels.max(1));
+    let subtree_levels = opts.subtree_levels_for(scheme, conv.levels);
     write_subtrees(&tree, scheme, subtree_levels, &dir).map_err(relocate)?;
     let tileset = tileset_json(
         &tree,
@@ -280,11 +276,7 @@ pub fn merge_parts(
         &plan.file.input.name,
         &opts.variants,
     );
-    let json = serde_json::to_vec_pretty(&tileset).expect("tileset serialises");
-    let path = dir.join("tileset.json");
-    std::fs::write(&path, &json)
-        .map_err(io_err(&path, "writing"))
-        .map_err(relocate)?;
+    write_tileset_json(&tileset, &dir).map_err(relocate)?;
     report.bytes = super::part::folder_bytes(&dir);
     report.notes = staging.commit()?;
     report.seconds = start.elapsed().as_secs_f64();

@@ -42,7 +42,9 @@ use std::collections::HashMap;
 use std::panic::resume_unwind;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tileset::{TreeTile, build_tree, finish_tree, tileset_json, write_subtrees};
+use tileset::{
+    TreeTile, build_tree, finish_tree, tileset_json, write_subtrees, write_tileset_json,
+};
 
 /// Folder of the spill files inside the staging folder (removed before the output is committed).
 const SPILL_DIR: &str = ".spill";
@@ -107,6 +109,19 @@ pub struct ConvertOptions {
     /// Layered content (`--layers`, `spec/layered-content.md`): ADD refinement, every content
     /// a layer over its ancestors' with its parent's opacity deltas (needs LOD, Best only).
     pub layers: bool,
+}
+
+impl ConvertOptions {
+    /// Levels per subtree file for a tree of `levels` levels: `subtree_levels`, or 6 for a
+    /// quadtree and 4 for an octree, within 1..=`levels`.
+    pub fn subtree_levels_for(&self, scheme: crate::tiling::Scheme, levels: u32) -> u32 {
+        self.subtree_levels
+            .unwrap_or(match scheme {
+                crate::tiling::Scheme::Quadtree => 6,
+                crate::tiling::Scheme::Octree => 4,
+            })
+            .clamp(1, levels.max(1))
+    }
 }
 
 impl Default for ConvertOptions {
@@ -673,13 +688,7 @@ fn run(
     }
 
     // Tileset stage.
-    let subtree_levels = opts
-        .subtree_levels
-        .unwrap_or(match layout.scheme {
-            crate::tiling::Scheme::Quadtree => 6,
-            crate::tiling::Scheme::Octree => 4,
-        })
-        .clamp(1, report.levels.max(1));
+    let subtree_levels = opts.subtree_levels_for(layout.scheme, report.levels);
     let (subtrees, subtree_bytes) =
         write_subtrees(&tree, layout.scheme, subtree_levels, &dir).map_err(relocate)?;
     report.subtrees = subtrees;
@@ -697,12 +706,7 @@ fn run(
     if opts.layers {
         tileset.root.refine = Some("ADD".into());
     }
-    let json = serde_json::to_vec_pretty(&tileset).expect("tileset serialises");
-    let path = dir.join("tileset.json");
-    std::fs::write(&path, &json)
-        .map_err(io_err(&path, "writing"))
-        .map_err(relocate)?;
-    report.bytes += json.len() as u64;
+    report.bytes += write_tileset_json(&tileset, &dir).map_err(relocate)?;
 
     report.notes = staging.commit()?;
     report

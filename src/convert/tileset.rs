@@ -263,6 +263,14 @@ pub(super) fn write_subtrees(
     Ok((files, bytes))
 }
 
+/// Writes `tileset` as `dir/tileset.json`; returns the bytes written.
+pub(super) fn write_tileset_json(tileset: &Tileset, dir: &Path) -> Result<u64, ConvertError> {
+    let json = serde_json::to_vec_pretty(tileset).expect("tileset serialises");
+    let path = dir.join("tileset.json");
+    std::fs::write(&path, &json).map_err(io_err(&path, "writing"))?;
+    Ok(json.len() as u64)
+}
+
 /// The `tileset.json` document of the tree: implicit root, schema, variant metadata, extras.
 pub(super) fn tileset_json(
     tree: &BTreeMap<TileKey, TreeTile>,
