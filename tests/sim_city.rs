@@ -556,16 +556,7 @@ fn oracle_miss_causes_on_the_city_traces() {
                         } else {
                             0.0
                         };
-                    let (mut clock, mut late) = (start, 0);
-                    let mut heap = std::collections::BinaryHeap::new();
-                    for (due, b) in jobs.iter().filter(|j| j.0 > t0) {
-                        clock += *b as f64 / 1.25e6;
-                        heap.push(*b);
-                        if clock > *due + 1e-9 {
-                            clock -= heap.pop().unwrap() as f64 / 1.25e6;
-                            late += 1;
-                        }
-                    }
+                    let late = fewest_late(jobs.iter().filter(|j| j.0 > t0), start);
                     eprintln!(
                         "  DETAIL level {lvl}: fewest late first-time entries from t0, the first cut {}: {late} of {}",
                         if first_cut_first {
@@ -586,18 +577,7 @@ fn oracle_miss_causes_on_the_city_traces() {
                     })
                     .map_or(f64::INFINITY, |(_, t)| t.t);
                 let jobs: Vec<(f64, u64)> = jobs.into_iter().filter(|j| j.0 > warm_at).collect();
-                // Moore-Hodgson: the fewest late jobs on one machine (EDF, dropping the largest
-                // job whenever the schedule runs late).
-                let (mut clock, mut late, late_s) = (warm_at, 0, 0.0);
-                let mut heap = std::collections::BinaryHeap::new();
-                for (due, b) in &jobs {
-                    clock += *b as f64 / 1.25e6;
-                    heap.push(*b);
-                    if clock > *due + 1e-9 {
-                        clock -= heap.pop().unwrap() as f64 / 1.25e6;
-                        late += 1;
-                    }
-                }
+                let (late, late_s) = (fewest_late(&jobs, warm_at), 0.0);
                 for until in [12.0, 15.0, 20.0] {
                     let due: u64 = jobs
                         .iter()
@@ -851,6 +831,23 @@ fn oracle_miss_causes_on_the_city_traces() {
         sums.map(|v| v.to_string()).join(" | ")
     );
     eprintln!("oracle over every first-time entry: {}", pct(oracle_first));
+}
+
+/// Moore-Hodgson: the fewest late jobs `(due s, bytes)`, in deadline order, on a 10 Mbit/s link
+/// free from `start_s` (earliest deadline first, dropping the largest job whenever the schedule
+/// runs late).
+fn fewest_late<'a>(jobs: impl IntoIterator<Item = &'a (f64, u64)>, start_s: f64) -> usize {
+    let (mut clock, mut late) = (start_s, 0);
+    let mut heap = std::collections::BinaryHeap::new();
+    for (due, b) in jobs {
+        clock += *b as f64 / 1.25e6;
+        heap.push(*b);
+        if clock > *due + 1e-9 {
+            clock -= heap.pop().unwrap() as f64 / 1.25e6;
+            late += 1;
+        }
+    }
+    late
 }
 
 /// `hits/n (pct%)` of a hit ratio, as the tables print it.
