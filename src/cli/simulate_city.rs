@@ -86,6 +86,17 @@ fn mirrored(poses: &[ViewPose]) -> Vec<ViewPose> {
         .collect()
 }
 
+/// The client's predictor for a row name (the oracles are passed to the session separately and
+/// run on a reactive config; unknown names are reactive).
+pub fn predictor_kind(name: &str) -> PredictorKind {
+    match name {
+        "constant-velocity" => PredictorKind::ConstantVelocity,
+        "linear" => PredictorKind::Linear,
+        "tcn" => PredictorKind::Tcn,
+        _ => PredictorKind::Reactive,
+    }
+}
+
 /// One session of `predictor` (a [`PREDICTORS`] name) planned by `planner`.
 pub fn session(
     dir: &Path,
@@ -95,12 +106,7 @@ pub fn session(
     net: &NetModel,
     budget: u64,
 ) -> SessionLog {
-    let kind = match predictor {
-        "constant-velocity" => PredictorKind::ConstantVelocity,
-        "linear" => PredictorKind::Linear,
-        "tcn" => PredictorKind::Tcn,
-        _ => PredictorKind::Reactive,
-    };
+    let kind = predictor_kind(predictor);
     let oracle: Option<Vec<ViewPose>> = match predictor {
         "oracle" => Some(tr.poses.clone()),
         "oracle, mirrored" => Some(mirrored(&tr.poses)),
@@ -137,8 +143,14 @@ fn truncated(tr: &Trace, s: f64) -> Trace {
 /// The traces of Table 4 from the evaluation set: the first [`TRACE_S`] s of [`PER_KIND`] human
 /// sessions (every [`HUMAN_EVERY`]-th), street walks and flights, in that order.
 pub fn table4_traces(eval: &EvaluationSet) -> Vec<Trace> {
+    pick_traces(eval.traces())
+}
+
+/// [`table4_traces`]'s choice from any list of traces (e.g. a tuning split's, to check a rule
+/// on traces the evaluation does not use).
+pub fn pick_traces(traces: &[Trace]) -> Vec<Trace> {
     let of = |kind: &'static str| {
-        eval.traces()
+        traces
             .iter()
             .filter(move |t| t.header("kind") == Some(kind))
     };

@@ -34,6 +34,7 @@
 //!   `range_start = bytes kept` and `if_range = ETag`; a 206 continues, a 200 restarts cleanly.
 
 mod bootstrap;
+mod deadline_record;
 #[cfg(feature = "native")]
 pub mod native;
 mod planning;
@@ -44,6 +45,7 @@ mod transfers;
 pub mod updates;
 pub mod url;
 
+use deadline_record::DeadlineRecord;
 use selection::camera_ok;
 
 use std::collections::{HashMap, HashSet};
@@ -147,6 +149,12 @@ pub struct ClientConfig {
     pub predict_horizon_s: f64,
     /// Seconds between predicted poses.
     pub predict_step_s: f64,
+    /// Experimental, off by default: when the link cannot carry the missing prefetches by their
+    /// deadlines even at Low and the predictor's recent deadlines came true (`deadline_record`),
+    /// request missing prefetches at Low and those the planner could not fit on time after the
+    /// others (Moore-Hodgson). Measured in BENCHMARKS.md ("Setting late prefetches aside"): the
+    /// oracle gains on the test traces and loses on the validation traces, so it is not on.
+    pub set_aside_late: bool,
     /// Retries of a failed request before the tile (or subtree) is given up.
     pub max_retries: u32,
     /// First retry delay in seconds (doubles per failure).
@@ -181,6 +189,7 @@ impl Default for ClientConfig {
             predictor: PredictorKind::Linear,
             predict_horizon_s: 10.0,
             predict_step_s: 0.5,
+            set_aside_late: false,
             max_retries: 3,
             retry_base_s: 0.5,
         }
@@ -298,6 +307,12 @@ pub struct ClientStats {
     pub evictions: u64,
     /// Plans made (replans included).
     pub plans: u64,
+    /// Plans made while the predictor's recent short deadlines had come true often enough to
+    /// set aside prefetches that cannot be on time (`deadline_record`).
+    pub trusted_plans: u64,
+    /// Plans that set late prefetches aside: trusted deadlines and a link overloaded even at
+    /// Low (`planning::overloaded`).
+    pub set_aside_plans: u64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -381,6 +396,10 @@ struct Want {
     in_view: bool,
     /// Seconds until the tile is needed (0: in view).
     deadline: f64,
+    /// The planner could not fit it before its deadline (it was added because it is due
+    /// within `urgent_s`) while setting aside is on (`ClientConfig::set_aside_late`, overload,
+    /// trusted deadlines): it goes after the prefetches that can still be on time.
+    late: bool,
 }
 
 /// The streaming client (see the module docs).
@@ -432,6 +451,8 @@ pub struct StreamClient {
     wanted: Vec<Want>,
     /// The last plan's predicted views: tile and seconds until first seen (0: in view).
     predicted: Vec<(usize, f64)>,
+    /// How often the predictor's short deadlines came true (gates deadline-only triage).
+    deadlines: DeadlineRecord,
     last_plan: f64,
     dirty: bool,
     now: f64,
@@ -522,6 +543,7 @@ impl StreamClient {
             layer_data: HashMap::new(),
             wanted: vec![],
             predicted: vec![],
+            deadlines: DeadlineRecord::default(),
             last_plan: f64::NEG_INFINITY,
             dirty: true,
             now: 0.0,

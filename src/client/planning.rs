@@ -8,21 +8,27 @@ const PREFETCH_BEFORE_REPAIR_S: f64 = 0.5;
 
 /// Request order of a want, smaller first: missing tiles before upgrades of held ones; among
 /// each, with a prediction (`predicting`) a prefetch due within `PREFETCH_BEFORE_REPAIR_S`, then
-/// tiles in view, then the other prefetches.
+/// tiles in view, then the other prefetches, then prefetches the planner could not fit before
+/// their deadline (`Want::late`).
 ///
 /// - Missing tiles in view before prefetches further out, and upgrades last: with upgrades of
 ///   the view ahead of prefetches, tiles due in 1 s waited behind Low -> Best upgrades and were
 ///   requested after they entered (issue 19: the oracle's "late" misses on the walk).
 /// - An imminent prefetch before the repair of a tile already missed in view: the hole is
-///   there either way, the prefetch keeps one from opening (overload: late work must not make
-///   more work late). On the city's flight 38 (a burst that outruns the link) the oracle held
-///   254/404 of the entries after warm-up with repairs first and 328/404 with this.
-/// - Tried, not kept: prefetches the planner left out as not fitting before their deadline
-///   (added because due within `urgent_s`) after every other missing tile (Moore-Hodgson's
-///   rule): the oracle 93.5% -> 95.8% after warm-up on the city, but linear 65.8% -> 61.3%,
-///   tcn 28.5% -> 20.0% (BENCHMARKS.md, "Flight 38 is beyond the link").
+///   there either way, the prefetch keeps one from opening. On the city's flight 38 (a burst
+///   that outruns the link) the oracle held 254/404 of the entries after warm-up with repairs
+///   first and 328/404 with this.
+/// - A late prefetch after every other want for a missing tile, only with the experimental
+///   `ClientConfig::set_aside_late` (off by default), under overload and with trusted deadlines
+///   (`Want::late`): Moore-Hodgson's fewest-late rule, EDF with the jobs that cannot make it set
+///   aside. Once in view it is a repair. Ungated, on the city's six test traces after warm-up,
+///   the oracle rose 93.5% -> 95.8% but linear fell 65.8% -> 61.3% and tcn 28.5% -> 20.0%;
+///   gated, linear and tcn are unchanged and the oracle reaches 95.4% on the test traces but
+///   falls 90.7% -> 89.8% on the validation traces (BENCHMARKS.md, issue 19).
 fn want_group(w: &Want, held: bool, predicting: bool) -> (bool, u8) {
-    let class = if predicting && !w.in_view && w.deadline <= PREFETCH_BEFORE_REPAIR_S {
+    let class = if w.late && !w.in_view {
+        3
+    } else if predicting && !w.in_view && w.deadline <= PREFETCH_BEFORE_REPAIR_S {
         0
     } else if w.in_view {
         1
@@ -30,6 +36,44 @@ fn want_group(w: &Want, held: bool, predicting: bool) -> (bool, u8) {
         2
     };
     (held, class)
+}
+
+/// Whether the link cannot carry every missing prefetch by its deadline even at Low: `dues`
+/// holds `(seconds until due, Low bytes)`; a tile due at `d` may enter until `d + slack_s` (the
+/// prediction's step). Earliest deadline first over `link`'s per-step capacity (in-flight bytes
+/// and the round trip taken off the front): overloaded when some prefix does not fit. Only then
+/// is setting a prefetch aside Moore-Hodgson's fewest-late rule; without overload a tile the
+/// planner left out was left out for its utility, not because it cannot be on time.
+fn overloaded(
+    dues: &mut Vec<(f64, u64)>,
+    link: &LinkForecast,
+    cfg: &PlanStepConfig,
+    slack_s: f64,
+) -> bool {
+    dues.retain(|d| d.0.is_finite());
+    if dues.is_empty() || cfg.step_s.is_nan() || cfg.step_s <= 0.0 {
+        return false;
+    }
+    dues.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let last = dues[dues.len() - 1].0.max(0.0) + slack_s.max(0.0);
+    let steps = ((last / cfg.step_s).ceil() as usize).clamp(1, 1 << 20);
+    let rates = link.steps(cfg, steps);
+    let mut cap = 0.0f64;
+    let mut k = 0;
+    let mut need = 0.0f64;
+    for (j, rate) in rates.iter().enumerate() {
+        let end = (j + 1) as f64 * cfg.step_s;
+        cap += rate.max(0.0) * cfg.step_s;
+        while k < dues.len() && dues[k].0.max(0.0) + slack_s.max(0.0) <= end + 1e-9 {
+            need += dues[k].1 as f64;
+            k += 1;
+            if need > cap {
+                return true;
+            }
+        }
+    }
+    need += dues[k..].iter().map(|d| d.1 as f64).sum::<f64>();
+    need > cap
 }
 
 impl StreamClient {
@@ -59,6 +103,14 @@ impl StreamClient {
         self.request_subtrees(&wants, actions);
         self.subtree_wants = wants;
         let changed = view != self.view;
+        // Entries into the view judge the predictor's pending deadlines.
+        let step = self.cfg.predict_step_s;
+        for &i in &view {
+            if !self.in_view.get(i).copied().unwrap_or(false) {
+                self.deadlines.entered(i, self.now, step);
+            }
+        }
+        self.deadlines.expire(self.now, step);
         self.view = view;
         self.in_view = vec![false; n];
         for &i in &self.view {
@@ -151,6 +203,9 @@ impl StreamClient {
     pub(super) fn replan(&mut self, camera: &Camera, pose: &ViewPose) {
         self.last_plan = self.now;
         self.stats.plans += 1;
+        if self.deadlines.trusted() {
+            self.stats.trusted_plans += 1;
+        }
         self.dirty = false;
         self.predicted_subtrees.clear();
         let fallback = self.in_fallback();
@@ -191,6 +246,13 @@ impl StreamClient {
                 if !self.predicted_subtrees.contains(&k) {
                     self.predicted_subtrees.push(k);
                 }
+            }
+        }
+        // Deadlines go on the record (judged when the tile enters or the time passes).
+        self.deadlines.set_predicting(!predicted.is_empty());
+        for (i, &t) in first.iter().enumerate() {
+            if t.is_finite() && !self.in_view[i] {
+                self.deadlines.predicted(i, self.now + t);
             }
         }
         self.predicted = first
@@ -266,19 +328,45 @@ impl StreamClient {
             |i| self.cache.level(i),
             budget,
         );
+        // Overload (the missing prefetches do not fit by their deadlines even at Low) and a
+        // predictor whose deadlines came true: only then are late prefetches set aside.
+        let set_aside = self.cfg.set_aside_late && self.deadlines.trusted() && {
+            let mut dues: Vec<(f64, u64)> = firsts
+                .iter()
+                .filter(|&&(i, t)| t > 0.0 && !self.in_view[i] && self.cache.level(i).is_none())
+                .filter_map(|&(i, t)| {
+                    let low = self.usable_level(i, Level::Low)?;
+                    Some((t, self.catalog.tiles[i].variants[low.index()].bytes))
+                })
+                .collect();
+            overloaded(&mut dues, &link, &step, self.cfg.predict_step_s)
+        };
+        if set_aside {
+            self.stats.set_aside_plans += 1;
+        }
         let frustum = Frustum::new(pose, &self.cfg.plan.intrinsics);
         let mut wanted: Vec<Want> = vec![];
         let mut seen = HashSet::new();
         for f in &plan.fetches {
             let c = &cands[f.candidate];
-            let Some(level) = self.usable_level(c.tile, f.level) else {
+            // While setting aside (overload), a missing prefetch comes at Low: coverage before
+            // quality, as the overload test assumed.
+            let asked = if set_aside && !self.in_view[c.tile] && self.cache.level(c.tile).is_none()
+            {
+                Level::Low
+            } else {
+                f.level
+            };
+            let Some(level) = self.usable_level(c.tile, asked) else {
                 continue;
             };
             let level = self.resume_level(c.tile, level);
             // The predicted first visibility, not the planner's deadline (at least `urgent_s`):
             // the wants are requested in this order.
             if seen.insert(c.tile) {
-                wanted.push(self.want(c.tile, level, first[c.tile], &frustum));
+                let mut w = self.want(c.tile, level, first[c.tile], &frustum);
+                w.late = set_aside && !f.finish_s.is_finite();
+                wanted.push(w);
             }
         }
         // Downloads in flight go on while their tile is in view or predicted within the
@@ -390,6 +478,7 @@ impl StreamClient {
             priority: priority as f32,
             in_view,
             deadline,
+            late: false,
         }
     }
 }
@@ -398,27 +487,67 @@ impl StreamClient {
 mod tests {
     use super::*;
 
-    fn want(in_view: bool, deadline: f64) -> Want {
+    fn want(in_view: bool, deadline: f64, late: bool) -> Want {
         Want {
             tile: 0,
             level: Level::Low,
             priority: 0.5,
             in_view,
             deadline,
+            late,
         }
     }
 
     #[test]
-    fn imminent_prefetches_then_repairs_then_prefetches_then_upgrades() {
-        let soon = want(false, 0.2);
-        let repair = want(true, 0.0);
-        let later = want(false, 3.0);
+    fn overload_is_edf_at_low_against_the_link() {
+        let cfg = PlanStepConfig {
+            step_s: 0.02,
+            latency_s: 0.0,
+            ..PlanStepConfig::default()
+        };
+        // 1 MB/s: 0.5 MB due by 0.5 s (+ 0.5 s slack) fits, 1.2 MB by then does not.
+        let link = LinkForecast::constant(1.0e6);
+        assert!(!overloaded(&mut vec![(0.5, 500_000)], &link, &cfg, 0.5));
+        assert!(overloaded(
+            &mut vec![(0.5, 600_000), (0.2, 600_000)],
+            &link,
+            &cfg,
+            0.5
+        ));
+        // The same bytes spread to 3 s fit; in-flight bytes come first and tip it over.
+        let spread = || vec![(0.5, 600_000), (2.5, 600_000)];
+        assert!(!overloaded(&mut spread(), &link, &cfg, 0.5));
+        let busy = LinkForecast {
+            in_flight_bytes: 2_000_000,
+            ..LinkForecast::constant(1.0e6)
+        };
+        assert!(overloaded(&mut spread(), &busy, &cfg, 0.5));
+        // Nothing due, non-finite deadlines, a zero step: no overload, no panic.
+        assert!(!overloaded(&mut vec![], &link, &cfg, 0.5));
+        assert!(!overloaded(
+            &mut vec![(f64::NAN, 1), (f64::INFINITY, 1)],
+            &link,
+            &cfg,
+            0.5
+        ));
+        let zero = PlanStepConfig { step_s: 0.0, ..cfg };
+        assert!(!overloaded(&mut spread(), &link, &zero, 0.5));
+    }
+
+    #[test]
+    fn late_prefetches_go_after_on_time_ones_and_repairs_and_before_upgrades() {
+        let soon = want(false, 0.2, false);
+        let repair = want(true, 0.0, false);
+        let later = want(false, 3.0, false);
+        let late = want(false, 0.3, true);
         let g = |w: &Want, held| want_group(w, held, true);
         assert!(g(&soon, false) < g(&repair, false));
         assert!(g(&repair, false) < g(&later, false));
-        // Every missing tile before any upgrade.
-        assert!(g(&later, false) < g(&soon, true));
-        // Without a prediction, repairs come first.
+        assert!(g(&later, false) < g(&late, false));
+        // Every missing tile, late or not, before any upgrade.
+        assert!(g(&late, false) < g(&soon, true));
+        // A late want in view is a repair; without a prediction repairs come first.
+        assert_eq!(g(&want(true, 0.0, true), false), g(&repair, false));
         assert!(want_group(&repair, false, false) < want_group(&soon, false, false));
     }
 }

@@ -96,6 +96,11 @@ pub struct SessionLog {
     pub errors: u64,
     /// Plans the client made.
     pub plans: u64,
+    /// Plans made while the client trusted its predictor's short deadlines
+    /// ([`ClientStats::trusted_plans`](crate::client::ClientStats::trusted_plans)).
+    pub trusted_plans: u64,
+    /// Plans that set late prefetches aside ([`ClientStats::set_aside_plans`](crate::client::ClientStats::set_aside_plans)).
+    pub set_aside_plans: u64,
     /// Every client input in order, when [`SessionOptions::record_inputs`] was set.
     pub inputs: Vec<Input>,
     /// The actions of each update, in order, when [`SessionOptions::record_inputs`] was set.
@@ -243,6 +248,8 @@ pub fn run_session(
     run.log.evictions = s.evictions;
     run.log.errors = s.errors;
     run.log.plans = s.plans;
+    run.log.trusted_plans = s.trusted_plans;
+    run.log.set_aside_plans = s.set_aside_plans;
     run.log.requests = run
         .net
         .log()
