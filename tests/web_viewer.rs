@@ -370,9 +370,10 @@ fn city(dir: &Path, name: &str, n: usize, origin: Option<&str>) -> PathBuf {
 
 /// Renders `dir`'s tileset with `splat2tiles render` and in the web viewer (headless Chromium)
 /// for one view (`--auto-view K` or `--camera SPEC`) at `max_sse`; returns the SSIM, the mean
-/// pixel value of the reference, and the viewer's final stats. The viewer may hold fewer splats
-/// than the reference (its client skips tiles outside the frustum, the reference's selection
-/// does not), never more.
+/// pixel value of the reference, and the viewer's final stats. Once settled (its last frame drew
+/// every tile at full opacity: none fading out, which is resident but no longer in the cut) the
+/// viewer may hold fewer splats than the reference (its client skips tiles outside the frustum,
+/// the reference's selection does not), never more.
 fn web_vs_reference(dir: &Path, how: &[&str], max_sse: f64, name: &str) -> (f64, f64, Value) {
     let (w, h) = (320u32, 240u32);
     let tmp = dir.parent().unwrap();
@@ -424,7 +425,8 @@ fn web_vs_reference(dir: &Path, how: &[&str], max_sse: f64, name: &str) -> (f64,
     let resident = u(&fin["residentSplats"]);
     assert!(
         resident > 0 && resident <= splats,
-        "{name}: {splats} splats in the reference: {fin:#}"
+        "{name}: {resident} splats resident (rendererTiles: live and fading out), \
+         {splats} in the reference: {fin:#}"
     );
     let a = Image::load_png(&shot).unwrap();
     let b = Image::load_png(&reference).unwrap();
