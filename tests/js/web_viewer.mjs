@@ -105,7 +105,8 @@ try {
   await page.evaluate(() => window.splat2tiles.turn(-180, 0));
   }
   out.final = await waitFor('settled', (s) => s.idle && s.settled && s.residentSplats > 0, timeoutMs);
-  // Two more frames so the last fade has been drawn at full opacity.
+  // settled: the last frame drew every tile at full opacity (no fade running); a moment more
+  // so that frame has reached the page's compositor.
   await page.waitForTimeout(300);
   const png = await page.locator('#view').screenshot();
   fs.writeFileSync(opt.shot, png);

@@ -109,6 +109,8 @@ pub struct FrameStats {
     pub refused_splats: usize,
     /// Splats skipped on upload so far for holding NaN/Inf.
     pub skipped_non_finite: usize,
+    /// Some tile was drawn part-transparent this frame: fading in, or fading out after a remove.
+    pub fading: bool,
 }
 
 /// The CPU copy kept per uploaded batch: tile-local positions and their slots (for depth keys).
@@ -1055,6 +1057,8 @@ impl SplatRenderer {
                 i += 1;
             }
         }
+        stats.fading =
+            !self.dying.is_empty() || self.tiles.values().any(|t| self.fade_in(t, now_s) < 1.0);
         // 2. Newest order from the worker; then a new sort when needed.
         let blocking = self.cfg.blocking_sort || cfg!(target_arch = "wasm32");
         if let Some(r) = self.sorter.poll(blocking) {

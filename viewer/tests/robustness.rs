@@ -130,6 +130,13 @@ fn frame(g: &Headless, r: &mut SplatRenderer, now: f64) -> splat2tiles::render::
     t.read(&g.device, &g.queue).unwrap()
 }
 
+/// Renders one frame of `r` at `now`: whether some tile was drawn fading in or out.
+fn fading_at(g: &Headless, r: &mut SplatRenderer, now: f64) -> bool {
+    let cam = cam();
+    let t = Offscreen::new(&g.device, cam.width, cam.height).unwrap();
+    r.render(&g.device, &g.queue, &t.view, &cam, now).fading
+}
+
 use splat2tiles_viewer::gpu::Headless;
 
 #[test]
@@ -150,7 +157,9 @@ fn tiles_fade_append_replace_and_free() {
         "alpha 0 at insert time"
     );
     let half_way = mean(&frame(&g, &mut r, 10.15));
+    assert!(fading_at(&g, &mut r, 10.2), "fading in");
     let full_first = mean(&frame(&g, &mut r, 10.3));
+    assert!(!fading_at(&g, &mut r, 10.35), "faded in");
     assert!(
         0.0 < half_way && half_way < full_first,
         "{half_way} {full_first}"
@@ -172,8 +181,10 @@ fn tiles_fade_append_replace_and_free() {
     r.remove_tile(1, 11.0);
     let mid = frame(&g, &mut r, 11.15);
     assert_eq!(r.resident_tiles(), 2);
+    assert!(fading_at(&g, &mut r, 11.2), "cross-fade");
     let done = frame(&g, &mut r, 11.4);
     assert_eq!(r.resident_tiles(), 1, "faded-out tile freed");
+    assert!(!fading_at(&g, &mut r, 11.45), "cross-fade over");
     assert_eq!(r.resident_splats(), 9);
     assert!(mid.data != done.data && mid.data != appended.data);
     // Slots freed by the removed tile are reused: the page count does not grow.
@@ -187,7 +198,11 @@ fn tiles_fade_append_replace_and_free() {
     assert_eq!(r.resident_splats(), 9);
     // Removing everything leaves the background.
     r.remove_tile(2, 14.0);
+    // Fading out alone (nothing fading in) is fading too: the tile is resident, not in the scene.
+    assert!(fading_at(&g, &mut r, 14.1), "fading out");
+    assert_eq!(r.resident_splats(), 9);
     let empty = frame(&g, &mut r, 15.0);
+    assert!(!fading_at(&g, &mut r, 15.1), "faded out");
     assert_eq!(mean(&empty), 0.0);
     assert_eq!(r.resident_splats(), 0);
     assert!(r.cpu_bytes() < 1 << 20);

@@ -150,12 +150,12 @@ pub struct WebViewer {
     last_frame: Option<f64>,
     /// Exponential mean of the frame interval, seconds.
     frame_dt: f64,
-    /// Last time a tile was inserted or removed (fades last `fade_s` from then).
-    last_change: f64,
+    /// The last frame drew every tile at full opacity (none fading in or out, the sort order
+    /// current) and no scene update has been applied since: what `settled` reports.
+    steady: bool,
     /// The camera was turned or jumped by script/input and no frame has planned for it yet:
     /// until one has, idle/settled describe the old view and must not be reported.
     view_unplanned: bool,
-    fade_s: f64,
     frames: u64,
     drawn: usize,
     sort_ms: f64,
@@ -247,9 +247,8 @@ impl WebViewer {
             controls: None,
             last_frame: None,
             frame_dt: 0.0,
-            last_change: f64::NEG_INFINITY,
+            steady: false,
             view_unplanned: false,
-            fade_s: rcfg.fade_s,
             frames: 0,
             drawn: 0,
             sort_ms: 0.0,
@@ -390,7 +389,8 @@ impl WebViewer {
         fetch::dispatch(&self.shared, actions);
         let updates = self.shared.borrow_mut().client.take_updates();
         if !updates.is_empty() {
-            self.last_change = now_s;
+            // Until a frame draws them (this one, unless the surface is lost below).
+            self.steady = false;
         }
         // Shared with the native viewer: updates, then layered opacities (blend + ramp).
         let s = self.shared.borrow();
@@ -434,6 +434,7 @@ impl WebViewer {
         self.queue.present(frame);
         self.frames += 1;
         self.drawn = stats.drawn;
+        self.steady = !stats.fading && !stats.sort_pending;
         if stats.sorted {
             self.sort_ms = stats.sort_ms;
         }
@@ -497,12 +498,13 @@ impl WebViewer {
     fn stats_value(&self) -> serde_json::Value {
         let s = self.shared.borrow();
         let c = s.client.stats();
-        let now = fetch::now_s();
         json!({
             "ready": c.ready,
             "frames": self.frames,
             "fps": if self.frame_dt > 0.0 { 1.0 / self.frame_dt } else { 0.0 },
             "residentSplats": self.renderer.resident_splats(),
+            // Drawables in the renderer (live and fading out; residentTiles is the client's cache).
+            "rendererTiles": self.renderer.resident_tiles(),
             "drawn": self.drawn,
             "clientSplats": c.resident_splats,
             "residentTiles": c.resident_tiles,
@@ -531,10 +533,12 @@ impl WebViewer {
                 && s.client.is_idle()
                 && s.in_flight() == 0
                 && !s.client.has_updates(),
+            // The frame on screen is final: drawn after every scene update, with no tile fading
+            // in or out (a fading-out tile is still resident, though no longer in the cut).
             "settled": !self.view_unplanned
                 && !s.client.has_updates()
                 && !self.ramping
-                && now - self.last_change > self.fade_s + 0.05,
+                && self.steady,
             "layered": s.client.is_layered(),
             "layerBlends": self.layer_blends,
         })
