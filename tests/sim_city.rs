@@ -350,6 +350,7 @@ fn oracle_miss_causes_on_the_city_traces() {
             "HORIZON",
             "PLANNER",
             "SET_ASIDE",
+            "LOW_UNDER_OVERLOAD",
         ]
         .iter()
         .any(|k| knob(k).is_some());
@@ -387,6 +388,9 @@ fn oracle_miss_causes_on_the_city_traces() {
             if let Some(v) = knob("SET_ASIDE") {
                 c.set_aside_late = v != 0.0;
             }
+            if let Some(v) = knob("LOW_UNDER_OVERLOAD") {
+                c.low_under_overload = v != 0.0;
+            }
             let opts = SessionOptions {
                 predictor: (p == "oracle").then(|| {
                     Box::new(Oracle {
@@ -405,15 +409,15 @@ fn oracle_miss_causes_on_the_city_traces() {
         let ((ow, of), why) = warm(&oracle);
         let ((rw, _), _) = warm(&reactive);
         eprintln!(
-            "  {}: plans trusting the deadlines (setting late prefetches aside): oracle {}/{} ({}), \
+            "  {}: plans trusting the deadlines (under overload): oracle {}/{} ({}), \
              {second} {}/{} ({})",
             label(&tr),
             oracle.trusted_plans,
             oracle.plans,
-            oracle.set_aside_plans,
+            oracle.overload_plans,
             reactive.trusted_plans,
             reactive.plans,
-            reactive.set_aside_plans
+            reactive.overload_plans
         );
         oracle_first.hits += of.hits;
         oracle_first.n += of.n;

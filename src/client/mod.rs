@@ -149,11 +149,15 @@ pub struct ClientConfig {
     pub predict_horizon_s: f64,
     /// Seconds between predicted poses.
     pub predict_step_s: f64,
-    /// Experimental, off by default: when the link cannot carry the missing prefetches by their
-    /// deadlines even at Low and the predictor's recent deadlines came true (`deadline_record`),
-    /// request missing prefetches at Low and those the planner could not fit on time after the
-    /// others (Moore-Hodgson). Measured in BENCHMARKS.md ("Setting late prefetches aside"): the
-    /// oracle gains on the test traces and loses on the validation traces, so it is not on.
+    /// When the link cannot carry the missing prefetches by their deadlines even at Low
+    /// (earliest deadline first over the forecast), ask them at Low: coverage before quality,
+    /// upgrades later (on by default; chosen on the validation traces, BENCHMARKS.md issue 19).
+    pub low_under_overload: bool,
+    /// Experimental, off by default: under that overload, and when the predictor's recent
+    /// deadlines came true (`deadline_record`), request the prefetches the planner could not fit
+    /// on time after the others (Moore-Hodgson). Measured in BENCHMARKS.md ("Setting late
+    /// prefetches aside"): the oracle gains on the test traces and loses on the validation
+    /// traces, so it is not on.
     pub set_aside_late: bool,
     /// Retries of a failed request before the tile (or subtree) is given up.
     pub max_retries: u32,
@@ -189,6 +193,7 @@ impl Default for ClientConfig {
             predictor: PredictorKind::Linear,
             predict_horizon_s: 10.0,
             predict_step_s: 0.5,
+            low_under_overload: true,
             set_aside_late: false,
             max_retries: 3,
             retry_base_s: 0.5,
@@ -310,9 +315,9 @@ pub struct ClientStats {
     /// Plans made while the predictor's recent short deadlines had come true often enough to
     /// set aside prefetches that cannot be on time (`deadline_record`).
     pub trusted_plans: u64,
-    /// Plans that set late prefetches aside: trusted deadlines and a link overloaded even at
-    /// Low (`planning::overloaded`).
-    pub set_aside_plans: u64,
+    /// Plans made while the link could not carry the missing prefetches by their deadlines
+    /// even at Low (`planning::overloaded`).
+    pub overload_plans: u64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

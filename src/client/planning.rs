@@ -24,7 +24,8 @@ const PREFETCH_BEFORE_REPAIR_S: f64 = 0.5;
 ///   aside. Once in view it is a repair. Ungated, on the city's six test traces after warm-up,
 ///   the oracle rose 93.5% -> 95.8% but linear fell 65.8% -> 61.3% and tcn 28.5% -> 20.0%;
 ///   gated, linear and tcn are unchanged and the oracle reaches 95.4% on the test traces but
-///   falls 90.7% -> 89.8% on the validation traces (BENCHMARKS.md, issue 19).
+///   falls 90.7% -> 89.8% on the validation traces (BENCHMARKS.md, issue 19). What is kept of
+///   it (`ClientConfig::low_under_overload`): under overload, missing prefetches at Low.
 fn want_group(w: &Want, held: bool, predicting: bool) -> (bool, u8) {
     let class = if w.late && !w.in_view {
         3
@@ -328,9 +329,10 @@ impl StreamClient {
             |i| self.cache.level(i),
             budget,
         );
-        // Overload (the missing prefetches do not fit by their deadlines even at Low) and a
-        // predictor whose deadlines came true: only then are late prefetches set aside.
-        let set_aside = self.cfg.set_aside_late && self.deadlines.trusted() && {
+        // Overload: the missing prefetches do not fit by their deadlines even at Low. Then they
+        // are asked at Low (coverage before quality), and with the experimental
+        // `set_aside_late` and trusted deadlines the late ones go after the others.
+        let overload = (self.cfg.low_under_overload || self.cfg.set_aside_late) && {
             let mut dues: Vec<(f64, u64)> = firsts
                 .iter()
                 .filter(|&&(i, t)| t > 0.0 && !self.in_view[i] && self.cache.level(i).is_none())
@@ -341,18 +343,18 @@ impl StreamClient {
                 .collect();
             overloaded(&mut dues, &link, &step, self.cfg.predict_step_s)
         };
-        if set_aside {
-            self.stats.set_aside_plans += 1;
+        if overload {
+            self.stats.overload_plans += 1;
         }
+        let set_aside = overload && self.cfg.set_aside_late && self.deadlines.trusted();
+        let at_low = overload && (self.cfg.low_under_overload || set_aside);
         let frustum = Frustum::new(pose, &self.cfg.plan.intrinsics);
         let mut wanted: Vec<Want> = vec![];
         let mut seen = HashSet::new();
         for f in &plan.fetches {
             let c = &cands[f.candidate];
-            // While setting aside (overload), a missing prefetch comes at Low: coverage before
-            // quality, as the overload test assumed.
-            let asked = if set_aside && !self.in_view[c.tile] && self.cache.level(c.tile).is_none()
-            {
+            // Under overload a missing prefetch comes at Low, as the overload test assumed.
+            let asked = if at_low && !self.in_view[c.tile] && self.cache.level(c.tile).is_none() {
                 Level::Low
             } else {
                 f.level

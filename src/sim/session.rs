@@ -99,8 +99,8 @@ pub struct SessionLog {
     /// Plans made while the client trusted its predictor's short deadlines
     /// ([`ClientStats::trusted_plans`](crate::client::ClientStats::trusted_plans)).
     pub trusted_plans: u64,
-    /// Plans that set late prefetches aside ([`ClientStats::set_aside_plans`](crate::client::ClientStats::set_aside_plans)).
-    pub set_aside_plans: u64,
+    /// Plans made under overload ([`ClientStats::overload_plans`](crate::client::ClientStats::overload_plans)).
+    pub overload_plans: u64,
     /// Every client input in order, when [`SessionOptions::record_inputs`] was set.
     pub inputs: Vec<Input>,
     /// The actions of each update, in order, when [`SessionOptions::record_inputs`] was set.
@@ -249,7 +249,7 @@ pub fn run_session(
     run.log.errors = s.errors;
     run.log.plans = s.plans;
     run.log.trusted_plans = s.trusted_plans;
-    run.log.set_aside_plans = s.set_aside_plans;
+    run.log.overload_plans = s.overload_plans;
     run.log.requests = run
         .net
         .log()
