@@ -297,17 +297,17 @@ fn oracle_miss_causes_on_the_city_traces() {
     let eval = splat2tiles::sim::stream_city::evaluation_set(&grid, nav).unwrap();
     // `SPLIT=val` (or `train`) runs the same choice of traces from that split instead of the
     // evaluation's test split: a rule designed while reading this breakdown is checked there.
-    let traces = match std::env::var("SPLIT").as_deref() {
-        Ok("val") | Ok("train") => {
-            let split = if std::env::var("SPLIT").as_deref() == Ok("val") {
-                splat2tiles::sim::split::Split::Val
-            } else {
-                splat2tiles::sim::split::Split::Train
-            };
-            let all = splat2tiles::sim::stream_city::trace_set(&grid, nav, split).unwrap();
-            splat2tiles::cli::simulate_city::pick_traces(&all)
-        }
-        _ => table4_traces(&eval),
+    use splat2tiles::sim::split::Split;
+    let split = match std::env::var("SPLIT").as_deref() {
+        Ok("val") => Some(Split::Val),
+        Ok("train") => Some(Split::Train),
+        _ => None,
+    };
+    let traces = match split {
+        Some(split) => splat2tiles::cli::simulate_city::pick_traces(
+            &splat2tiles::sim::stream_city::trace_set(&grid, nav, split).unwrap(),
+        ),
+        None => table4_traces(&eval),
     };
     let cfg = ClientConfig::default();
     let net = NetModel::constant(10.0, 0.04);
@@ -360,7 +360,7 @@ fn oracle_miss_causes_on_the_city_traces() {
             }
             let mut c = ClientConfig {
                 max_concurrent: 4,
-                predictor: splat2tiles::cli::simulate_city::predictor_kind(p),
+                predictor: PredictorKind::from_name(p).unwrap_or(PredictorKind::Reactive),
                 memory_budget_bytes: budget,
                 ..ClientConfig::default()
             };
@@ -409,7 +409,8 @@ fn oracle_miss_causes_on_the_city_traces() {
         let ((ow, of), why) = warm(&oracle);
         let ((rw, _), _) = warm(&reactive);
         eprintln!(
-            "  {}: plans trusting the deadlines (under overload): oracle {}/{} ({}), \
+            "  {}: plans trusting the deadlines (0 unless SET_ASIDE=1) (under overload): \
+             oracle {}/{} ({}), \
              {second} {}/{} ({})",
             label(&tr),
             oracle.trusted_plans,

@@ -363,12 +363,9 @@ const PREDICTORS: [&str; 5] = ["reactive", "constant-velocity", "linear", "tcn",
 
 /// One session of `predictor` (a [`PREDICTORS`] name) on `tr` over `net`.
 fn session(s: &Scene, tr: &Trace, predictor: &str, net: &NetModel) -> SessionLog {
-    let (kind, oracle) = match predictor {
-        "reactive" => (PredictorKind::Reactive, false),
-        "constant-velocity" => (PredictorKind::ConstantVelocity, false),
-        "linear" => (PredictorKind::Linear, false),
-        "tcn" => (PredictorKind::Tcn, false),
-        _ => (PredictorKind::Reactive, true),
+    let (kind, oracle) = match PredictorKind::from_name(predictor) {
+        Some(kind) => (kind, false),
+        None => (PredictorKind::Reactive, true),
     };
     let opts = SessionOptions {
         predictor: oracle.then(|| {

@@ -86,17 +86,6 @@ fn mirrored(poses: &[ViewPose]) -> Vec<ViewPose> {
         .collect()
 }
 
-/// The client's predictor for a row name (the oracles are passed to the session separately and
-/// run on a reactive config; unknown names are reactive).
-pub fn predictor_kind(name: &str) -> PredictorKind {
-    match name {
-        "constant-velocity" => PredictorKind::ConstantVelocity,
-        "linear" => PredictorKind::Linear,
-        "tcn" => PredictorKind::Tcn,
-        _ => PredictorKind::Reactive,
-    }
-}
-
 /// One session of `predictor` (a [`PREDICTORS`] name) planned by `planner`.
 pub fn session(
     dir: &Path,
@@ -106,7 +95,8 @@ pub fn session(
     net: &NetModel,
     budget: u64,
 ) -> SessionLog {
-    let kind = predictor_kind(predictor);
+    // The oracles run on a reactive config with their own predictor (below).
+    let kind = PredictorKind::from_name(predictor).unwrap_or(PredictorKind::Reactive);
     let oracle: Option<Vec<ViewPose>> = match predictor {
         "oracle" => Some(tr.poses.clone()),
         "oracle, mirrored" => Some(mirrored(&tr.poses)),

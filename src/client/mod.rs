@@ -105,6 +105,19 @@ pub enum PredictorKind {
     Tcn,
 }
 
+impl PredictorKind {
+    /// The kind a name stands for (`reactive`, `constant-velocity`, `linear`, `tcn`).
+    pub fn from_name(name: &str) -> Option<PredictorKind> {
+        match name {
+            "reactive" => Some(PredictorKind::Reactive),
+            "constant-velocity" => Some(PredictorKind::ConstantVelocity),
+            "linear" => Some(PredictorKind::Linear),
+            "tcn" => Some(PredictorKind::Tcn),
+            _ => None,
+        }
+    }
+}
+
 /// Client settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClientConfig {
@@ -312,8 +325,9 @@ pub struct ClientStats {
     pub evictions: u64,
     /// Plans made (replans included).
     pub plans: u64,
-    /// Plans made while the predictor's recent short deadlines had come true often enough to
-    /// set aside prefetches that cannot be on time (`deadline_record`).
+    /// Plans made while the predictor's recent deadlines had come true often enough to set
+    /// aside prefetches that cannot be on time (`deadline_record`, kept only with
+    /// `ClientConfig::set_aside_late`; 0 without it).
     pub trusted_plans: u64,
     /// Plans made while the link could not carry the missing prefetches by their deadlines
     /// even at Low (`planning::overloaded`).
@@ -456,7 +470,7 @@ pub struct StreamClient {
     wanted: Vec<Want>,
     /// The last plan's predicted views: tile and seconds until first seen (0: in view).
     predicted: Vec<(usize, f64)>,
-    /// How often the predictor's short deadlines came true (gates deadline-only triage).
+    /// How often the predictor's deadlines came true (kept only with `set_aside_late`).
     deadlines: DeadlineRecord,
     last_plan: f64,
     dirty: bool,

@@ -56,7 +56,8 @@ fn overloaded(
         return false;
     }
     dues.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let last = dues[dues.len() - 1].0.max(0.0) + slack_s.max(0.0);
+    let slack_s = slack_s.max(0.0);
+    let last = dues[dues.len() - 1].0.max(0.0) + slack_s;
     let steps = ((last / cfg.step_s).ceil() as usize).clamp(1, 1 << 20);
     let rates = link.steps(cfg, steps);
     let mut cap = 0.0f64;
@@ -65,7 +66,7 @@ fn overloaded(
     for (j, rate) in rates.iter().enumerate() {
         let end = (j + 1) as f64 * cfg.step_s;
         cap += rate.max(0.0) * cfg.step_s;
-        while k < dues.len() && dues[k].0.max(0.0) + slack_s.max(0.0) <= end + 1e-9 {
+        while k < dues.len() && dues[k].0.max(0.0) + slack_s <= end + 1e-9 {
             need += dues[k].1 as f64;
             k += 1;
             if need > cap {
@@ -104,14 +105,17 @@ impl StreamClient {
         self.request_subtrees(&wants, actions);
         self.subtree_wants = wants;
         let changed = view != self.view;
-        // Entries into the view judge the predictor's pending deadlines.
-        let step = self.cfg.predict_step_s;
-        for &i in &view {
-            if !self.in_view.get(i).copied().unwrap_or(false) {
-                self.deadlines.entered(i, self.now, step);
+        // Entries into the view judge the predictor's pending deadlines (the record is kept
+        // only for `set_aside_late`, its one reader).
+        if self.cfg.set_aside_late {
+            let step = self.cfg.predict_step_s;
+            for &i in &view {
+                if !self.in_view.get(i).copied().unwrap_or(false) {
+                    self.deadlines.entered(i, self.now, step);
+                }
             }
+            self.deadlines.expire(self.now, step);
         }
-        self.deadlines.expire(self.now, step);
         self.view = view;
         self.in_view = vec![false; n];
         for &i in &self.view {
@@ -250,10 +254,12 @@ impl StreamClient {
             }
         }
         // Deadlines go on the record (judged when the tile enters or the time passes).
-        self.deadlines.set_predicting(!predicted.is_empty());
-        for (i, &t) in first.iter().enumerate() {
-            if t.is_finite() && !self.in_view[i] {
-                self.deadlines.predicted(i, self.now + t);
+        if self.cfg.set_aside_late {
+            self.deadlines.set_predicting(!predicted.is_empty());
+            for (i, &t) in first.iter().enumerate() {
+                if t.is_finite() && !self.in_view[i] {
+                    self.deadlines.predicted(i, self.now + t);
+                }
             }
         }
         self.predicted = first

@@ -96,7 +96,7 @@ pub struct SessionLog {
     pub errors: u64,
     /// Plans the client made.
     pub plans: u64,
-    /// Plans made while the client trusted its predictor's short deadlines
+    /// Plans made while the client trusted its predictor's deadlines (with `set_aside_late`)
     /// ([`ClientStats::trusted_plans`](crate::client::ClientStats::trusted_plans)).
     pub trusted_plans: u64,
     /// Plans made under overload ([`ClientStats::overload_plans`](crate::client::ClientStats::overload_plans)).

@@ -98,20 +98,14 @@ impl Options {
                 "hard" => BlendMode::HardSwap,
                 other => return Err(format!("unknown blend '{other}' (continuous, hard)")),
             },
-            predictor: match v
-                .get("predictor")
-                .and_then(|m| m.as_str())
-                .unwrap_or("linear")
-            {
-                "reactive" => PredictorKind::Reactive,
-                "constant-velocity" => PredictorKind::ConstantVelocity,
-                "linear" => PredictorKind::Linear,
-                "tcn" => PredictorKind::Tcn,
-                other => {
-                    return Err(format!(
-                        "unknown predictor '{other}' (reactive, constant-velocity, linear, tcn)"
-                    ));
-                }
+            predictor: {
+                let name = v
+                    .get("predictor")
+                    .and_then(|m| m.as_str())
+                    .unwrap_or("linear");
+                PredictorKind::from_name(name).ok_or_else(|| {
+                    format!("unknown predictor '{name}' (reactive, constant-velocity, linear, tcn)")
+                })?
             },
         };
         if !(o.budget_mb.is_finite() && o.budget_mb > 0.0) {
