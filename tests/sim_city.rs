@@ -6,8 +6,9 @@
 mod common;
 
 use splat2tiles::client::{ClientConfig, PredictorKind};
-use splat2tiles::sim::misses::{MissBreakdown, breakdown};
-use splat2tiles::sim::score::{Ratio, Truth, cache_hits, held_tiles, tick_views};
+use splat2tiles::sim::misses::{MissBreakdown, breakdown, breakdown_with};
+use splat2tiles::sim::score::{Ratio, Truth, WarmUp, cache_hits, cache_hits_with, held_tiles};
+use splat2tiles::sim::score::{link_warm_up, tick_views};
 use splat2tiles::sim::session::{SessionOptions, run_session};
 use splat2tiles::sim::stream_city::{CitySpec, StreetGrid, build_city, street_walk};
 use splat2tiles::sim::transport::NetModel;
@@ -312,7 +313,7 @@ fn oracle_miss_causes_on_the_city_traces() {
     let cfg = ClientConfig::default();
     let net = NetModel::constant(10.0, 0.04);
     eprintln!(
-        "budget {} MiB; misses after the warm-up by cause (first match: evicted, in flight at \
+        "budget {} MiB; misses after the warm-up (the time the link needs for the first cut at Low, `sim::score::link_warm_up`) by cause (first match: evicted, in flight at \
          the entry, aborted, downloaded but refused, requested after the entry, never \
          requested); the not-requested-before-entry ones split by what the client's plans \
          before the entry knew of the tile: wanted by a plan / in a predicted view but left out \
@@ -328,6 +329,9 @@ fn oracle_miss_causes_on_the_city_traces() {
     let (mut oracle_all, mut reactive_all) = (Ratio::default(), Ratio::default());
     // The oracle's CHR over every first-time entry (the warm-up included).
     let mut oracle_first = Ratio::default();
+    let lw_meta = splat2tiles::variants::content_variant_metadata(
+        &splat2tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap(),
+    );
     for tr in traces {
         // `ONLY=<part of a trace label>` runs that trace alone.
         if std::env::var("ONLY").is_ok_and(|o| !label(&tr).contains(&o)) {
@@ -337,8 +341,18 @@ fn oracle_miss_causes_on_the_city_traces() {
         let warm = |log: &splat2tiles::sim::session::SessionLog| {
             let resident = held_tiles(log);
             let views = tick_views(log, needed.iter().map(Vec::as_slice), &resident);
-            let chr = cache_hits(&views);
-            ((chr.warm, chr.first), breakdown(log, &views))
+            // Warm from the time the link needs for the first cut at Low (`sim::score`).
+            let warm_at = link_warm_up(
+                &views,
+                |k| lw_meta.get(k).map_or(0, |m| m.1[3] as u64),
+                1.25e6,
+                0.04,
+            );
+            let chr = cache_hits_with(&views, WarmUp::At(warm_at));
+            (
+                (chr.warm, chr.first),
+                breakdown_with(log, &views, WarmUp::At(warm_at)),
+            )
         };
         let knob = |k: &str| std::env::var(k).ok().map(|v| v.parse::<f64>().unwrap());
         let tuned = [
@@ -628,6 +642,50 @@ fn oracle_miss_causes_on_the_city_traces() {
                         ((tr.poses[0].t + until - warm_at) * 1250.0) as u64
                     );
                 }
+                // Every tile needed after the warm-up and not held at it (first-time entries and
+                // re-entries of tiles missed before it), due at its first tick after the warm-up.
+                {
+                    let wt = oracle.ticks.iter().find(|t| t.t >= warm_at);
+                    let held: std::collections::HashSet<TileKey> =
+                        wt.map(|t| t.resident.iter().map(|r| r.0).collect()).unwrap_or_default();
+                    let mut seen2 = std::collections::HashSet::new();
+                    let mut jobs2: Vec<(f64, u64, bool)> = vec![];
+                    let first_jobs: std::collections::HashSet<(u64, u64)> = jobs
+                        .iter()
+                        .map(|j| (j.0.to_bits(), j.1))
+                        .collect();
+                    for (k, n) in needed.iter().enumerate() {
+                        let t = tr.poses[k].t;
+                        if t <= warm_at {
+                            continue;
+                        }
+                        for key in n {
+                            if !held.contains(key) && seen2.insert(*key) {
+                                let b = meta.get(key).map_or(0, |m| m.1[lvl] as u64);
+                                jobs2.push((t, b, first_jobs.contains(&(t.to_bits(), b))));
+                            }
+                        }
+                    }
+                    let plain: Vec<(f64, u64)> = jobs2.iter().map(|j| (j.0, j.1)).collect();
+                    let kb: u64 = plain.iter().map(|j| j.1).sum::<u64>() / 1000;
+                    let (mut clock3, mut late3, mut late3_first) = (warm_at, 0, 0);
+                    for (due, b, first) in &jobs2 {
+                        clock3 += *b as f64 / 1.25e6;
+                        if clock3 > *due + 1e-9 {
+                            late3 += 1;
+                            late3_first += usize::from(*first);
+                        }
+                    }
+                    eprintln!(
+                        "  DETAIL level {lvl}: the same, EDF with every job fetched: {late3} late ({late3_first} first-time)"
+                    );
+                    eprintln!(
+                        "  DETAIL level {lvl}: first-time entries and re-entries of tiles not held at the warm-up: {} jobs ({} first-time), {kb} KB, fewest late {}",
+                        jobs2.len(),
+                        jobs2.iter().filter(|j| j.2).count(),
+                        fewest_late(&plain, warm_at)
+                    );
+                }
                 // The same, every job fetched (a client that repairs what it missed).
                 let (mut clock2, mut late2) = (warm_at, 0);
                 for (due, b) in &jobs {
@@ -660,6 +718,7 @@ fn oracle_miss_causes_on_the_city_traces() {
                 for sec in (0..20).step_by(2) {
                     let (a, b) = (t0 + sec as f64, t0 + sec as f64 + 2.0);
                     let (mut before, mut never, mut refetch, mut leads) = (0, 0, 0, vec![]);
+                    let (mut before_view, mut before_again) = (0, 0);
                     let (mut kb, mut n_done, mut aborted) = (0u64, 0u64, 0u64);
                     for r in oracle
                         .requests
@@ -688,7 +747,24 @@ fn oracle_miss_causes_on_the_city_traces() {
                         }
                         match entry.get(&k) {
                             None => never += 1,
-                            Some(&e) if e <= r.start_s => before += 1,
+                            Some(&e) if e <= r.start_s => {
+                                before += 1;
+                                let at = tr.poses.partition_point(|p| p.t < r.start_s);
+                                let needed_at = |j: usize| needed.get(j).is_some_and(|n| n.contains(&k));
+                                if needed_at(at) {
+                                    before_view += 1;
+                                } else if (at..needed.len()).any(needed_at) {
+                                    before_again += 1;
+                                }
+                                if std::env::var("DETAIL_BEFORE").is_ok() && (10..14).contains(&sec) {
+                                    let ti = oracle.ticks.partition_point(|t| t.t <= r.start_s).saturating_sub(1);
+                                    let tk = &oracle.ticks[ti];
+                                    let next = (at..needed.len()).find(|&j| needed_at(j)).map(|j| tr.poses[j].t - r.start_s);
+                                    let due = tk.planned.iter().find(|p| p.0 == k).map(|p| p.1 - tk.t);
+                                    let pred = tk.predicted.iter().find(|p| p.0 == k).map(|p| p.1 - tk.t);
+                                    eprintln!("  DETAIL_BEFORE start {:.2} tile {k:?} level {:?} client view {} planned due {due:?} predicted {pred:?} scorer next needs in {next:?} entered {:.2}", r.start_s - t0, r.level, tk.view_set.contains(&k), e - t0);
+                                }
+                            }
                             Some(&e) => leads.push(e - r.end_s.unwrap()),
                         }
                     }
@@ -700,7 +776,7 @@ fn oracle_miss_causes_on_the_city_traces() {
                             .unwrap_or(f64::NAN)
                     };
                     eprintln!(
-                        "  DETAIL {sec:2}-{} s: first downloads: entered before {before}, never {never}, later {} (lead s p10/p50/p90 {:.1}/{:.1}/{:.1}); repeat downloads {refetch}",
+                        "  DETAIL {sec:2}-{} s: first downloads: entered before {before} (in view at the request {before_view}, needed again later {before_again}), never {never}, later {} (lead s p10/p50/p90 {:.1}/{:.1}/{:.1}); repeat downloads {refetch}",
                         sec + 2,
                         leads.len(),
                         q(0.1),

@@ -162,15 +162,17 @@ pub struct ClientConfig {
     pub predict_horizon_s: f64,
     /// Seconds between predicted poses.
     pub predict_step_s: f64,
-    /// When the link cannot carry the missing prefetches by their deadlines even at Low
-    /// (earliest deadline first over the forecast), ask them at Low: coverage before quality,
-    /// upgrades later (on by default; chosen on the validation traces, BENCHMARKS.md issue 19).
+    /// When the link cannot carry the missing tiles (in view: due now; predicted: due at their
+    /// first predicted view) by their deadlines even at Low (earliest deadline first over the
+    /// forecast), ask the prefetches at Low: coverage before quality, upgrades later (on by
+    /// default; chosen on the validation traces, BENCHMARKS.md issue 19).
     pub low_under_overload: bool,
-    /// Experimental, off by default: under that overload, and when the predictor's recent
-    /// deadlines came true (`deadline_record`), request the prefetches the planner could not fit
-    /// on time after the others (Moore-Hodgson). Measured in BENCHMARKS.md ("Setting late
-    /// prefetches aside"): the oracle gains on the test traces and loses on the validation
-    /// traces, so it is not on.
+    /// Under that overload, and when the predictor's recent deadlines came true
+    /// (`deadline_record`), the missing tiles Moore-Hodgson sets aside (the largest ones whose
+    /// bytes make others late) are requested after the ones that can still be on time, repairs
+    /// of holes in view included: the fewest late entries. On by default since it raised the
+    /// oracle on the validation traces and leaves predictors whose deadlines miss untouched
+    /// (BENCHMARKS.md, issue 19, "Moore-Hodgson").
     pub set_aside_late: bool,
     /// Retries of a failed request before the tile (or subtree) is given up.
     pub max_retries: u32,
@@ -207,7 +209,7 @@ impl Default for ClientConfig {
             predict_horizon_s: 10.0,
             predict_step_s: 0.5,
             low_under_overload: true,
-            set_aside_late: false,
+            set_aside_late: true,
             max_retries: 3,
             retry_base_s: 0.5,
         }
@@ -415,9 +417,8 @@ struct Want {
     in_view: bool,
     /// Seconds until the tile is needed (0: in view).
     deadline: f64,
-    /// The planner could not fit it before its deadline (it was added because it is due
-    /// within `urgent_s`) while setting aside is on (`ClientConfig::set_aside_late`, overload,
-    /// trusted deadlines): it goes after the prefetches that can still be on time.
+    /// Set aside under overload with trusted deadlines (`ClientConfig::set_aside_late`): it
+    /// cannot be on time without making others late, so it goes after the ones that can.
     late: bool,
 }
 

@@ -8,8 +8,8 @@ const PREFETCH_BEFORE_REPAIR_S: f64 = 0.5;
 
 /// Request order of a want, smaller first: missing tiles before upgrades of held ones; among
 /// each, with a prediction (`predicting`) a prefetch due within `PREFETCH_BEFORE_REPAIR_S`, then
-/// tiles in view, then the other prefetches, then prefetches the planner could not fit before
-/// their deadline (`Want::late`).
+/// tiles in view, then the other prefetches, then the tiles set aside under overload
+/// (`Want::late`, in view or not).
 ///
 /// - Missing tiles in view before prefetches further out, and upgrades last: with upgrades of
 ///   the view ahead of prefetches, tiles due in 1 s waited behind Low -> Best upgrades and were
@@ -18,16 +18,14 @@ const PREFETCH_BEFORE_REPAIR_S: f64 = 0.5;
 ///   there either way, the prefetch keeps one from opening. On the city's flight 38 (a burst
 ///   that outruns the link) the oracle held 254/404 of the entries after warm-up with repairs
 ///   first and 328/404 with this.
-/// - A late prefetch after every other want for a missing tile, only with the experimental
-///   `ClientConfig::set_aside_late` (off by default), under overload and with trusted deadlines
-///   (`Want::late`): Moore-Hodgson's fewest-late rule, EDF with the jobs that cannot make it set
-///   aside. Once in view it is a repair. Ungated, on the city's six test traces after warm-up,
-///   the oracle rose 93.5% -> 95.8% but linear fell 65.8% -> 61.3% and tcn 28.5% -> 20.0%;
-///   gated, linear and tcn are unchanged and the oracle reaches 95.4% on the test traces but
-///   falls 90.7% -> 89.8% on the validation traces (BENCHMARKS.md, issue 19). What is kept of
-///   it (`ClientConfig::low_under_overload`): under overload, missing prefetches at Low.
+/// - A set-aside tile after every other missing one (`ClientConfig::set_aside_late`, under
+///   overload with trusted deadlines): Moore-Hodgson's fewest-late rule, earliest deadline
+///   first with the jobs that cannot make it set aside. A hole in view that was set aside stays
+///   behind the prefetches that can still be on time: with repairs first, every repair pushed
+///   the next entries late (walk 15 of the validation traces: earliest deadline first with every
+///   job fetched leaves 37 of 209 first-time entries late, Moore-Hodgson 6).
 fn want_group(w: &Want, held: bool, predicting: bool) -> (bool, u8) {
-    let class = if w.late && !w.in_view {
+    let class = if w.late {
         3
     } else if predicting && !w.in_view && w.deadline <= PREFETCH_BEFORE_REPAIR_S {
         0
@@ -39,43 +37,67 @@ fn want_group(w: &Want, held: bool, predicting: bool) -> (bool, u8) {
     (held, class)
 }
 
-/// Whether the link cannot carry every missing prefetch by its deadline even at Low: `dues`
-/// holds `(seconds until due, Low bytes)`; a tile due at `d` may enter until `d + slack_s` (the
-/// prediction's step). Earliest deadline first over `link`'s per-step capacity (in-flight bytes
-/// and the round trip taken off the front): overloaded when some prefix does not fit. Only then
-/// is setting a prefetch aside Moore-Hodgson's fewest-late rule; without overload a tile the
-/// planner left out was left out for its utility, not because it cannot be on time.
+/// The missing prefetches to set aside so that the most of the others arrive by their deadlines
+/// at Low: `dues` holds `(seconds until due, Low bytes, tile)`; a tile due at `d` may enter until
+/// `d + slack_s` (the prediction's step). Moore-Hodgson over `link`'s per-step capacity (in-flight
+/// bytes and the round trip taken off the front): earliest deadline first, and whenever the ones
+/// kept so far do not fit by the current deadline, the largest of them is set aside (the fewest
+/// late jobs on one machine; the link's cumulative capacity only grows, so bytes stand in for
+/// time). Empty when everything fits: then no overload, and a tile the planner left out was left
+/// out for its utility, not because it cannot be on time.
+fn set_aside(
+    dues: &mut Vec<(f64, u64, usize)>,
+    link: &LinkForecast,
+    cfg: &PlanStepConfig,
+    slack_s: f64,
+) -> Vec<usize> {
+    dues.retain(|d| d.0.is_finite());
+    if dues.is_empty() || cfg.step_s.is_nan() || cfg.step_s <= 0.0 {
+        return vec![];
+    }
+    dues.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.2.cmp(&b.2)));
+    let slack_s = slack_s.max(0.0);
+    let last = dues[dues.len() - 1].0.max(0.0) + slack_s;
+    let steps = ((last / cfg.step_s).ceil() as usize).clamp(1, 1 << 20);
+    let rates = link.steps(cfg, steps);
+    let mut aside = vec![];
+    let mut kept = std::collections::BinaryHeap::new();
+    let (mut cap, mut need, mut k) = (0.0f64, 0.0f64, 0);
+    let mut admit = |d: &(f64, u64, usize), cap: f64, need: &mut f64| {
+        *need += d.1 as f64;
+        kept.push((d.1, d.2));
+        while *need > cap {
+            let Some((b, tile)) = kept.pop() else { break };
+            *need -= b as f64;
+            aside.push(tile);
+        }
+    };
+    for (j, rate) in rates.iter().enumerate() {
+        let end = (j + 1) as f64 * cfg.step_s;
+        cap += rate.max(0.0) * cfg.step_s;
+        while k < dues.len() && dues[k].0.max(0.0) + slack_s <= end + 1e-9 {
+            admit(&dues[k], cap, &mut need);
+            k += 1;
+        }
+    }
+    for d in &dues[k..] {
+        admit(d, cap, &mut need);
+    }
+    aside
+}
+
+/// Whether the link cannot carry every missing prefetch by its deadline even at Low (`dues` as
+/// for [`set_aside`], without tiles): earliest deadline first, overloaded when some prefix does
+/// not fit.
+#[cfg(test)]
 fn overloaded(
     dues: &mut Vec<(f64, u64)>,
     link: &LinkForecast,
     cfg: &PlanStepConfig,
     slack_s: f64,
 ) -> bool {
-    dues.retain(|d| d.0.is_finite());
-    if dues.is_empty() || cfg.step_s.is_nan() || cfg.step_s <= 0.0 {
-        return false;
-    }
-    dues.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let slack_s = slack_s.max(0.0);
-    let last = dues[dues.len() - 1].0.max(0.0) + slack_s;
-    let steps = ((last / cfg.step_s).ceil() as usize).clamp(1, 1 << 20);
-    let rates = link.steps(cfg, steps);
-    let mut cap = 0.0f64;
-    let mut k = 0;
-    let mut need = 0.0f64;
-    for (j, rate) in rates.iter().enumerate() {
-        let end = (j + 1) as f64 * cfg.step_s;
-        cap += rate.max(0.0) * cfg.step_s;
-        while k < dues.len() && dues[k].0.max(0.0) + slack_s <= end + 1e-9 {
-            need += dues[k].1 as f64;
-            k += 1;
-            if need > cap {
-                return true;
-            }
-        }
-    }
-    need += dues[k..].iter().map(|d| d.1 as f64).sum::<f64>();
-    need > cap
+    let mut d: Vec<(f64, u64, usize)> = dues.iter().enumerate().map(|(i, d)| (d.0, d.1, i)).collect();
+    !set_aside(&mut d, link, cfg, slack_s).is_empty()
 }
 
 impl StreamClient {
@@ -335,20 +357,27 @@ impl StreamClient {
             |i| self.cache.level(i),
             budget,
         );
-        // Overload: the missing prefetches do not fit by their deadlines even at Low. Then they
-        // are asked at Low (coverage before quality), and with the experimental
-        // `set_aside_late` and trusted deadlines the late ones go after the others.
-        let overload = (self.cfg.low_under_overload || self.cfg.set_aside_late) && {
-            let mut dues: Vec<(f64, u64)> = firsts
+        // Overload: the missing tiles (in view: due now) do not fit by their deadlines even at
+        // Low. Then the prefetches are asked at Low (coverage before quality), and with
+        // `set_aside_late` and trusted deadlines the ones Moore-Hodgson sets aside go last.
+        let aside = if self.cfg.low_under_overload || self.cfg.set_aside_late {
+            let mut dues: Vec<(f64, u64, usize)> = firsts
                 .iter()
-                .filter(|&&(i, t)| t > 0.0 && !self.in_view[i] && self.cache.level(i).is_none())
+                .filter(|&&(i, _)| self.cache.level(i).is_none())
                 .filter_map(|&(i, t)| {
                     let low = self.usable_level(i, Level::Low)?;
-                    Some((t, self.catalog.tiles[i].variants[low.index()].bytes))
+                    Some((t, self.catalog.tiles[i].variants[low.index()].bytes, i))
                 })
                 .collect();
-            overloaded(&mut dues, &link, &step, self.cfg.predict_step_s)
+            set_aside(&mut dues, &link, &step, self.cfg.predict_step_s)
+        } else {
+            vec![]
         };
+        let overload = !aside.is_empty();
+        let mut aside_mask = vec![false; self.info.len()];
+        for &i in &aside {
+            aside_mask[i] = true;
+        }
         if overload {
             self.stats.overload_plans += 1;
         }
@@ -373,7 +402,7 @@ impl StreamClient {
             // the wants are requested in this order.
             if seen.insert(c.tile) {
                 let mut w = self.want(c.tile, level, first[c.tile], &frustum);
-                w.late = set_aside && !f.finish_s.is_finite();
+                w.late = set_aside && aside_mask[c.tile];
                 wanted.push(w);
             }
         }
@@ -392,7 +421,9 @@ impl StreamClient {
                 && let Some(level) = self.usable_level(i, Level::Low)
             {
                 seen.insert(i);
-                wanted.push(self.want(i, level, 0.0, &frustum));
+                let mut w = self.want(i, level, 0.0, &frustum);
+                w.late = set_aside && aside_mask[i];
+                wanted.push(w);
             }
         }
         // App. C.5 fallback (and blend, when the prediction is uncertain): the tiles within the
@@ -543,7 +574,37 @@ mod tests {
     }
 
     #[test]
-    fn late_prefetches_go_after_on_time_ones_and_repairs_and_before_upgrades() {
+    fn set_aside_is_moore_hodgson_the_largest_of_the_kept_goes() {
+        let cfg = PlanStepConfig {
+            step_s: 0.02,
+            latency_s: 0.0,
+            ..PlanStepConfig::default()
+        };
+        let link = LinkForecast::constant(1.0e6);
+        // Tile 7 (800 kB by 1.0 s) fits alone; with tile 8 (400 kB by 1.1 s) the two do not,
+        // and the larger, earlier one goes: then tile 8 and tile 9 (300 kB by 1.5 s) are on
+        // time. Earliest deadline first with every job fetched would have made 8 late.
+        let mut dues = vec![(1.0, 300_000, 9), (0.5, 800_000, 7), (0.6, 400_000, 8)];
+        assert_eq!(set_aside(&mut dues, &link, &cfg, 0.5), vec![7]);
+        // Everything fits: nothing set aside.
+        let mut easy = vec![(0.5, 100_000, 1), (2.0, 100_000, 2)];
+        assert!(set_aside(&mut easy, &link, &cfg, 0.5).is_empty());
+        // A hole in view (due now) that cannot arrive within the slack is set aside before a
+        // smaller prefetch that can.
+        let mut view = vec![(0.0, 900_000, 3), (0.1, 200_000, 4)];
+        assert_eq!(set_aside(&mut view, &link, &cfg, 0.5), vec![3]);
+        // Jobs past the forecast's last step still count; none is set aside twice.
+        let mut many: Vec<(f64, u64, usize)> = (0..50).map(|i| (0.1, 100_000, i)).collect();
+        let aside = set_aside(&mut many, &link, &cfg, 0.5);
+        assert_eq!(aside.len(), 44, "0.6 s at 1 MB/s holds 6 of 50 tiles of 100 kB");
+        let mut sorted = aside.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        assert_eq!(sorted.len(), aside.len());
+    }
+
+    #[test]
+    fn set_aside_wants_go_after_on_time_ones_and_repairs_and_before_upgrades() {
         let soon = want(false, 0.2, false);
         let repair = want(true, 0.0, false);
         let later = want(false, 3.0, false);
@@ -554,8 +615,9 @@ mod tests {
         assert!(g(&later, false) < g(&late, false));
         // Every missing tile, late or not, before any upgrade.
         assert!(g(&late, false) < g(&soon, true));
-        // A late want in view is a repair; without a prediction repairs come first.
-        assert_eq!(g(&want(true, 0.0, true), false), g(&repair, false));
+        // A hole in view that was set aside waits behind the prefetches that can be on time;
+        // without a prediction repairs come first.
+        assert!(g(&later, false) < g(&want(true, 0.0, true), false));
         assert!(want_group(&repair, false, false) < want_group(&soon, false, false));
     }
 }

@@ -15,7 +15,7 @@ use std::collections::{HashMap, HashSet};
 
 use crate::tiling::TileKey;
 
-use super::score::TickView;
+use super::score::{TickView, WarmUp};
 use super::session::SessionLog;
 use super::transport::Outcome;
 
@@ -122,6 +122,11 @@ impl MissBreakdown {
 /// Classifies the missed first-time entries of `log` scored on `ticks` (one per log tick, same
 /// order; the entry rules of [`super::score::cache_hits`]).
 pub fn breakdown(log: &SessionLog, ticks: &[TickView]) -> MissBreakdown {
+    breakdown_with(log, ticks, WarmUp::CutHeld)
+}
+
+/// [`breakdown`] with the given end of the warm-up ([`Miss::warm`], `warm_entries`).
+pub fn breakdown_with(log: &SessionLog, ticks: &[TickView], warm_up: WarmUp) -> MissBreakdown {
     let mut requests: HashMap<TileKey, Vec<(f64, Option<f64>, Outcome)>> = HashMap::new();
     for r in &log.requests {
         if let Some(k) = r.key {
@@ -152,6 +157,10 @@ pub fn breakdown(log: &SessionLog, ticks: &[TickView]) -> MissBreakdown {
             if prev.contains(&key) || !started || ever_needed.contains(&key) {
                 continue;
             }
+            let warm = match warm_up {
+                WarmUp::CutHeld => warm,
+                WarmUp::At(at) => tick.t > at,
+            };
             out.entries += 1;
             out.warm_entries += warm as u64;
             if held.contains(&key) {

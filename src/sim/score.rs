@@ -383,8 +383,44 @@ pub fn tick_views<'a>(
         .collect()
 }
 
-/// CHR over a session's ticks (see the module docs).
+/// Where the warm-up ends: first-time entries after it are [`Chr::warm`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WarmUp {
+    /// After the first tick whose whole needed cut was held: depends on the client (one that
+    /// leaves holes in view unrepaired moves it).
+    CutHeld,
+    /// Entries at ticks later than this time (seconds), the same for every client: e.g.
+    /// [`link_warm_up`].
+    At(f64),
+}
+
+/// The time the link needs for the first non-empty cut: its first tick, one round trip and
+/// the cut's bytes (`bytes` per tile, e.g. its Low variant) at `bytes_per_s`. A warm-up that no
+/// client can move; infinite without a non-empty cut or a positive rate.
+pub fn link_warm_up(
+    ticks: &[TickView],
+    bytes: impl Fn(&TileKey) -> u64,
+    bytes_per_s: f64,
+    rtt_s: f64,
+) -> f64 {
+    let Some(first) = ticks.iter().find(|t| !t.needed.is_empty()) else {
+        return f64::INFINITY;
+    };
+    if bytes_per_s.is_nan() || bytes_per_s <= 0.0 {
+        return f64::INFINITY;
+    }
+    let cut: u64 = first.needed.iter().map(bytes).sum();
+    first.t + rtt_s.max(0.0) + cut as f64 / bytes_per_s
+}
+
+/// CHR over a session's ticks (see the module docs), warm from the first tick whose whole
+/// needed cut was held ([`WarmUp::CutHeld`]).
 pub fn cache_hits(ticks: &[TickView]) -> Chr {
+    cache_hits_with(ticks, WarmUp::CutHeld)
+}
+
+/// CHR over a session's ticks with the given end of the warm-up.
+pub fn cache_hits_with(ticks: &[TickView], warm_up: WarmUp) -> Chr {
     let mut out = Chr::default();
     let mut ever: HashSet<TileKey> = HashSet::new();
     let mut prev: HashSet<TileKey> = HashSet::new();
@@ -403,6 +439,10 @@ pub fn cache_hits(ticks: &[TickView]) -> Chr {
             } else if ever.contains(key) {
                 &mut out.reentry
             } else {
+                let warm = match warm_up {
+                    WarmUp::CutHeld => warm,
+                    WarmUp::At(at) => tick.t > at,
+                };
                 if warm {
                     out.warm.n += 1;
                     out.warm.hits += hit;
