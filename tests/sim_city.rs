@@ -423,7 +423,7 @@ fn oracle_miss_causes_on_the_city_traces() {
         let ((ow, of), why) = warm(&oracle);
         let ((rw, _), _) = warm(&reactive);
         eprintln!(
-            "  {}: plans trusting the deadlines (0 unless SET_ASIDE=1) (under overload): \
+            "  {}: plans trusting the deadlines (0 with SET_ASIDE=0) (under overload or setting aside): \
              oracle {}/{} ({}), \
              {second} {}/{} ({})",
             label(&tr),
@@ -646,14 +646,13 @@ fn oracle_miss_causes_on_the_city_traces() {
                 // re-entries of tiles missed before it), due at its first tick after the warm-up.
                 {
                     let wt = oracle.ticks.iter().find(|t| t.t >= warm_at);
-                    let held: std::collections::HashSet<TileKey> =
-                        wt.map(|t| t.resident.iter().map(|r| r.0).collect()).unwrap_or_default();
+                    let held: std::collections::HashSet<TileKey> = wt
+                        .map(|t| t.resident.iter().map(|r| r.0).collect())
+                        .unwrap_or_default();
                     let mut seen2 = std::collections::HashSet::new();
                     let mut jobs2: Vec<(f64, u64, bool)> = vec![];
-                    let first_jobs: std::collections::HashSet<(u64, u64)> = jobs
-                        .iter()
-                        .map(|j| (j.0.to_bits(), j.1))
-                        .collect();
+                    let first_jobs: std::collections::HashSet<(u64, u64)> =
+                        jobs.iter().map(|j| (j.0.to_bits(), j.1)).collect();
                     for (k, n) in needed.iter().enumerate() {
                         let t = tr.poses[k].t;
                         if t <= warm_at {
@@ -750,19 +749,34 @@ fn oracle_miss_causes_on_the_city_traces() {
                             Some(&e) if e <= r.start_s => {
                                 before += 1;
                                 let at = tr.poses.partition_point(|p| p.t < r.start_s);
-                                let needed_at = |j: usize| needed.get(j).is_some_and(|n| n.contains(&k));
+                                let needed_at =
+                                    |j: usize| needed.get(j).is_some_and(|n| n.contains(&k));
                                 if needed_at(at) {
                                     before_view += 1;
                                 } else if (at..needed.len()).any(needed_at) {
                                     before_again += 1;
                                 }
-                                if std::env::var("DETAIL_BEFORE").is_ok() && (10..14).contains(&sec) {
-                                    let ti = oracle.ticks.partition_point(|t| t.t <= r.start_s).saturating_sub(1);
+                                if std::env::var("DETAIL_BEFORE").is_ok() && (10..14).contains(&sec)
+                                {
+                                    let ti = oracle
+                                        .ticks
+                                        .partition_point(|t| t.t <= r.start_s)
+                                        .saturating_sub(1);
                                     let tk = &oracle.ticks[ti];
-                                    let next = (at..needed.len()).find(|&j| needed_at(j)).map(|j| tr.poses[j].t - r.start_s);
-                                    let due = tk.planned.iter().find(|p| p.0 == k).map(|p| p.1 - tk.t);
-                                    let pred = tk.predicted.iter().find(|p| p.0 == k).map(|p| p.1 - tk.t);
-                                    eprintln!("  DETAIL_BEFORE start {:.2} tile {k:?} level {:?} client view {} planned due {due:?} predicted {pred:?} scorer next needs in {next:?} entered {:.2}", r.start_s - t0, r.level, tk.view_set.contains(&k), e - t0);
+                                    let next = (at..needed.len())
+                                        .find(|&j| needed_at(j))
+                                        .map(|j| tr.poses[j].t - r.start_s);
+                                    let due =
+                                        tk.planned.iter().find(|p| p.0 == k).map(|p| p.1 - tk.t);
+                                    let pred =
+                                        tk.predicted.iter().find(|p| p.0 == k).map(|p| p.1 - tk.t);
+                                    eprintln!(
+                                        "  DETAIL_BEFORE start {:.2} tile {k:?} level {:?} client view {} planned due {due:?} predicted {pred:?} scorer next needs in {next:?} entered {:.2}",
+                                        r.start_s - t0,
+                                        r.level,
+                                        tk.view_set.contains(&k),
+                                        e - t0
+                                    );
                                 }
                             }
                             Some(&e) => leads.push(e - r.end_s.unwrap()),

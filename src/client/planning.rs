@@ -91,12 +91,16 @@ fn set_aside(
 /// not fit.
 #[cfg(test)]
 fn overloaded(
-    dues: &mut Vec<(f64, u64)>,
+    dues: &[(f64, u64)],
     link: &LinkForecast,
     cfg: &PlanStepConfig,
     slack_s: f64,
 ) -> bool {
-    let mut d: Vec<(f64, u64, usize)> = dues.iter().enumerate().map(|(i, d)| (d.0, d.1, i)).collect();
+    let mut d: Vec<(f64, u64, usize)> = dues
+        .iter()
+        .enumerate()
+        .map(|(i, d)| (d.0, d.1, i))
+        .collect();
     !set_aside(&mut d, link, cfg, slack_s).is_empty()
 }
 
@@ -360,29 +364,37 @@ impl StreamClient {
         // Overload: the missing tiles (in view: due now) do not fit by their deadlines even at
         // Low. Then the prefetches are asked at Low (coverage before quality), and with
         // `set_aside_late` and trusted deadlines the ones Moore-Hodgson sets aside go last.
-        let aside = if self.cfg.low_under_overload || self.cfg.set_aside_late {
-            let mut dues: Vec<(f64, u64, usize)> = firsts
+        let dues = |holes: bool| -> Vec<(f64, u64, usize)> {
+            firsts
                 .iter()
-                .filter(|&&(i, _)| self.cache.level(i).is_none())
+                .filter(|&&(i, t)| {
+                    (holes || (t > 0.0 && !self.in_view[i])) && self.cache.level(i).is_none()
+                })
                 .filter_map(|&(i, t)| {
                     let low = self.usable_level(i, Level::Low)?;
                     Some((t, self.catalog.tiles[i].variants[low.index()].bytes, i))
                 })
-                .collect();
-            set_aside(&mut dues, &link, &step, self.cfg.predict_step_s)
+                .collect()
+        };
+        let slack = self.cfg.predict_step_s;
+        // Prefetches alone for the Low rule (every predictor); holes in view too for setting
+        // aside (trusted deadlines only).
+        let overload = self.cfg.low_under_overload
+            && !set_aside(&mut dues(false), &link, &step, slack).is_empty();
+        let aside = if self.cfg.set_aside_late && self.deadlines.trusted() {
+            set_aside(&mut dues(true), &link, &step, slack)
         } else {
             vec![]
         };
-        let overload = !aside.is_empty();
+        let set_aside = !aside.is_empty();
         let mut aside_mask = vec![false; self.info.len()];
         for &i in &aside {
             aside_mask[i] = true;
         }
-        if overload {
+        if overload || set_aside {
             self.stats.overload_plans += 1;
         }
-        let set_aside = overload && self.cfg.set_aside_late && self.deadlines.trusted();
-        let at_low = overload && (self.cfg.low_under_overload || set_aside);
+        let at_low = overload || set_aside;
         let frustum = Frustum::new(pose, &self.cfg.plan.intrinsics);
         let mut wanted: Vec<Want> = vec![];
         let mut seen = HashSet::new();
@@ -546,31 +558,31 @@ mod tests {
         };
         // 1 MB/s: 0.5 MB due by 0.5 s (+ 0.5 s slack) fits, 1.2 MB by then does not.
         let link = LinkForecast::constant(1.0e6);
-        assert!(!overloaded(&mut vec![(0.5, 500_000)], &link, &cfg, 0.5));
+        assert!(!overloaded(&[(0.5, 500_000)], &link, &cfg, 0.5));
         assert!(overloaded(
-            &mut vec![(0.5, 600_000), (0.2, 600_000)],
+            &[(0.5, 600_000), (0.2, 600_000)],
             &link,
             &cfg,
             0.5
         ));
         // The same bytes spread to 3 s fit; in-flight bytes come first and tip it over.
         let spread = || vec![(0.5, 600_000), (2.5, 600_000)];
-        assert!(!overloaded(&mut spread(), &link, &cfg, 0.5));
+        assert!(!overloaded(&spread(), &link, &cfg, 0.5));
         let busy = LinkForecast {
             in_flight_bytes: 2_000_000,
             ..LinkForecast::constant(1.0e6)
         };
-        assert!(overloaded(&mut spread(), &busy, &cfg, 0.5));
+        assert!(overloaded(&spread(), &busy, &cfg, 0.5));
         // Nothing due, non-finite deadlines, a zero step: no overload, no panic.
-        assert!(!overloaded(&mut vec![], &link, &cfg, 0.5));
+        assert!(!overloaded(&[], &link, &cfg, 0.5));
         assert!(!overloaded(
-            &mut vec![(f64::NAN, 1), (f64::INFINITY, 1)],
+            &[(f64::NAN, 1), (f64::INFINITY, 1)],
             &link,
             &cfg,
             0.5
         ));
         let zero = PlanStepConfig { step_s: 0.0, ..cfg };
-        assert!(!overloaded(&mut spread(), &link, &zero, 0.5));
+        assert!(!overloaded(&spread(), &link, &zero, 0.5));
     }
 
     #[test]
@@ -596,7 +608,11 @@ mod tests {
         // Jobs past the forecast's last step still count; none is set aside twice.
         let mut many: Vec<(f64, u64, usize)> = (0..50).map(|i| (0.1, 100_000, i)).collect();
         let aside = set_aside(&mut many, &link, &cfg, 0.5);
-        assert_eq!(aside.len(), 44, "0.6 s at 1 MB/s holds 6 of 50 tiles of 100 kB");
+        assert_eq!(
+            aside.len(),
+            44,
+            "0.6 s at 1 MB/s holds 6 of 50 tiles of 100 kB"
+        );
         let mut sorted = aside.clone();
         sorted.sort_unstable();
         sorted.dedup();

@@ -610,6 +610,17 @@ mod tests {
         assert_eq!(chr.reentry, Ratio { hits: 1, n: 2 });
         // Warm from t1 on (its whole cut held): the t2 miss counts, the t1 hit does not.
         assert_eq!(chr.warm, Ratio { hits: 0, n: 1 });
+        // A warm-up at a fixed time: entries at ticks after it, whatever the client held.
+        let at = |t: f64| cache_hits_with(&ticks, WarmUp::At(t)).warm;
+        assert_eq!(at(0.5), Ratio { hits: 1, n: 2 });
+        assert_eq!(at(1.0), Ratio { hits: 0, n: 1 });
+        assert_eq!(at(f64::INFINITY), Ratio::default());
+        // The link's warm-up: first non-empty cut's tick + round trip + its bytes at the rate.
+        let w = link_warm_up(&ticks, |_| 500, 1000.0, 0.04);
+        assert!((w - 0.54).abs() < 1e-12, "{w}");
+        assert_eq!(link_warm_up(&ticks, |_| 500, 0.0, 0.04), f64::INFINITY);
+        assert_eq!(link_warm_up(&ticks, |_| 500, f64::NAN, 0.04), f64::INFINITY);
+        assert_eq!(link_warm_up(&[], |_| 500, 1000.0, 0.04), f64::INFINITY);
         assert_eq!(chr.first.rate(), Some(0.5));
         assert_eq!(Ratio::default().rate(), None);
     }
