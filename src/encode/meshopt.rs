@@ -44,13 +44,14 @@ pub struct MeshoptLevel {
 /// Why a meshopt stream was refused.
 const NO_DECODE: &str = "meshopt stream does not decode";
 
-/// The High variant's bit depths: at least Table 6's Best where it counts on screen (its 24-bit
-/// positions over the whole scene are finer than 18 bits over a tile) for fewer bytes
-/// (BENCHMARKS.md, "Fidelity per byte against the peers").
+/// The High variant's bit depths: both SSIMs of Table 6's Best (framed and 4x zoom) for fewer
+/// bytes on the three SH0 scenes; 21 position bits and 11 scale bits are what its 24-bit
+/// positions over the scene's range and 12-bit log scales needed (BENCHMARKS.md, "High reaches
+/// Table 6 Best").
 pub const HIGH: MeshoptLevel = MeshoptLevel {
-    position_bits: 18,
+    position_bits: 21,
     rotation_bits: 12,
-    scale_bits: 10,
+    scale_bits: 11,
     opacity_bits: 12,
     sh0_bits: 11,
     sh_rest_bits: 6,
