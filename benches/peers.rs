@@ -22,19 +22,20 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 mod common;
+mod peer_views;
 use common::plant_sh3;
 use glam::DVec3;
-use rayon::prelude::*;
+use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
 use splat2tiles::encode::spz2::{SpzOptions, encode_spz_v2, gzip};
 use splat2tiles::encode::table6;
 use splat2tiles::encode::tile::IDENTITY;
 use splat2tiles::frame::UpAxis;
 use splat2tiles::io::{read_path, write_ply};
 use splat2tiles::render::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
-use splat2tiles::render::{Camera, Image, render_splats, ssim};
+use splat2tiles::render::{Camera, Image};
 use splat2tiles::sim::svg::{Series, marked_chart, panels};
 use splat2tiles::splat::Splats;
-use splat2tiles::variants::{ALL, decode_variant, relative, utility::render_options};
+use splat2tiles::variants::{ALL, decode_variant, relative};
 
 /// One encoded scene: which codec, how many bytes, what it looks like.
 struct Point {
@@ -57,52 +58,6 @@ impl Point {
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The box holding the 0.5%..99.5% quantiles of the centres on each axis (floaters far out
-/// would otherwise shrink the scene to a few pixels of the frame).
-fn core_box(s: &Splats) -> (DVec3, DVec3) {
-    let mut lo = [0.0; 3];
-    let mut hi = [0.0; 3];
-    for a in 0..3 {
-        let mut v: Vec<f64> = s.positions.iter().map(|p| p[a]).collect();
-        v.sort_by(f64::total_cmp);
-        let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
-        lo[a] = q(0.005);
-        hi[a] = q(0.995);
-    }
-    (DVec3::from_array(lo), DVec3::from_array(hi))
-}
-
-fn render_all(s: &Splats, cams: &[Camera]) -> Vec<Image> {
-    let opts = render_options();
-    cams.par_iter()
-        .map(|c| render_splats(s, c, &opts))
-        .collect()
-}
-
-/// Focal-length factors of the two view sets: the scene framed (1x) and its centre magnified
-/// 4x (the same eyes; detail a viewer sees close up, where quantisation shows).
-const ZOOMS: [f64; 2] = [1.0, 4.0];
-
-fn zoomed(cams: &[Camera], z: f64) -> Vec<Camera> {
-    cams.iter()
-        .map(|c| Camera {
-            fx: c.fx * z,
-            fy: c.fy * z,
-            ..*c
-        })
-        .collect()
-}
-
-fn mean_ssim(base: &[Image], s: &Splats, cams: &[Camera]) -> f64 {
-    let imgs = render_all(s, cams);
-    let sum: f64 = base
-        .iter()
-        .zip(&imgs)
-        .map(|(a, b)| ssim(a, b).unwrap_or(0.0))
-        .sum();
-    sum / base.len() as f64
 }
 
 /// Runs splat-transform with `args`, stopped after `PEERS_TIMEOUT_S` seconds (default 900: its

@@ -6,8 +6,11 @@
 //! `HIGH`); `PROBE_SCENES=donut` runs one scene. Prints wire B/splat (file or gzip -6, the
 //! smaller) and the mean SSIM framed / at 4x zoom, to 5 and to 12 decimals.
 
+#[path = "../benches/peer_views/mod.rs"]
+mod peer_views;
+
 use glam::DVec3;
-use rayon::prelude::*;
+use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
 use splat2tiles::encode::meshopt::{HIGH, MeshoptLevel, write_meshopt_glb};
 use splat2tiles::encode::spz2::gzip;
 use splat2tiles::encode::table6;
@@ -15,36 +18,9 @@ use splat2tiles::encode::tile::IDENTITY;
 use splat2tiles::frame::UpAxis;
 use splat2tiles::io::read_path;
 use splat2tiles::render::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
-use splat2tiles::render::{Camera, Image, render_splats, ssim};
+use splat2tiles::render::{Camera, Image};
 use splat2tiles::splat::Splats;
-use splat2tiles::variants::{decode_variant, relative, utility::render_options};
-
-fn core_box(s: &Splats) -> (DVec3, DVec3) {
-    let mut lo = [0.0; 3];
-    let mut hi = [0.0; 3];
-    for a in 0..3 {
-        let mut v: Vec<f64> = s.positions.iter().map(|p| p[a]).collect();
-        v.sort_by(f64::total_cmp);
-        let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
-        lo[a] = q(0.005);
-        hi[a] = q(0.995);
-    }
-    (DVec3::from_array(lo), DVec3::from_array(hi))
-}
-fn render_all(s: &Splats, cams: &[Camera]) -> Vec<Image> {
-    let opts = render_options();
-    cams.par_iter()
-        .map(|c| render_splats(s, c, &opts))
-        .collect()
-}
-fn mean_ssim(base: &[Image], s: &Splats, cams: &[Camera]) -> f64 {
-    let imgs = render_all(s, cams);
-    base.iter()
-        .zip(&imgs)
-        .map(|(a, b)| ssim(a, b).unwrap_or(0.0))
-        .sum::<f64>()
-        / base.len() as f64
-}
+use splat2tiles::variants::{decode_variant, relative};
 
 fn main() {
     let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
@@ -69,19 +45,7 @@ fn main() {
         let up_s = up.to_z_up().transpose() * DVec3::Z;
         let (rlo, rhi) = core_box(&rel);
         let views = auto_views_with(rlo, rhi, up_s, 1280, 720, DEFAULT_FOV_Y_DEG);
-        let cams: Vec<Vec<Camera>> = [1.0, 4.0]
-            .iter()
-            .map(|&z| {
-                views
-                    .iter()
-                    .map(|c| Camera {
-                        fx: c.fx * z,
-                        fy: c.fy * z,
-                        ..*c
-                    })
-                    .collect()
-            })
-            .collect();
+        let cams: Vec<Vec<Camera>> = ZOOMS.iter().map(|&z| zoomed(&views, z)).collect();
         let base: Vec<Vec<Image>> = cams.iter().map(|c| render_all(&rel, c)).collect();
         let report = |label: &str, file: &[u8], dec: &Splats| {
             let wire = file.len().min(gzip(file).len()) as f64 / n;
