@@ -774,6 +774,16 @@ impl StreamClient {
         updates::coalesce(std::mem::take(&mut self.updates))
     }
 
+    /// A new viewport size in pixels (the window was resized): the planner's intrinsics follow
+    /// it (selection uses the camera of each update already). Zero sizes count as 1.
+    pub fn set_viewport(&mut self, width: u32, height: u32) {
+        self.cfg.width = width;
+        self.cfg.height = height;
+        self.cfg.plan.intrinsics.height_px = height.max(1) as f64;
+        self.cfg.plan.intrinsics.aspect = width.max(1) as f64 / height.max(1) as f64;
+        self.dirty = true;
+    }
+
     /// Counters and gauges.
     pub fn stats(&self) -> ClientStats {
         let mut s = self.stats.clone();

@@ -201,6 +201,11 @@ impl Driver {
     pub fn client(&self) -> &StreamClient {
         &self.client
     }
+
+    /// A new viewport size in pixels ([`StreamClient::set_viewport`]).
+    pub fn set_viewport(&mut self, width: u32, height: u32) {
+        self.client.set_viewport(width, height);
+    }
 }
 
 impl Drop for Driver {

@@ -586,6 +586,26 @@ mod tests {
     }
 
     #[test]
+    fn the_planner_follows_a_resized_viewport() {
+        let cfg = ClientConfig {
+            width: 640,
+            height: 480,
+            ..ClientConfig::default()
+        };
+        let mut c = StreamClient::new("tileset.json", cfg);
+        assert!((c.cfg.plan.intrinsics.aspect - 640.0 / 480.0).abs() < 1e-12);
+        c.dirty = false;
+        c.set_viewport(1280, 720);
+        assert_eq!(c.cfg.plan.intrinsics.height_px, 720.0);
+        assert!((c.cfg.plan.intrinsics.aspect - 1280.0 / 720.0).abs() < 1e-12);
+        assert!(c.dirty, "a resize replans");
+        // A zero size (a minimised window) stays finite.
+        c.set_viewport(0, 0);
+        assert_eq!(c.cfg.plan.intrinsics.aspect, 1.0);
+        assert_eq!(c.cfg.plan.intrinsics.height_px, 1.0);
+    }
+
+    #[test]
     fn set_aside_is_moore_hodgson_the_largest_of_the_kept_goes() {
         let cfg = PlanStepConfig {
             step_s: 0.02,

@@ -254,6 +254,7 @@ impl ApplicationHandler for App {
                     g.config.width = size.width;
                     g.config.height = size.height;
                     g.surface.configure(&g.device, &g.config);
+                    self.driver.set_viewport(size.width, size.height);
                 }
             }
             WindowEvent::KeyboardInput { event, .. } => {

@@ -487,6 +487,11 @@ impl WebViewer {
         if let Some(c) = self.controls.as_mut() {
             c.resize(self.config.width, self.config.height);
         }
+        // The planner's view of the window (a borrow held elsewhere cannot be: JS is one
+        // thread, and no borrow outlives a call).
+        if let Ok(mut s) = self.shared.try_borrow_mut() {
+            s.client.set_viewport(self.config.width, self.config.height);
+        }
     }
 
     fn stats_value(&self) -> serde_json::Value {
