@@ -3,8 +3,9 @@
 //!
 //! Run: `PROBE_CANDS="21,12,11,12,11;18,12,10,12,11" cargo run --release --example
 //! high_bits_probe` (each candidate: position, rotation, scale, opacity, SH0 bits; the rest as
-//! `HIGH`); `PROBE_SCENES=donut` runs one scene. Prints wire B/splat (file or gzip -6, the
-//! smaller) and the mean SSIM framed / at 4x zoom, to 5 and to 12 decimals.
+//! `HIGH`); `PROBE_SCENES=donut` runs one scene; `PROBE_LOW="18,16,15"` adds Low (SPZ v2 as
+//! `variants::LOW_SPZ`) at each number of position bits. Prints wire B/splat (file or gzip -6,
+//! the smaller) and the mean SSIM framed / at 4x zoom, to 5 and to 12 decimals.
 
 #[path = "../benches/peer_views/mod.rs"]
 mod peer_views;
@@ -12,7 +13,7 @@ mod peer_views;
 use glam::DVec3;
 use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
 use splat2tiles::encode::meshopt::{HIGH, MeshoptLevel, write_meshopt_glb};
-use splat2tiles::encode::spz2::gzip;
+use splat2tiles::encode::spz2::{gzip, write_spz2_glb};
 use splat2tiles::encode::table6;
 use splat2tiles::encode::tile::IDENTITY;
 use splat2tiles::frame::UpAxis;
@@ -20,7 +21,7 @@ use splat2tiles::io::read_path;
 use splat2tiles::render::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
 use splat2tiles::render::{Camera, Image};
 use splat2tiles::splat::Splats;
-use splat2tiles::variants::{decode_variant, relative};
+use splat2tiles::variants::{LOW_SPZ, decode_variant, relative};
 
 fn main() {
     let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
@@ -28,7 +29,14 @@ fn main() {
     let cands: Vec<Vec<i32>> = std::env::var("PROBE_CANDS")
         .unwrap_or("18,12,11,12,12".into())
         .split(';')
+        .filter(|c| !c.is_empty())
         .map(|c| c.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    let lows: Vec<u8> = std::env::var("PROBE_LOW")
+        .unwrap_or_default()
+        .split(',')
+        .filter(|x| !x.is_empty())
+        .map(|x| x.parse().unwrap())
         .collect();
     for f in ["donut_fused_sh0.ply", "plant.splat", "biker.spz"] {
         if !only.is_empty() && !f.contains(&only) {
@@ -80,6 +88,15 @@ fn main() {
             let glb = write_meshopt_glb(&rel, [0.0; 3], IDENTITY, &l).unwrap();
             let (dec, _) = decode_variant(&glb).unwrap();
             report(&label, &glb, &dec);
+        }
+        for &bits in &lows {
+            let opts = splat2tiles::encode::spz2::SpzOptions {
+                position_bits: bits,
+                ..LOW_SPZ
+            };
+            let glb = write_spz2_glb(&rel, [0.0; 3], IDENTITY, &opts).unwrap();
+            let (dec, _) = decode_variant(&glb).unwrap();
+            report(&format!("low, position {bits} bits"), &glb, &dec);
         }
         eprintln!("{f}: {:.0} s", t0.elapsed().as_secs_f64());
     }
