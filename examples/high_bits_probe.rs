@@ -13,7 +13,7 @@ mod peer_views;
 use glam::DVec3;
 use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
 use splat2tiles::encode::meshopt::{HIGH, MeshoptLevel, write_meshopt_glb};
-use splat2tiles::encode::spz2::{gzip, write_spz2_glb};
+use splat2tiles::encode::spz2::{SpzOptions, gzip, write_spz2_glb};
 use splat2tiles::encode::table6;
 use splat2tiles::encode::tile::IDENTITY;
 use splat2tiles::frame::UpAxis;
@@ -90,7 +90,7 @@ fn main() {
             report(&label, &glb, &dec);
         }
         for &bits in &lows {
-            let opts = splat2tiles::encode::spz2::SpzOptions {
+            let opts = SpzOptions {
                 position_bits: bits,
                 ..LOW_SPZ
             };
