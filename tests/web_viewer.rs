@@ -103,6 +103,17 @@ fn json_of(o: &std::process::Output, what: &str) -> Value {
     })
 }
 
+/// A failed run's cause first (the script's error, its console problems, frames done), then the
+/// whole report: CI logs keep only the head and tail of a long panic message.
+fn why_failed(v: &Value) -> String {
+    format!(
+        "error: {}\nproblems: {}\nframes done: {}\nreport: {v:#}",
+        v["error"],
+        v["problems"],
+        v["frames"].as_array().map_or(0, Vec::len)
+    )
+}
+
 fn u(v: &Value) -> u64 {
     v.as_u64()
         .unwrap_or_else(|| panic!("not an unsigned number: {v}"))
@@ -146,7 +157,11 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
         .expect("cannot run `node` (install Node >= 20)");
     let v = json_of(&o, "web_viewer.mjs");
     drop(viewing);
-    assert!(o.status.success() && v["ok"] == true, "run failed: {v:#}");
+    assert!(
+        o.status.success() && v["ok"] == true,
+        "run failed: {}",
+        why_failed(&v)
+    );
     assert_eq!(
         v["problems"],
         Value::Array(vec![]),
@@ -225,7 +240,11 @@ fn web_viewer_starts_requests_between_frames() {
         .expect("cannot run `node` (install Node >= 20)");
     drop(viewing);
     let v = json_of(&o, "web_viewer.mjs");
-    assert!(o.status.success() && v["ok"] == true, "run failed: {v:#}");
+    assert!(
+        o.status.success() && v["ok"] == true,
+        "run failed: {}",
+        why_failed(&v)
+    );
     let fin = &v["final"];
     let frames = u(&fin["frames"]);
     let tiles = v["responses"]
@@ -298,7 +317,8 @@ fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
         drop(viewing);
         assert!(
             o.status.success() && v["ok"] == true,
-            "{level}: run failed: {v:#}"
+            "{level}: run failed: {}",
+            why_failed(&v)
         );
         assert_eq!(
             v["problems"],
@@ -424,7 +444,8 @@ fn web_vs_reference(
     let v = json_of(&o, &format!("{name}: web_viewer.mjs"));
     assert!(
         o.status.success() && v["ok"] == true,
-        "{name}: run failed: {v:#}"
+        "{name}: run failed: {}",
+        why_failed(&v)
     );
     assert_eq!(
         v["problems"],
@@ -568,7 +589,11 @@ fn web_viewer_walks_a_city_trace_within_its_budget() {
         .expect("cannot run `node` (install Node >= 20)");
     drop(viewing);
     let v = json_of(&o, "city_walk.mjs");
-    assert!(o.status.success() && v["ok"] == true, "walk failed: {v:#}");
+    assert!(
+        o.status.success() && v["ok"] == true,
+        "walk failed: {}",
+        why_failed(&v)
+    );
     assert_eq!(v["crashed"], false, "{v:#}");
     assert_eq!(
         v["problems"],
@@ -659,7 +684,11 @@ fn web_viewer_runs_the_tcn_predictor() {
         .expect("cannot run `node` (install Node >= 20)");
     drop(viewing);
     let v = json_of(&o, "web_tcn.mjs");
-    assert!(o.status.success() && v["ok"] == true, "run failed: {v:#}");
+    assert!(
+        o.status.success() && v["ok"] == true,
+        "run failed: {}",
+        why_failed(&v)
+    );
     let c = &v["check"];
     eprintln!(
         "wasm TCN: mean {} ms, min {} ms per 30 s prediction; load {} ms",
@@ -747,7 +776,11 @@ fn web_viewer_blends_a_layered_level_change_pose_by_pose() {
             .expect("cannot run `node` (install Node >= 20)");
         drop(viewing);
         let v = json_of(&o, "web_layered.mjs");
-        assert!(o.status.success() && v["ok"] == true, "{blend}: {v:#}");
+        assert!(
+            o.status.success() && v["ok"] == true,
+            "{blend}: {}",
+            why_failed(&v)
+        );
         let frames = v["frames"].as_array().unwrap();
         assert_eq!(frames.len(), POSES + 1);
         let imgs = frames
