@@ -94,6 +94,9 @@ struct Fake {
     aborted: Vec<RequestId>,
     /// Per path: bumped to change the validator without changing the bytes.
     versions: HashMap<String, u32>,
+    /// The end of a body comes one pump after its last chunk (a browser's stream reports it
+    /// separately), so a client can act in between.
+    late_end: bool,
 }
 
 impl Fake {
@@ -131,10 +134,13 @@ impl Fake {
                 let version = self.versions.get(&t.req.url).copied().unwrap_or(0);
                 let tag = etag_of(&bytes, version);
                 let len = bytes.len() as u64;
-                let ranged = t.req.range_start > 0
-                    && t.req.if_range.as_deref().is_none_or(|v| v == tag)
-                    && t.req.range_start < len;
-                if ranged {
+                let ranged =
+                    t.req.range_start > 0 && t.req.if_range.as_deref().is_none_or(|v| v == tag);
+                if ranged && t.req.range_start >= len {
+                    // As `serve` (and RFC 9110) answers a range past the end.
+                    c.on_response(t.req.id, 416, Some(&tag), None, Some(len));
+                    finished.push((t.req.id, true));
+                } else if ranged {
                     t.body = bytes[t.req.range_start as usize..].to_vec();
                     c.on_response(
                         t.req.id,
@@ -149,10 +155,15 @@ impl Fake {
                 }
                 continue;
             }
+            let ended = t.pos == t.body.len();
+            if ended && self.late_end {
+                finished.push((t.req.id, true));
+                continue;
+            }
             let end = (t.pos + CHUNK).min(t.body.len());
             c.on_data(t.req.id, &t.body[t.pos..end], now);
             t.pos = end;
-            if t.pos == t.body.len() {
+            if t.pos == t.body.len() && !self.late_end {
                 finished.push((t.req.id, true));
             }
         }
@@ -426,6 +437,59 @@ fn abort_mid_body_then_resume_with_range_gives_the_same_splats() {
             files
         );
     }
+}
+
+#[test]
+fn a_transfer_paused_after_its_last_byte_finishes_instead_of_asking_past_the_end() {
+    let ts = load_tileset(&plant().join("tileset.json")).unwrap();
+    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
+    let target = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 0.0).center();
+    let away = Camera::look_at(
+        1280,
+        720,
+        50.0,
+        cam.center(),
+        cam.center() * 2.0 - target,
+        DVec3::Z,
+    );
+    let mut s = Session::new(plant(), cfg(vec![Level::Best]));
+    s.fake.late_end = true;
+    // Stream until a content transfer holds every byte and waits for the end of its body.
+    let mut full = None;
+    for _ in 0..2000 {
+        s.step(&cam);
+        full = s
+            .fake
+            .live
+            .iter()
+            .find(|t| t.req.url.ends_with(".glb") && t.responded && t.pos == t.body.len())
+            .map(|t| (t.req.id, t.req.url.clone(), t.body.len() as u64));
+        if full.is_some() {
+            break;
+        }
+    }
+    let (id, url, len) = full.expect("a transfer with every byte delivered");
+    let resident = s.client.stats().resident_tiles;
+    // Look away: the client would pause it; with every byte in, it finishes the tile instead.
+    s.step(&away);
+    assert!(s.fake.aborted.contains(&id), "transfer {id} still open");
+    let st = s.client.stats();
+    assert!(st.resident_tiles > resident, "{st:?}");
+    // Look back: the tile is not asked for again (a Range past the end would be a 416).
+    s.run_idle(&cam, 20_000);
+    let again: Vec<&FetchRequest> = s
+        .fake
+        .fetched
+        .iter()
+        .filter(|f| f.url == url && f.id != id)
+        .collect();
+    assert!(
+        again.is_empty(),
+        "{url} ({len} bytes) fetched again: {again:?}"
+    );
+    let st = s.client.stats();
+    assert_eq!(st.errors, 0, "{:?}", st.last_errors);
+    assert_scene_is_selection(&s, &ts, &cam);
 }
 
 #[test]
