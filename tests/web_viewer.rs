@@ -145,57 +145,75 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("no splat count in: {note}"));
 
-    let viewing = view(&dir, &tmp.path().join("view.log"));
     let shot = tmp.path().join("web.png");
-    let o = Command::new("node")
-        .arg(js_dir().join("web_viewer.mjs"))
-        .arg(&viewing.base)
-        .arg("--shot")
-        .arg(&shot)
-        .args(["--width", &w.to_string(), "--height", &h.to_string()])
-        .output()
-        .expect("cannot run `node` (install Node >= 20)");
-    let v = json_of(&o, "web_viewer.mjs");
-    drop(viewing);
-    assert!(
-        o.status.success() && v["ok"] == true,
-        "run failed: {}",
-        why_failed(&v)
-    );
-    assert_eq!(
-        v["problems"],
-        Value::Array(vec![]),
-        "console problems: {v:#}"
-    );
-
-    // Paused tiles came back as 206 answers to Range + If-Range requests, and nothing failed.
-    let responses = v["responses"].as_array().unwrap();
-    let resumed: Vec<&Value> = responses
-        .iter()
-        .filter(|r| r["status"] == 206 && r["range"].is_string() && r["ifRange"].is_string())
-        .collect();
-    assert!(!resumed.is_empty(), "no tile was resumed with Range: {v:#}");
-    assert!(
-        !v["abortedRequests"].as_array().unwrap().is_empty(),
-        "no fetch was aborted when the view turned away: {v:#}"
-    );
-    let failed: Vec<&Value> = responses
-        .iter()
-        .filter(|r| u(&r["status"]) >= 400)
-        .collect();
-    assert!(failed.is_empty(), "failed requests: {failed:?}");
-    let fin = &v["final"];
-    assert!(u(&fin["paused"]) == 0 && u(&fin["errors"]) == 0, "{fin:#}");
-    assert_eq!(u(&fin["residentSplats"]), splats, "{fin:#}");
+    // Which downloads a turn pauses depends on timing: a paused LOD parent whose children
+    // complete first is never wanted again (it stays paused, nothing to resume). Such a run
+    // says nothing about resuming, so it is repeated (at most three runs); every run must
+    // stream cleanly, and one must pause and resume.
+    let mut runs = 0;
+    let resumed = loop {
+        runs += 1;
+        let viewing = view(&dir, &tmp.path().join(format!("view{runs}.log")));
+        let o = Command::new("node")
+            .arg(js_dir().join("web_viewer.mjs"))
+            .arg(&viewing.base)
+            .arg("--shot")
+            .arg(&shot)
+            .args(["--width", &w.to_string(), "--height", &h.to_string()])
+            .output()
+            .expect("cannot run `node` (install Node >= 20)");
+        let v = json_of(&o, "web_viewer.mjs");
+        drop(viewing);
+        assert!(
+            o.status.success() && v["ok"] == true,
+            "run {runs} failed: {}",
+            why_failed(&v)
+        );
+        assert_eq!(
+            v["problems"],
+            Value::Array(vec![]),
+            "run {runs}: console problems: {v:#}"
+        );
+        let responses = v["responses"].as_array().unwrap();
+        let failed: Vec<&Value> = responses
+            .iter()
+            .filter(|r| u(&r["status"]) >= 400)
+            .collect();
+        assert!(failed.is_empty(), "run {runs}: failed requests: {failed:?}");
+        let fin = &v["final"];
+        assert_eq!(u(&fin["errors"]), 0, "run {runs}: {fin:#}");
+        assert_eq!(u(&fin["residentSplats"]), splats, "run {runs}: {fin:#}");
+        assert!(
+            !v["abortedRequests"].as_array().unwrap().is_empty(),
+            "run {runs}: no fetch was aborted when the view turned away: {v:#}"
+        );
+        // Paused tiles came back as 206 answers to Range + If-Range requests.
+        let resumed = responses
+            .iter()
+            .filter(|r| r["status"] == 206 && r["range"].is_string() && r["ifRange"].is_string())
+            .count();
+        if resumed > 0 && u(&fin["paused"]) == 0 {
+            break resumed;
+        }
+        assert!(
+            runs < 3,
+            "no run resumed every paused tile with Range (last: {resumed} resumed, {} still \
+             paused): {v:#}",
+            fin["paused"]
+        );
+        eprintln!(
+            "run {runs}: {resumed} resumed by Range, {} still paused; running again",
+            fin["paused"]
+        );
+    };
 
     let a = Image::load_png(&shot).unwrap();
     let b = Image::load_png(&reference).unwrap();
     assert_eq!((a.width, a.height), (w, h), "screenshot size");
     let s = ssim(&a, &b).unwrap();
     eprintln!(
-        "web viewer vs reference: SSIM {s:.4} ({} resumed by Range, {} splats)",
-        resumed.len(),
-        splats
+        "web viewer vs reference: SSIM {s:.4} ({resumed} resumed by Range, {splats} splats, \
+         run {runs})"
     );
     assert!(
         s >= MIN_SSIM,
