@@ -277,6 +277,22 @@ fn camera(ts: &LoadedTileset, dir: DVec3, dist: f64) -> Camera {
     Camera::look_at(1280, 720, 50.0, eye, c, DVec3::Z)
 }
 
+/// The camera at `dist` radii from the plant along (1, -1, 0.6), looking at it, and the same
+/// camera turned to look the other way (nothing of the plant in view).
+fn toward_and_away(ts: &LoadedTileset, dist: f64) -> (Camera, Camera) {
+    let cam = camera(ts, DVec3::new(1.0, -1.0, 0.6), dist);
+    let target = camera(ts, DVec3::new(1.0, -1.0, 0.6), 0.0).center();
+    let away = Camera::look_at(
+        1280,
+        720,
+        50.0,
+        cam.center(),
+        cam.center() * 2.0 - target,
+        DVec3::Z,
+    );
+    (cam, away)
+}
+
 /// Step `k` of the slow orbit the memory-budget tests walk (0.004 rad a step, distance
 /// breathing between 0.7 and 1.7 root radii).
 fn budget_orbit(ts: &LoadedTileset, k: usize) -> Camera {
@@ -365,16 +381,7 @@ fn converges_to_select_tiles_for_a_static_camera() {
 fn abort_mid_body_then_resume_with_range_gives_the_same_splats() {
     let ts = load_tileset(&plant().join("tileset.json")).unwrap();
     // The whole plant in view (frustum culling removes nothing).
-    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
-    let target = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 0.0).center();
-    let away = Camera::look_at(
-        1280,
-        720,
-        50.0,
-        cam.center(),
-        cam.center() * 2.0 - target,
-        DVec3::Z,
-    );
+    let (cam, away) = toward_and_away(&ts, 2.5);
     for change_validator in [false, true] {
         let (_tmp, dir) = plant_copy();
         let mut s = Session::new(&dir, cfg(vec![Level::Best]));
@@ -442,16 +449,7 @@ fn abort_mid_body_then_resume_with_range_gives_the_same_splats() {
 #[test]
 fn a_transfer_paused_after_its_last_byte_finishes_instead_of_asking_past_the_end() {
     let ts = load_tileset(&plant().join("tileset.json")).unwrap();
-    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 2.5);
-    let target = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 0.0).center();
-    let away = Camera::look_at(
-        1280,
-        720,
-        50.0,
-        cam.center(),
-        cam.center() * 2.0 - target,
-        DVec3::Z,
-    );
+    let (cam, away) = toward_and_away(&ts, 2.5);
     let mut s = Session::new(plant(), cfg(vec![Level::Best]));
     s.fake.late_end = true;
     // Stream until a content transfer holds every byte and waits for the end of its body.
@@ -643,17 +641,8 @@ fn missing_truncated_and_garbled_tiles_are_errors_not_panics() {
 #[test]
 fn moving_the_camera_away_aborts_in_flight_fetches() {
     let ts = load_tileset(&plant().join("tileset.json")).unwrap();
-    let cam = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 1.3);
-    let target = camera(&ts, DVec3::new(1.0, -1.0, 0.6), 0.0).center();
     // Same place, looking the other way: nothing of the plant is in view.
-    let away = Camera::look_at(
-        1280,
-        720,
-        50.0,
-        cam.center(),
-        cam.center() * 2.0 - target,
-        DVec3::Z,
-    );
+    let (cam, away) = toward_and_away(&ts, 1.3);
     let mut s = Session::new(plant(), cfg(vec![Level::Best]));
     let mut inflight: Vec<RequestId> = vec![];
     for _ in 0..2000 {

@@ -114,6 +114,20 @@ fn why_failed(v: &Value) -> String {
     )
 }
 
+/// The browser run exited 0, reported `ok` and logged no console problem (`what` names it).
+fn assert_clean_run(o: &std::process::Output, v: &Value, what: &str) {
+    assert!(
+        o.status.success() && v["ok"] == true,
+        "{what}: run failed: {}",
+        why_failed(v)
+    );
+    assert_eq!(
+        v["problems"],
+        Value::Array(vec![]),
+        "{what}: console problems: {v:#}"
+    );
+}
+
 fn u(v: &Value) -> u64 {
     v.as_u64()
         .unwrap_or_else(|| panic!("not an unsigned number: {v}"))
@@ -164,16 +178,7 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
             .expect("cannot run `node` (install Node >= 20)");
         let v = json_of(&o, "web_viewer.mjs");
         drop(viewing);
-        assert!(
-            o.status.success() && v["ok"] == true,
-            "run {runs} failed: {}",
-            why_failed(&v)
-        );
-        assert_eq!(
-            v["problems"],
-            Value::Array(vec![]),
-            "run {runs}: console problems: {v:#}"
-        );
+        assert_clean_run(&o, &v, &format!("run {runs}"));
         let responses = v["responses"].as_array().unwrap();
         let failed: Vec<&Value> = responses
             .iter()
@@ -333,16 +338,7 @@ fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
             .expect("cannot run `node` (install Node >= 20)");
         let v = json_of(&o, "web_viewer.mjs");
         drop(viewing);
-        assert!(
-            o.status.success() && v["ok"] == true,
-            "{level}: run failed: {}",
-            why_failed(&v)
-        );
-        assert_eq!(
-            v["problems"],
-            Value::Array(vec![]),
-            "{level}: console problems: {v:#}"
-        );
+        assert_clean_run(&o, &v, level);
         let responses = v["responses"].as_array().unwrap();
         assert!(
             responses.iter().any(|r| r["url"]
@@ -460,16 +456,7 @@ fn web_vs_reference(
         .expect("cannot run `node` (install Node >= 20)");
     drop(viewing);
     let v = json_of(&o, &format!("{name}: web_viewer.mjs"));
-    assert!(
-        o.status.success() && v["ok"] == true,
-        "{name}: run failed: {}",
-        why_failed(&v)
-    );
-    assert_eq!(
-        v["problems"],
-        Value::Array(vec![]),
-        "{name}: console problems: {v:#}"
-    );
+    assert_clean_run(&o, &v, name);
     let fin = v["final"].clone();
     assert!(u(&fin["errors"]) == 0, "{name}: {fin:#}");
     let resident = u(&fin["residentSplats"]);
