@@ -103,6 +103,31 @@ fn json_of(o: &std::process::Output, what: &str) -> Value {
     })
 }
 
+/// Serves `dir` with `splat2tiles view` (its log at `log`), runs `web_viewer.mjs` against it
+/// (`--shot SHOT --width W --height H`, then `extra`) and returns the exit and the JSON report.
+fn run_web_viewer(
+    dir: &Path,
+    log: &Path,
+    shot: &Path,
+    (w, h): (u32, u32),
+    extra: &[&str],
+    what: &str,
+) -> (std::process::Output, Value) {
+    let viewing = view(dir, log);
+    let o = Command::new("node")
+        .arg(js_dir().join("web_viewer.mjs"))
+        .arg(&viewing.base)
+        .arg("--shot")
+        .arg(shot)
+        .args(["--width", &w.to_string(), "--height", &h.to_string()])
+        .args(extra)
+        .output()
+        .expect("cannot run `node` (install Node >= 20)");
+    drop(viewing);
+    let v = json_of(&o, what);
+    (o, v)
+}
+
 /// A failed run's cause first (the script's error, its console problems, frames done), then the
 /// whole report: CI logs keep only the head and tail of a long panic message.
 fn why_failed(v: &Value) -> String {
@@ -167,17 +192,8 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
     let mut runs = 0;
     let resumed = loop {
         runs += 1;
-        let viewing = view(&dir, &tmp.path().join(format!("view{runs}.log")));
-        let o = Command::new("node")
-            .arg(js_dir().join("web_viewer.mjs"))
-            .arg(&viewing.base)
-            .arg("--shot")
-            .arg(&shot)
-            .args(["--width", &w.to_string(), "--height", &h.to_string()])
-            .output()
-            .expect("cannot run `node` (install Node >= 20)");
-        let v = json_of(&o, "web_viewer.mjs");
-        drop(viewing);
+        let log = tmp.path().join(format!("view{runs}.log"));
+        let (o, v) = run_web_viewer(&dir, &log, &shot, (w, h), &[], "web_viewer.mjs");
         assert_clean_run(&o, &v, &format!("run {runs}"));
         let responses = v["responses"].as_array().unwrap();
         let failed: Vec<&Value> = responses
@@ -243,26 +259,24 @@ fn web_viewer_starts_requests_between_frames() {
         .arg(scene("plant.splat"))
         .args(["--max-splats", "512", "-o"])
         .arg(&dir));
-    let viewing = view(&dir, &tmp.path().join("view.log"));
-    let o = Command::new("node")
-        .arg(js_dir().join("web_viewer.mjs"))
-        .arg(&viewing.base)
-        .arg("--shot")
-        .arg(tmp.path().join("web.png"))
-        .args(["--still", "--frame-interval", "3000", "--max-sse", "1"])
-        .args([
+    let (o, v) = run_web_viewer(
+        &dir,
+        &tmp.path().join("view.log"),
+        &tmp.path().join("web.png"),
+        (160, 120),
+        &[
+            "--still",
+            "--frame-interval",
+            "3000",
+            "--max-sse",
+            "1",
             "--throttle",
             "100000000",
-            "--width",
-            "160",
-            "--height",
-            "120",
-        ])
-        .args(["--timeout", "300"])
-        .output()
-        .expect("cannot run `node` (install Node >= 20)");
-    drop(viewing);
-    let v = json_of(&o, "web_viewer.mjs");
+            "--timeout",
+            "300",
+        ],
+        "web_viewer.mjs",
+    );
     assert!(
         o.status.success() && v["ok"] == true,
         "run failed: {}",
@@ -325,19 +339,15 @@ fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
             .and_then(|s| s.parse().ok())
             .unwrap_or_else(|| panic!("no splat count in: {note}"));
 
-        let viewing = view(&dir, &tmp.path().join(format!("view-{level}.log")));
         let shot = native.join("web.png");
-        let o = Command::new("node")
-            .arg(js_dir().join("web_viewer.mjs"))
-            .arg(&viewing.base)
-            .arg("--shot")
-            .arg(&shot)
-            .args(["--width", &w.to_string(), "--height", &h.to_string()])
-            .args(["--levels", level])
-            .output()
-            .expect("cannot run `node` (install Node >= 20)");
-        let v = json_of(&o, "web_viewer.mjs");
-        drop(viewing);
+        let (o, v) = run_web_viewer(
+            &dir,
+            &tmp.path().join(format!("view-{level}.log")),
+            &shot,
+            (w, h),
+            &["--levels", level],
+            "web_viewer.mjs",
+        );
         assert_clean_run(&o, &v, level);
         let responses = v["responses"].as_array().unwrap();
         assert!(
@@ -432,30 +442,27 @@ fn web_vs_reference(
         .and_then(|s| s.split(' ').next())
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("no splat count in: {note}"));
-    let viewing = view(dir, &tmp.join(format!("{name}-view.log")));
     let shot = tmp.join(format!("{name}-web.png"));
     let js_view: Vec<String> = match how {
         ["--auto-view", k] => vec!["--auto-view".into(), k.to_string()],
         ["--camera", spec] => vec!["--camera".into(), spec.to_string()],
         other => panic!("unknown view {other:?}"),
     };
-    let mut node = Command::new("node");
-    node.arg(js_dir().join("web_viewer.mjs"))
-        .arg(&viewing.base)
-        .arg("--shot")
-        .arg(&shot)
-        .args(["--width", &w.to_string(), "--height", &h.to_string()])
-        .args(["--still", "--throttle", "100000000", "--timeout", "120"])
-        .args(["--max-sse", &max_sse.to_string()])
-        .args(&js_view);
-    if frame_ms > 0 {
-        node.args(["--frame-interval", &frame_ms.to_string()]);
+    let (max_sse, frame_ms) = (max_sse.to_string(), frame_ms.to_string());
+    let mut extra = vec!["--still", "--throttle", "100000000", "--timeout", "120"];
+    extra.extend(["--max-sse", &max_sse]);
+    extra.extend(js_view.iter().map(String::as_str));
+    if frame_ms != "0" {
+        extra.extend(["--frame-interval", &frame_ms]);
     }
-    let o = node
-        .output()
-        .expect("cannot run `node` (install Node >= 20)");
-    drop(viewing);
-    let v = json_of(&o, &format!("{name}: web_viewer.mjs"));
+    let (o, v) = run_web_viewer(
+        dir,
+        &tmp.join(format!("{name}-view.log")),
+        &shot,
+        (w, h),
+        &extra,
+        &format!("{name}: web_viewer.mjs"),
+    );
     assert_clean_run(&o, &v, name);
     let fin = v["final"].clone();
     assert!(u(&fin["errors"]) == 0, "{name}: {fin:#}");

@@ -17,18 +17,16 @@ impl StreamClient {
         let Some(req) = d.req else {
             return;
         };
+        self.requests.remove(&req);
+        actions.push(Action::Abort { id: req });
         if d.total.is_some_and(|t| d.bytes.len() as u64 == t) {
             // Every byte has arrived and only the end of the body has not: finish the tile
             // instead of pausing it (a resume would ask for the empty range past the end, which
-            // a server answers 416). The request itself is no longer needed.
-            self.requests.remove(&req);
-            actions.push(Action::Abort { id: req });
+            // a server answers 416).
             self.content_done(req, tile);
             return;
         }
         d.req = None;
-        self.requests.remove(&req);
-        actions.push(Action::Abort { id: req });
         self.stats.aborts += 1;
         if !d.resumable {
             // No validator: bytes cannot be resumed safely.
