@@ -50,6 +50,8 @@ pub fn encode_vertex_buffer_v0(data: &[u8], stride: usize) -> Vec<u8> {
     // Four byte columns at a time (strides are multiples of 4): their deltas from the previous
     // vertex, zigzagged, computed in one u32 per vertex.
     let mut deltas = [[0u8; BLOCK_MAX]; 4];
+    #[cfg(target_arch = "x86_64")]
+    let mut deltas16 = [[0u8; BLOCK_MAX]; GROUP];
     for block in data.chunks(bs * stride) {
         let n = block.len() / stride;
         let aligned = n.next_multiple_of(GROUP);
@@ -57,7 +59,19 @@ pub fn encode_vertex_buffer_v0(data: &[u8], stride: usize) -> Vec<u8> {
         for column in &mut deltas {
             column[n..aligned].fill(0);
         }
-        for k in (0..stride).step_by(4) {
+        #[allow(unused_mut)]
+        let mut k0 = 0;
+        // Sixteen byte columns at a time where the stride holds them (x86_64: SSE2).
+        #[cfg(target_arch = "x86_64")]
+        while k0 + GROUP <= stride {
+            // SAFETY: SSE2 is part of every x86_64 target.
+            unsafe { sse2::deltas16(block, stride, k0, &last, &mut deltas16) };
+            for column in &deltas16 {
+                pos = encode_column(&mut out, pos, &column[..aligned]);
+            }
+            k0 += GROUP;
+        }
+        for k in (k0..stride).step_by(4) {
             let word = |b: &[u8]| u32::from_le_bytes(b[k..k + 4].try_into().expect("4 bytes"));
             let mut p = word(&last);
             for (i, row) in block.chunks_exact(stride).enumerate() {
@@ -69,7 +83,7 @@ pub fn encode_vertex_buffer_v0(data: &[u8], stride: usize) -> Vec<u8> {
                 p = v;
             }
             for column in &deltas {
-                pos = encode_bytes(&mut out, pos, &column[..aligned]);
+                pos = encode_column(&mut out, pos, &column[..aligned]);
             }
         }
         last[..stride].copy_from_slice(&block[(n - 1) * stride..]);
@@ -83,6 +97,167 @@ pub fn encode_vertex_buffer_v0(data: &[u8], stride: usize) -> Vec<u8> {
     out
 }
 
+#[cfg(target_arch = "x86_64")]
+/// The zigzagged deltas of sixteen byte columns at once, transposed in SSE2 registers (part of
+/// the x86_64 baseline: no runtime check).
+mod sse2 {
+    use super::{BITS, BLOCK_MAX, GROUP, pack2};
+    use std::arch::x86_64::{
+        __m128i, _mm_add_epi8, _mm_and_si128, _mm_cmpeq_epi8, _mm_cmpgt_epi8, _mm_cvtsi128_si64,
+        _mm_loadu_si128, _mm_max_epu8, _mm_min_epu8, _mm_movemask_epi8, _mm_or_si128,
+        _mm_packus_epi16, _mm_set1_epi8, _mm_set1_epi16, _mm_setzero_si128, _mm_slli_epi16,
+        _mm_srli_epi16, _mm_srli_si128, _mm_storeu_si128, _mm_sub_epi8, _mm_unpackhi_epi8,
+        _mm_unpacklo_epi8, _mm_xor_si128,
+    };
+
+    /// The 16 bytes of `b`.
+    #[target_feature(enable = "sse2")]
+    fn load(b: &[u8; GROUP]) -> __m128i {
+        // SAFETY: `b` is 16 readable bytes; the load is unaligned.
+        unsafe { _mm_loadu_si128(b.as_ptr().cast()) }
+    }
+
+    /// Writes `v` into `out`.
+    #[target_feature(enable = "sse2")]
+    fn store(v: __m128i, out: &mut [u8; GROUP]) {
+        // SAFETY: `out` is 16 writable bytes; the store is unaligned.
+        unsafe { _mm_storeu_si128(out.as_mut_ptr().cast(), v) }
+    }
+
+    /// meshopt's byte zigzag (`(x << 1) ^ -(x >> 7)`) in each byte.
+    #[target_feature(enable = "sse2")]
+    fn zigzag(d: __m128i) -> __m128i {
+        _mm_xor_si128(_mm_add_epi8(d, d), _mm_cmpgt_epi8(_mm_setzero_si128(), d))
+    }
+
+    /// Transposes 16 rows of 16 bytes: each interleaving round rotates the 8-bit index (row,
+    /// column) of every byte left by one, so four rounds swap row and column.
+    #[target_feature(enable = "sse2")]
+    fn transpose(x: &mut [__m128i; GROUP]) {
+        for _ in 0..4 {
+            let mut y = [_mm_setzero_si128(); GROUP];
+            for i in 0..GROUP / 2 {
+                y[2 * i] = _mm_unpacklo_epi8(x[i], x[i + GROUP / 2]);
+                y[2 * i + 1] = _mm_unpackhi_epi8(x[i], x[i + GROUP / 2]);
+            }
+            *x = y;
+        }
+    }
+
+    /// Byte columns `k..k + 16` of the block's vertices (`stride` bytes each; `last` the vertex
+    /// before the block) as zigzagged deltas from the previous vertex, one column per row of
+    /// `out`, zero past the block's vertices up to the next whole group.
+    #[target_feature(enable = "sse2")]
+    pub(super) fn deltas16(
+        block: &[u8],
+        stride: usize,
+        k: usize,
+        last: &[u8; 256],
+        out: &mut [[u8; BLOCK_MAX]; GROUP],
+    ) {
+        let n = block.len() / stride;
+        let mut prev = load(last[k..k + GROUP].try_into().expect("16 bytes"));
+        for g in (0..n).step_by(GROUP) {
+            let mut x = [_mm_setzero_si128(); GROUP];
+            for (j, x) in x.iter_mut().enumerate().take(n - g) {
+                let at = (g + j) * stride + k;
+                let r = load(block[at..at + GROUP].try_into().expect("16 bytes"));
+                *x = zigzag(_mm_sub_epi8(r, prev));
+                prev = r;
+            }
+            transpose(&mut x);
+            for (column, v) in out.iter_mut().zip(x) {
+                store(v, (&mut column[g..g + GROUP]).try_into().expect("16 bytes"));
+            }
+        }
+    }
+
+    /// [`super::encode_bytes`] with a group's widths measured, capped and packed in SSE2
+    /// registers; the same bytes (`tests::sse2_groups_match_the_scalar_ones`).
+    #[target_feature(enable = "sse2")]
+    pub(super) fn encode_bytes(out: &mut [u8], mut pos: usize, buffer: &[u8]) -> usize {
+        let groups = buffer.len() / GROUP;
+        let header = pos;
+        out[pos..pos + groups.div_ceil(4)].fill(0);
+        pos += groups.div_ceil(4);
+        let mut last_bits = u32::MAX;
+        let (three, fifteen) = (_mm_set1_epi8(3), _mm_set1_epi8(15));
+        for (g, group) in buffer.chunks_exact(GROUP).enumerate() {
+            let group: &[u8; GROUP] = group.try_into().expect("16 bytes");
+            let x = load(group);
+            // Bit j set where byte j is at or above the sentinel (zero bytes: all set).
+            let at_least = |t: __m128i| _mm_movemask_epi8(_mm_cmpeq_epi8(_mm_max_epu8(x, t), x));
+            let (over2, over4) = (at_least(three) as u32, at_least(fifteen) as u32);
+            let zero = _mm_movemask_epi8(_mm_cmpeq_epi8(x, _mm_setzero_si128())) == 0xffff;
+            let sizes = [
+                if zero { 0 } else { usize::MAX },
+                GROUP * 2 / 8 + over2.count_ones() as usize,
+                GROUP * 4 / 8 + over4.count_ones() as usize,
+            ];
+            let (mut best, mut best_size) = (3usize, GROUP);
+            for (bitk, &size) in sizes.iter().enumerate() {
+                if size < best_size
+                    || (size == best_size && BITS[bitk] == last_bits && BITS[best] != 8)
+                {
+                    best = bitk;
+                    best_size = size;
+                }
+            }
+            out[header + g / 4] |= (best << ((g % 4) * 2)) as u8;
+            let bits = BITS[best];
+            last_bits = bits;
+            let over = match bits {
+                0 => continue,
+                8 => {
+                    store(
+                        x,
+                        (&mut out[pos..pos + GROUP]).try_into().expect("16 bytes"),
+                    );
+                    pos += GROUP;
+                    continue;
+                }
+                2 => {
+                    // Every byte capped at 3, four to a byte by the scalar multiply.
+                    let c = _mm_min_epu8(x, three);
+                    let halves = [c, _mm_srli_si128::<8>(c)].map(|h| _mm_cvtsi128_si64(h) as u64);
+                    for h in halves {
+                        out[pos..pos + 2].copy_from_slice(&pack2(h));
+                        pos += 2;
+                    }
+                    over2
+                }
+                _ => {
+                    // Every byte capped at 15; byte pairs (a, b) become (a << 4) | b.
+                    let c = _mm_min_epu8(x, fifteen);
+                    let pairs = _mm_or_si128(_mm_slli_epi16::<4>(c), _mm_srli_epi16::<8>(c));
+                    let packed =
+                        _mm_packus_epi16(_mm_and_si128(pairs, _mm_set1_epi16(0xff)), pairs);
+                    let low = _mm_cvtsi128_si64(packed) as u64;
+                    out[pos..pos + 8].copy_from_slice(&low.to_le_bytes());
+                    pos += 8;
+                    over4
+                }
+            };
+            // The bytes at or above the sentinel, in order, whole.
+            let mut m = over;
+            while m != 0 {
+                out[pos] = group[m.trailing_zeros() as usize];
+                pos += 1;
+                m &= m - 1;
+            }
+        }
+        pos
+    }
+}
+
+/// Two bytes holding the eight 2-bit values of `c` (bytes at most 3), four per byte with the
+/// first in the top bits: one multiply gathers bytes 0..4 of each half at bits 30, 28, 26, 24
+/// (no two terms overlap).
+fn pack2(c: u64) -> [u8; 2] {
+    const GATHER: u64 = (1 << 30) | (1 << 20) | (1 << 10) | 1;
+    [c & 0xffff_ffff, c >> 32].map(|half| ((half * GATHER) >> 24) as u8)
+}
+
 /// `a - b` in each byte (wrapping, no borrow between bytes).
 fn sub_bytes(a: u32, b: u32) -> u32 {
     const HIGH: u32 = 0x8080_8080;
@@ -92,6 +267,15 @@ fn sub_bytes(a: u32, b: u32) -> u32 {
 /// meshopt's byte zigzag (`(x << 1) ^ -(x >> 7)`) in each byte.
 fn zigzag_bytes(x: u32) -> u32 {
     ((x << 1) & 0xfefe_fefe) ^ (((x >> 7) & 0x0101_0101) * 0xff)
+}
+
+/// [`encode_bytes`], in SSE2 on x86_64.
+fn encode_column(out: &mut [u8], pos: usize, buffer: &[u8]) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE2 is part of every x86_64 target.
+    return unsafe { sse2::encode_bytes(out, pos, buffer) };
+    #[cfg(not(target_arch = "x86_64"))]
+    encode_bytes(out, pos, buffer)
 }
 
 /// Bytes 0x80 where the byte of `w` is at least `0x80 - t` (`t` repeated in every byte).
@@ -107,6 +291,7 @@ fn at_least(w: u64, t: u64) -> u64 {
 /// returns the end: 2-bit headers, then each group at the width that is shortest (ties go to the
 /// previous group's width, never replacing literals), as meshopt's `encodeBytes` with version
 /// 0's widths. Stores up to [`GROUP`] bytes past the end (`out` has the slack).
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
 fn encode_bytes(out: &mut [u8], mut pos: usize, buffer: &[u8]) -> usize {
     const REP: u64 = 0x0101_0101_0101_0101;
     let groups = buffer.len() / GROUP;
@@ -155,13 +340,8 @@ fn encode_bytes(out: &mut [u8], mut pos: usize, buffer: &[u8]) -> usize {
         });
         for c in capped {
             if bits == 2 {
-                // Four 2-bit values per byte, the first in the top bits: one multiply gathers
-                // bytes 0..4 of each half at bits 30, 28, 26, 24 (no two terms overlap).
-                const GATHER: u64 = (1 << 30) | (1 << 20) | (1 << 10) | 1;
-                for half in [c & 0xffff_ffff, c >> 32] {
-                    out[pos] = ((half * GATHER) >> 24) as u8;
-                    pos += 1;
-                }
+                out[pos..pos + 2].copy_from_slice(&pack2(c));
+                pos += 2;
             } else {
                 for j in 0..4 {
                     let pair = c >> (16 * j);
@@ -202,6 +382,35 @@ mod tests {
             );
             out.truncate(n);
             out
+        }
+    }
+
+    /// The SSE2 column encoder writes what the scalar one writes, on columns whose groups take
+    /// every width (zero, 2- and 4-bit with and without literals, raw) and tie between widths.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn sse2_groups_match_the_scalar_ones() {
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for groups in [1usize, 3, 4, 5, 16] {
+            for _ in 0..200 {
+                // Each group's bytes below one of these bounds (1: a zero group).
+                let mut column = vec![];
+                for _ in 0..groups {
+                    let r = [1u64, 2, 3, 4, 15, 16, 17, 256][(next() % 8) as usize];
+                    column.extend((0..GROUP).map(|_| (next() % r) as u8));
+                }
+                let (mut a, mut b) = (vec![0u8; 1024], vec![0u8; 1024]);
+                let na = encode_bytes(&mut a, 3, &column);
+                // SAFETY: SSE2 is part of every x86_64 target.
+                let nb = unsafe { sse2::encode_bytes(&mut b, 3, &column) };
+                assert_eq!(a[..na], b[..nb], "{column:?}");
+            }
         }
     }
 

@@ -167,13 +167,14 @@ pub fn loss_curve(
     for i in 0..n {
         let s = reference.scales[i].map(|v| (v as f64).abs());
         let alpha = reference.opacities[i].clamp(0.0, 1.0) as f64;
+        let q_ref = quat(reference.rotations[i]);
         for (diff, (_, cand)) in diffs.iter_mut().zip(&compared) {
             let c2 = colour_diff2(reference, cand, i);
             let da = alpha - cand.opacities[i].clamp(0.0, 1.0) as f64;
             let dp =
                 DVec3::from_array(reference.positions[i]) - DVec3::from_array(cand.positions[i]);
             let sc = cand.scales[i].map(|v| (v as f64).abs());
-            let angle = quat(reference.rotations[i]).angle_between(quat(cand.rotations[i]));
+            let angle = q_ref.angle_between(quat(cand.rotations[i]));
             *diff = Diff {
                 fixed: WEIGHTS[0] * (c2 * inv_4pi / 3.0) + WEIGHTS[1] * (da * da),
                 position: WEIGHTS[2] * dp.length_squared(),

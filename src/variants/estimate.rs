@@ -128,24 +128,26 @@ pub fn features(reference: &Splats, candidate: &Splats, setup: &ViewSetup) -> Op
 /// orthonormal, so this is the mean squared colour difference up to a constant.
 pub(super) fn colour_diff2(reference: &Splats, candidate: &Splats, i: usize) -> f64 {
     let (rest_ref, rest_cand) = (sh_rest_len(reference), sh_rest_len(candidate));
+    let a = &reference.sh_rest[i * rest_ref..(i + 1) * rest_ref];
+    let b = &candidate.sh_rest[i * rest_cand..(i + 1) * rest_cand];
     let mut c2 = 0.0;
     for ch in 0..3 {
         let d = (reference.sh0[i][ch] - candidate.sh0[i][ch]) as f64;
         c2 += d * d;
     }
-    for k in 0..rest_ref.max(rest_cand) {
+    // In coefficient order as one loop over both would add them (a band only one side has is
+    // its square): the same sum, without a branch per coefficient.
+    let m = rest_ref.min(rest_cand);
+    for (a, b) in a[..m].iter().zip(&b[..m]) {
         for ch in 0..3 {
-            let a = if k < rest_ref {
-                reference.sh_rest[i * rest_ref + k][ch] as f64
-            } else {
-                0.0
-            };
-            let b = if k < rest_cand {
-                candidate.sh_rest[i * rest_cand + k][ch] as f64
-            } else {
-                0.0
-            };
-            c2 += (a - b) * (a - b);
+            let d = a[ch] as f64 - b[ch] as f64;
+            c2 += d * d;
+        }
+    }
+    for t in a[m..].iter().chain(&b[m..]) {
+        for v in t {
+            let v = *v as f64;
+            c2 += v * v;
         }
     }
     c2
