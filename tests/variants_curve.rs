@@ -7,6 +7,7 @@ mod common;
 
 use common::*;
 use splat2tiles::convert::{ConvertOptions, convert_scene};
+use splat2tiles::encode::storage_order::aligned_to_best;
 use splat2tiles::splat::Splats;
 use splat2tiles::tiling::load::load_tileset;
 use splat2tiles::variants::estimate::estimated_utilities;
@@ -59,7 +60,12 @@ fn stored_and_read_back(
         };
         let best = &decoded[0].0;
         let setup = ViewSetup::around(best, up_in_source(decoded[0].1), error).unwrap();
-        let cands: Vec<&Splats> = decoded[1..].iter().map(|d| &d.0).collect();
+        // High and Medium are stored in Morton order: lined up with Best splat for splat.
+        let aligned: Vec<Splats> = decoded[1..]
+            .iter()
+            .map(|d| aligned_to_best(&d.0, best).unwrap())
+            .collect();
+        let cands: Vec<&Splats> = aligned.iter().collect();
         let read_back = estimated_utilities(best, &cands, &setup);
         let stored = meta[&t.key].2;
         let x = setup.eye_distance() / splat2tiles::render::camera::box_radius(setup.lo, setup.hi);

@@ -6,6 +6,7 @@ mod common;
 
 use common::*;
 use splat2tiles::convert::{ConvertOptions, convert_scene};
+use splat2tiles::encode::storage_order::aligned_to_best;
 use splat2tiles::splat::Splats;
 use splat2tiles::tiling::load::load_tileset;
 use splat2tiles::variants::estimate::{FEATURE_NAMES, WEIGHTS, features, predicted_loss};
@@ -67,7 +68,12 @@ fn rows(name: &str, sc: splat2tiles::io::Scene, max_splats: usize) -> Vec<Row> {
         let Some(setup) = ViewSetup::around(best, up, error) else {
             continue;
         };
-        let cands: Vec<&Splats> = decoded[1..].iter().map(|d| &d.0).collect();
+        // High and Medium are stored in Morton order: lined up with Best splat for splat.
+        let aligned: Vec<Splats> = decoded[1..]
+            .iter()
+            .map(|d| aligned_to_best(&d.0, best).unwrap())
+            .collect();
+        let cands: Vec<&Splats> = aligned.iter().collect();
         let sc = scores(best, &cands, &setup.windows());
         for (i, c) in cands.iter().enumerate() {
             rows.push(Row {

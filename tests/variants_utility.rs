@@ -7,6 +7,7 @@ mod common;
 use common::*;
 use glam::DVec3;
 use splat2tiles::convert::{ConvertOptions, convert_scene};
+use splat2tiles::encode::storage_order::aligned_to_best;
 use splat2tiles::render::metrics::ssim_plane;
 use splat2tiles::render::{Camera, Image, render_splats, ssim};
 use splat2tiles::splat::Splats;
@@ -295,7 +296,12 @@ fn correlation_table() {
                 continue;
             }
             ratios.push(error / radius);
-            let cands: Vec<&Splats> = decoded[1..].iter().map(|d| &d.0).collect();
+            // High and Medium are stored in Morton order: lined up with Best splat for splat.
+            let aligned: Vec<Splats> = decoded[1..]
+                .iter()
+                .map(|d| aligned_to_best(&d.0, best).unwrap())
+                .collect();
+            let cands: Vec<&Splats> = aligned.iter().collect();
             let full = full_frame_ssim(best, &cands, &setup.full_frames());
             let est = estimated_utilities(best, &cands, &setup);
             // The estimate's features per variant (for refitting its weights from this CSV).

@@ -13,6 +13,8 @@ use super::gltf::{
     Accessor, AccessorType, Buffer, BufferView, ComponentType, EXT_MESHOPT_COMPRESSION, Gltf,
     KHR_GAUSSIAN_SPLATTING, TARGET_ARRAY_BUFFER,
 };
+#[cfg(feature = "native")]
+use super::storage_order::{gather, in_caller_order, relative_f32, storage_order};
 use super::tile::{
     ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, check_writable, sh_attribute,
     splat_document,
@@ -286,9 +288,22 @@ pub fn write_meshopt_glb_and_decoded(
 }
 
 /// Writes a splat tile compressed with `EXT_meshopt_compression` (required; the uncompressed
-/// layout lives in a fallback buffer without data) at the bit depths of `level`.
+/// layout lives in a fallback buffer without data) at the bit depths of `level`, its splats in
+/// Morton order of their positions (`super::storage_order`), not the caller's.
 #[cfg(feature = "native")]
 pub fn write_meshopt_glb(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    level: &MeshoptLevel,
+) -> Result<Vec<u8>, GlbError> {
+    Ok(encode_stored(splats, centre, node_matrix, level)?.0)
+}
+
+/// [`write_meshopt_glb`] with the splats in the caller's order rather than Morton order (to
+/// measure what the order is worth: `examples/order_bytes.rs`).
+#[cfg(feature = "native")]
+pub fn write_meshopt_glb_as_given(
     splats: &Splats,
     centre: [f64; 3],
     node_matrix: [f64; 16],
@@ -297,9 +312,27 @@ pub fn write_meshopt_glb(
     Ok(encode_meshopt(splats, centre, node_matrix, level)?.0)
 }
 
+/// [`encode_meshopt`] of `splats` in storage order (Morton order of the tile-relative positions:
+/// `super::storage_order`), with the glb, the filtered streams and the order.
+#[cfg(feature = "native")]
+fn encode_stored(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    level: &MeshoptLevel,
+) -> Result<(Vec<u8>, Vec<Vec<u8>>, Vec<usize>), GlbError> {
+    // Errors name the caller's splat index: checked before reordering.
+    check_writable(splats, centre)?;
+    let order = storage_order(&relative_f32(splats, centre));
+    let stored = gather(splats, &order, level.max_sh_degree);
+    let (glb, filtered) = encode_meshopt(&stored, centre, node_matrix, level)?;
+    Ok((glb, filtered, order))
+}
+
 /// [`write_meshopt_glb`] and the tile-relative splats that [`super::read_tile_glb`] reads from
 /// [`decompress_meshopt_glb`] of it, bit for bit (`tests::decoded_matches_the_reader`), built
-/// from the filtered streams where they were made: no vertex-codec decode, no plain glb.
+/// from the filtered streams where they were made (no vertex-codec decode, no plain glb) and put
+/// back in the caller's order, splat `i` decoded from the caller's splat `i`.
 #[cfg(feature = "native")]
 pub fn write_meshopt_glb_and_decoded(
     splats: &Splats,
@@ -307,9 +340,10 @@ pub fn write_meshopt_glb_and_decoded(
     node_matrix: [f64; 16],
     level: &MeshoptLevel,
 ) -> Result<(Vec<u8>, Splats), GlbError> {
-    let (glb, filtered) = encode_meshopt(splats, centre, node_matrix, level)?;
+    let (glb, filtered, order) = encode_stored(splats, centre, node_matrix, level)?;
     let degree = splats.sh_degree.min(level.max_sh_degree);
-    Ok((glb, unfiltered_splats(filtered, degree)))
+    let stored = unfiltered_splats(filtered, degree);
+    Ok((glb, in_caller_order(&stored, &order)))
 }
 
 /// The splats held by [`streams`]' filtered bytes (in their order), converted as the glb reader
@@ -732,7 +766,20 @@ mod tests {
                 let read = read_tile_glb(&decompress_meshopt_glb(&glb).unwrap())
                     .unwrap()
                     .splats;
-                assert_eq!(decoded, read, "SH degree {degree}, {level:?}");
+                // Stored in Morton order; given back in the caller's.
+                let order = storage_order(&relative_f32(&s, centre));
+                assert_eq!(
+                    decoded,
+                    in_caller_order(&read, &order),
+                    "SH degree {degree}, {level:?}"
+                );
+                let stored: Vec<_> = order.iter().map(|&i| s.positions[i]).collect();
+                let moved = stored.iter().zip(&read.positions);
+                assert!(
+                    moved
+                        .map(|(a, b)| (a[0] - centre[0] - b[0]).abs())
+                        .all(|d| d < 1e-2)
+                );
             }
         }
     }
@@ -757,6 +804,7 @@ mod tests {
             let glb = write_meshopt_glb(&s, [0.0; 3], IDENTITY, &level).unwrap();
             let plain = decompress_meshopt_glb(&glb).unwrap();
             let d = read_tile_glb(&plain).unwrap().splats;
+            let d = in_caller_order(&d, &storage_order(&relative_f32(&s, [0.0; 3])));
             assert_eq!(d.len(), 300);
             assert_eq!(d.sh_degree, level.max_sh_degree.min(3));
             for i in 0..300 {

@@ -11,6 +11,7 @@ use super::gltf::{
     Accessor, AccessorType, Buffer, BufferView, ComponentType, KHR_GAUSSIAN_SPLATTING,
     KHR_GAUSSIAN_SPLATTING_SPZ_2,
 };
+use super::storage_order::{gather, in_caller_order, relative_f32, storage_order};
 use super::tile::{
     ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, IDENTITY, check_writable,
     sh_attribute, splat_document,
@@ -154,7 +155,8 @@ fn float_acc(kind: AccessorType, n: usize) -> Accessor {
 /// Writes a `KHR_gaussian_splatting_compression_spz_2` tile: the SPZ v2 payload as bufferView 0,
 /// accessors (no bufferView) for POSITION, COLOR_0 (DC colour, opacity in alpha), ROTATION,
 /// SCALE, OPACITY and SH degrees 1..=d; no `SH_DEGREE_0_COEF_0` (CesiumJS counts `SH_DEGREE_`
-/// attributes to find the degree). POSITION min/max are the decoded payload's.
+/// attributes to find the degree). POSITION min/max are the decoded payload's. The splats are
+/// stored in Morton order of their positions (`super::storage_order`), not the caller's.
 ///
 /// COLOR_0 is declared VEC4 unsigned byte normalized (SPZ v2 stores 8-bit colour and alpha;
 /// glTF allows it for COLOR_0). CesiumJS 1.145 requires it: it decodes COLOR_0 into RGBA bytes
@@ -169,21 +171,54 @@ pub fn write_spz2_glb(
     Ok(write_spz2_glb_and_decoded(splats, centre, node_matrix, opts)?.0)
 }
 
-/// [`write_spz2_glb`] and the splats its payload decodes to (what [`read_spz2_glb`] reads),
-/// decoded from the payload before it is gzipped.
+/// [`write_spz2_glb`] and the splats its payload decodes to (what [`read_spz2_glb`] reads, put
+/// back in the caller's order), decoded from the payload before it is gzipped.
 pub fn write_spz2_glb_and_decoded(
     splats: &Splats,
     centre: [f64; 3],
     node_matrix: [f64; 16],
     opts: &SpzOptions,
 ) -> Result<(Vec<u8>, Splats), GlbError> {
+    write_spz2(splats, centre, node_matrix, opts, true)
+}
+
+/// [`write_spz2_glb`] with the splats in the caller's order rather than Morton order (to measure
+/// what the order is worth: `examples/order_bytes.rs`).
+pub fn write_spz2_glb_as_given(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    opts: &SpzOptions,
+) -> Result<Vec<u8>, GlbError> {
+    Ok(write_spz2(splats, centre, node_matrix, opts, false)?.0)
+}
+
+/// The SPZ_2 glb of `splats`, stored in Morton order when `morton`, and its decoded splats in
+/// the caller's order.
+fn write_spz2(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    opts: &SpzOptions,
+    morton: bool,
+) -> Result<(Vec<u8>, Splats), GlbError> {
+    // Errors name the caller's splat index: checked before reordering.
     check_writable(splats, centre)?;
     let n = splats.len();
-    let raw = encode_spz_v2_raw(splats, centre, opts);
+    // Stored in Morton order of the tile-relative positions (`super::storage_order`).
+    let order = if morton {
+        storage_order(&relative_f32(splats, centre))
+    } else {
+        (0..n).collect()
+    };
+    let stored = gather(splats, &order, opts.max_sh_degree);
+    let raw = encode_spz_v2_raw(&stored, centre, opts);
+    drop(stored);
     // The uncompressed SPZ v2 stream reads as the gzipped one does (same bytes, no inflate).
     let decoded = crate::io::read_bytes("tile.spz", &raw)
         .map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))?
         .splats;
+    let decoded = in_caller_order(&decoded, &order);
     let payload = gzip(&raw);
     drop(raw);
     if payload.len() as u64 > u32::MAX as u64 {
@@ -394,7 +429,14 @@ mod tests {
         let (glb, decoded) =
             write_spz2_glb_and_decoded(&s, [10.0, 0.0, 2.0], IDENTITY, &opts).unwrap();
         let (read, _) = read_spz2_glb(&glb).unwrap();
-        assert_eq!(decoded, read);
+        // Stored in Morton order; given back in the caller's.
+        let order = storage_order(&relative_f32(&s, [10.0, 0.0, 2.0]));
+        assert_ne!(
+            order,
+            (0..s.len()).collect::<Vec<_>>(),
+            "the test scene is not in Morton order"
+        );
+        assert_eq!(decoded, in_caller_order(&read, &order));
         assert_eq!(
             glb,
             write_spz2_glb(&s, [10.0, 0.0, 2.0], IDENTITY, &opts).unwrap()

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use super::curve::LossCurve;
 use super::utility::{ViewSetup, utilities};
 use super::{ALL, ContentError, Variant, VariantOptions, content_uri, decode_variant, estimate};
+use crate::encode::storage_order::aligned_to_best;
 use crate::splat::Splats;
 use crate::tiling::{Scheme, TileKey};
 
@@ -61,6 +62,12 @@ pub fn tile_utilities(
         .iter()
         .map(|&v| read_variant(dir, scheme, key, v).map(|d| d.0))
         .collect::<Result<Vec<_>, _>>()?;
+    // Splat for splat against Best (High and Medium are stored in Morton order); a variant that
+    // does not hold Best's splats stays as read and scores 0.
+    let decoded: Vec<Splats> = decoded
+        .into_iter()
+        .map(|d| aligned_to_best(&d, &best).unwrap_or(d))
+        .collect();
     let refs: Vec<&Splats> = decoded.iter().collect();
     let u = match ViewSetup::around(&best, super::up_in_source(node), error) {
         None => vec![1.0; refs.len()],

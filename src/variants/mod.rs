@@ -22,6 +22,7 @@ use crate::encode::meshopt::{
 use crate::encode::spz2::{
     SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
 };
+use crate::encode::storage_order::aligned_to_best;
 use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
 use crate::splat::Splats;
 use crate::tiling::load::{
@@ -318,7 +319,12 @@ pub fn write_tile_contents(
         if !decoded.is_empty() {
             let reference = relative(splats, centre_s);
             let up = up_in_source(node_matrix);
-            let refs: Vec<&Splats> = decoded.iter().map(|(_, s)| s).collect();
+            // High and Medium are stored in Morton order: lined up with Best splat for splat.
+            let aligned: Vec<Splats> = decoded
+                .iter()
+                .map(|(_, s)| aligned_to_best(s, &reference).unwrap_or_else(|| s.clone()))
+                .collect();
+            let refs: Vec<&Splats> = aligned.iter().collect();
             let u = match utility::ViewSetup::around(&reference, up, 0.0) {
                 None => vec![1.0; refs.len()],
                 Some(setup) if opts.utility_renders => utilities(&reference, &refs, &setup),
