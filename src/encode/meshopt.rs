@@ -278,6 +278,18 @@ pub fn write_meshopt_glb(
 
 /// Without the native codecs meshopt tiles cannot be written.
 #[cfg(not(feature = "native"))]
+pub fn write_meshopt_glb_stored(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    level: &MeshoptLevel,
+    _decode: bool,
+) -> Result<(Vec<u8>, Option<Splats>), GlbError> {
+    write_meshopt_glb_and_decoded(splats, centre, node_matrix, level).map(|(g, d)| (g, Some(d)))
+}
+
+/// Without the native codecs meshopt tiles cannot be written.
+#[cfg(not(feature = "native"))]
 pub fn write_meshopt_glb_and_decoded(
     splats: &Splats,
     centre: [f64; 3],
@@ -310,6 +322,22 @@ pub fn write_meshopt_glb_as_given(
     level: &MeshoptLevel,
 ) -> Result<Vec<u8>, GlbError> {
     Ok(encode_meshopt(splats, centre, node_matrix, level)?.0)
+}
+
+/// [`write_meshopt_glb_as_given`] for a tile the caller already put in storage order
+/// ([`super::storage_order`], once for several variants), with the splats it decodes to (in the
+/// same order) when `decode`.
+#[cfg(feature = "native")]
+pub fn write_meshopt_glb_stored(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    level: &MeshoptLevel,
+    decode: bool,
+) -> Result<(Vec<u8>, Option<Splats>), GlbError> {
+    let (glb, filtered) = encode_meshopt(splats, centre, node_matrix, level)?;
+    let degree = splats.sh_degree.min(level.max_sh_degree);
+    Ok((glb, decode.then(|| unfiltered_splats(filtered, degree))))
 }
 
 /// [`encode_meshopt`] of `splats` in storage order (Morton order of the tile-relative positions:

@@ -193,6 +193,17 @@ pub fn write_spz2_glb_as_given(
     Ok(write_spz2(splats, centre, node_matrix, opts, false)?.0)
 }
 
+/// [`write_spz2_glb_as_given`] and the splats it decodes to, in the same (caller's) order: for a
+/// caller that put the tile in storage order itself, once for several variants.
+pub fn write_spz2_glb_as_given_and_decoded(
+    splats: &Splats,
+    centre: [f64; 3],
+    node_matrix: [f64; 16],
+    opts: &SpzOptions,
+) -> Result<(Vec<u8>, Splats), GlbError> {
+    write_spz2(splats, centre, node_matrix, opts, false)
+}
+
 /// The SPZ_2 glb of `splats`, stored in Morton order when `morton`, and its decoded splats in
 /// the caller's order.
 fn write_spz2(
@@ -206,19 +217,21 @@ fn write_spz2(
     check_writable(splats, centre)?;
     let n = splats.len();
     // Stored in Morton order of the tile-relative positions (`super::storage_order`).
-    let order = if morton {
-        storage_order(&relative_f32(splats, centre))
+    let (raw, order) = if morton {
+        let order = storage_order(&relative_f32(splats, centre));
+        let stored = gather(splats, &order, opts.max_sh_degree);
+        (encode_spz_v2_raw(&stored, centre, opts), Some(order))
     } else {
-        (0..n).collect()
+        (encode_spz_v2_raw(splats, centre, opts), None)
     };
-    let stored = gather(splats, &order, opts.max_sh_degree);
-    let raw = encode_spz_v2_raw(&stored, centre, opts);
-    drop(stored);
     // The uncompressed SPZ v2 stream reads as the gzipped one does (same bytes, no inflate).
     let decoded = crate::io::read_bytes("tile.spz", &raw)
         .map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))?
         .splats;
-    let decoded = in_caller_order(&decoded, &order);
+    let decoded = match &order {
+        Some(order) => in_caller_order(&decoded, order),
+        None => decoded,
+    };
     let payload = gzip(&raw);
     drop(raw);
     if payload.len() as u64 > u32::MAX as u64 {

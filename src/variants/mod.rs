@@ -18,11 +18,15 @@ use crate::encode::GlbError;
 use crate::encode::gltf::EXT_MESHOPT_COMPRESSION;
 use crate::encode::meshopt::{
     HIGH, MEDIUM, decompress_meshopt_glb, write_meshopt_glb, write_meshopt_glb_and_decoded,
+    write_meshopt_glb_stored,
 };
 use crate::encode::spz2::{
     SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
+    write_spz2_glb_as_given_and_decoded,
 };
-use crate::encode::storage_order::aligned_to_best;
+use crate::encode::storage_order::{
+    aligned_to_best, gather, in_caller_order, relative_f32, storage_order,
+};
 use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
 use crate::splat::Splats;
 use crate::tiling::load::{
@@ -122,6 +126,32 @@ impl Variant {
             }
         };
         write_meshopt_glb_and_decoded(splats, centre, node_matrix, level)
+    }
+
+    /// [`Self::encode`] of High, Medium or Low for a tile already in storage order (`stored`,
+    /// `encode::storage_order`): the same glb, and when `decode` the decoded splats in `stored`'s
+    /// order.
+    fn encode_stored(
+        self,
+        stored: &Splats,
+        centre: [f64; 3],
+        node_matrix: [f64; 16],
+        decode: bool,
+    ) -> Result<(Vec<u8>, Option<Splats>), GlbError> {
+        match self {
+            Variant::High => write_meshopt_glb_stored(stored, centre, node_matrix, &HIGH, decode),
+            Variant::Medium => {
+                write_meshopt_glb_stored(stored, centre, node_matrix, &MEDIUM, decode)
+            }
+            Variant::Low => {
+                write_spz2_glb_as_given_and_decoded(stored, centre, node_matrix, &LOW_SPZ)
+                    .map(|(g, d)| (g, decode.then_some(d)))
+            }
+            Variant::Best if decode => self
+                .encode_decoded(stored, centre, node_matrix)
+                .map(|(g, d)| (g, Some(d))),
+            Variant::Best => self.encode(stored, centre, node_matrix).map(|g| (g, None)),
+        }
     }
 }
 
@@ -268,13 +298,32 @@ pub fn write_tile_contents(
     // Deferred estimates: every written variant decoded here, Best as the reference.
     let curve = opts.deferred_utility() && !opts.utility_renders;
     let mut written: [Option<Splats>; 4] = Default::default();
-    for v in opts.written() {
+    // High, Medium and Low store the tile in Morton order: ordered and gathered once for all of
+    // them (the writers' own ordering gives the same bytes), after the checks that name the
+    // caller's splat index.
+    let written_variants = opts.written();
+    let stored = match written_variants.iter().find(|v| **v != Variant::Best) {
+        Some(v) => {
+            crate::encode::tile::check_writable(splats, centre_s).map_err(|source| {
+                ContentError::Encode {
+                    key,
+                    variant: v.name(),
+                    source,
+                }
+            })?;
+            let order = storage_order(&relative_f32(splats, centre_s));
+            let gathered = gather(splats, &order, splats.sh_degree);
+            Some((order, gathered))
+        }
+        None => None,
+    };
+    for v in written_variants {
         let t = Instant::now();
-        let encoded = if curve {
-            v.encode_decoded(splats, centre_s, node_matrix)
-                .map(|(g, d)| (g, Some(d)))
-        } else {
-            v.encode(splats, centre_s, node_matrix).map(|g| (g, None))
+        let encoded = match &stored {
+            Some((order, s)) if v != Variant::Best => v
+                .encode_stored(s, centre_s, node_matrix, curve)
+                .map(|(g, d)| (g, d.map(|d| in_caller_order(&d, order)))),
+            _ => v.encode_stored(splats, centre_s, node_matrix, curve),
         };
         let (glb, dec) = encoded.map_err(|source| ContentError::Encode {
             key,
