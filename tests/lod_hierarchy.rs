@@ -208,6 +208,20 @@ fn stats_prints_the_per_level_table() {
         variants[0]["splats"].as_u64().unwrap() as usize,
         6000 + r.parent_splats
     );
+    // The output folder names its tileset.json; a missing file is named once, with the reason.
+    let dir = std::process::Command::new(bin())
+        .args(["stats", out.to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    assert_eq!(dir.stdout, o.stdout);
+    let missing = out.join("nothing.json");
+    let m = std::process::Command::new(bin())
+        .args(["stats", missing.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!m.status.success() && m.stdout.is_empty());
+    let err = String::from_utf8_lossy(&m.stderr);
+    assert_eq!(err.matches("nothing.json").count(), 1, "{err}");
 }
 
 #[test]

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 /// Arguments of `stats`.
 #[derive(Debug, Args)]
 pub struct StatsArgs {
-    /// The tileset's `tileset.json`.
+    /// The tileset's `tileset.json`, or the folder that holds it.
     pub tileset: PathBuf,
     /// Print the table as JSON on stdout.
     #[arg(long)]
@@ -24,7 +24,8 @@ pub fn run(args: StatsArgs) -> i32 {
             0
         }
         Err(e) => {
-            eprintln!("splat2tiles: {}: {e:#}", args.tileset.display());
+            // The error names the file it could not read (and why) itself.
+            eprintln!("splat2tiles: stats: {e}");
             super::EXIT_FAILURE
         }
     }
@@ -32,7 +33,12 @@ pub fn run(args: StatsArgs) -> i32 {
 
 /// The text (or JSON) that `stats` prints.
 pub fn table(args: &StatsArgs) -> anyhow::Result<String> {
-    let ts = load_tileset(&args.tileset)?;
+    let path = if args.tileset.is_dir() {
+        args.tileset.join("tileset.json")
+    } else {
+        args.tileset.clone()
+    };
+    let ts = load_tileset(&path)?;
     let rows = level_table(&ts)?;
     let vrows: Vec<_> = crate::variants::variant_table(&ts)
         .into_iter()

@@ -82,8 +82,12 @@ pub fn level_table(ts: &LoadedTileset) -> anyhow::Result<Vec<LevelRow>> {
         let n = match t.splat_count {
             Some(n) => n as u64,
             None => {
-                let b = std::fs::read(path)?;
-                read_tile_glb(&b)?.splats.len() as u64
+                let b =
+                    std::fs::read(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+                read_tile_glb(&b)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+                    .splats
+                    .len() as u64
             }
         };
         row.splats += n;
