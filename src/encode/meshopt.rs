@@ -309,7 +309,7 @@ pub fn write_meshopt_glb(
     node_matrix: [f64; 16],
     level: &MeshoptLevel,
 ) -> Result<Vec<u8>, GlbError> {
-    Ok(encode_stored(splats, centre, node_matrix, level)?.0)
+    Ok(encode_stored(splats, centre, node_matrix, level)?.glb)
 }
 
 /// [`write_meshopt_glb`] with the splats in the caller's order rather than Morton order (to
@@ -340,21 +340,33 @@ pub fn write_meshopt_glb_stored(
     Ok((glb, decode.then(|| unfiltered_splats(filtered, degree))))
 }
 
+/// A tile encoded in storage order: the glb, its filtered streams and the order.
+#[cfg(feature = "native")]
+struct EncodedStored {
+    glb: Vec<u8>,
+    filtered: Vec<Vec<u8>>,
+    order: Vec<usize>,
+}
+
 /// [`encode_meshopt`] of `splats` in storage order (Morton order of the tile-relative positions:
-/// `super::storage_order`), with the glb, the filtered streams and the order.
+/// `super::storage_order`).
 #[cfg(feature = "native")]
 fn encode_stored(
     splats: &Splats,
     centre: [f64; 3],
     node_matrix: [f64; 16],
     level: &MeshoptLevel,
-) -> Result<(Vec<u8>, Vec<Vec<u8>>, Vec<usize>), GlbError> {
+) -> Result<EncodedStored, GlbError> {
     // Errors name the caller's splat index: checked before reordering.
     check_writable(splats, centre)?;
     let order = storage_order(&relative_f32(splats, centre));
     let stored = gather(splats, &order, level.max_sh_degree);
     let (glb, filtered) = encode_meshopt(&stored, centre, node_matrix, level)?;
-    Ok((glb, filtered, order))
+    Ok(EncodedStored {
+        glb,
+        filtered,
+        order,
+    })
 }
 
 /// [`write_meshopt_glb`] and the tile-relative splats that [`super::read_tile_glb`] reads from
@@ -368,7 +380,11 @@ pub fn write_meshopt_glb_and_decoded(
     node_matrix: [f64; 16],
     level: &MeshoptLevel,
 ) -> Result<(Vec<u8>, Splats), GlbError> {
-    let (glb, filtered, order) = encode_stored(splats, centre, node_matrix, level)?;
+    let EncodedStored {
+        glb,
+        filtered,
+        order,
+    } = encode_stored(splats, centre, node_matrix, level)?;
     let degree = splats.sh_degree.min(level.max_sh_degree);
     let stored = unfiltered_splats(filtered, degree);
     Ok((glb, in_caller_order(&stored, &order)))

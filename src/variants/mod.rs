@@ -24,9 +24,7 @@ use crate::encode::spz2::{
     SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
     write_spz2_glb_as_given_and_decoded,
 };
-use crate::encode::storage_order::{
-    aligned_to_best, gather, in_caller_order, relative_f32, storage_order,
-};
+use crate::encode::storage_order::{aligned_to_best, gather, relative_f32, storage_order};
 use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
 use crate::splat::Splats;
 use crate::tiling::load::{
@@ -300,7 +298,8 @@ pub fn write_tile_contents(
     let mut written: [Option<Splats>; 4] = Default::default();
     // High, Medium and Low store the tile in Morton order: ordered and gathered once for all of
     // them (the writers' own ordering gives the same bytes), after the checks that name the
-    // caller's splat index.
+    // caller's splat index. The estimate compares them with Best in that order too (its sums
+    // do not depend on the order), so nothing is put back in the caller's order.
     let written_variants = opts.written();
     let stored = match written_variants.iter().find(|v| **v != Variant::Best) {
         Some(v) => {
@@ -312,17 +311,18 @@ pub fn write_tile_contents(
                 }
             })?;
             let order = storage_order(&relative_f32(splats, centre_s));
-            let gathered = gather(splats, &order, splats.sh_degree);
-            Some((order, gathered))
+            Some(gather(splats, &order, splats.sh_degree))
         }
         None => None,
     };
     for v in written_variants {
         let t = Instant::now();
-        let encoded = match &stored {
-            Some((order, s)) if v != Variant::Best => v
-                .encode_stored(s, centre_s, node_matrix, curve)
-                .map(|(g, d)| (g, d.map(|d| in_caller_order(&d, order)))),
+        let encoded = match (&stored, v) {
+            // Best's reader returns the tile-relative splats (`Variant::encode_decoded`).
+            (Some(s), Variant::Best) if curve => v
+                .encode(splats, centre_s, node_matrix)
+                .map(|g| (g, Some(relative(s, centre_s)))),
+            (Some(s), _) if v != Variant::Best => v.encode_stored(s, centre_s, node_matrix, curve),
             _ => v.encode_stored(splats, centre_s, node_matrix, curve),
         };
         let (glb, dec) = encoded.map_err(|source| ContentError::Encode {
