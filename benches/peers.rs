@@ -35,6 +35,7 @@ use splat2tiles::render::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
 use splat2tiles::render::{Camera, Image};
 use splat2tiles::sim::svg::{Series, marked_chart, panels};
 use splat2tiles::splat::Splats;
+use splat2tiles::splat::importance::importance_order;
 use splat2tiles::variants::{ALL, decode_variant, relative};
 
 /// One encoded scene: which codec, how many bytes, what it looks like.
@@ -207,8 +208,11 @@ fn main() {
             );
             points.push(p);
         };
+        // Our variants get a tile's splats as `convert` gives them (importance order; High,
+        // Medium and Low then store them in Morton order).
+        let tile = rel.select(&importance_order(&rel));
         for v in ALL {
-            let glb = v.encode(&rel, [0.0; 3], IDENTITY).unwrap();
+            let glb = v.encode(&tile, [0.0; 3], IDENTITY).unwrap();
             let (dec, _) = decode_variant(&glb).unwrap();
             add("splat2tiles", v.name().to_string(), glb, &dec);
         }
