@@ -14,7 +14,7 @@ use super::gltf::{
     KHR_GAUSSIAN_SPLATTING, TARGET_ARRAY_BUFFER,
 };
 #[cfg(feature = "native")]
-use super::storage_order::{gather, in_caller_order, relative_f32, storage_order};
+use super::storage_order::{in_caller_order, in_storage_order};
 use super::tile::{
     ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, check_writable, sh_attribute,
     splat_document,
@@ -359,8 +359,7 @@ fn encode_stored(
 ) -> Result<EncodedStored, GlbError> {
     // Errors name the caller's splat index: checked before reordering.
     check_writable(splats, centre)?;
-    let order = storage_order(&relative_f32(splats, centre));
-    let stored = gather(splats, &order, level.max_sh_degree);
+    let (order, stored) = in_storage_order(splats, centre, level.max_sh_degree);
     let (glb, filtered) = encode_meshopt(&stored, centre, node_matrix, level)?;
     Ok(EncodedStored {
         glb,
@@ -635,6 +634,7 @@ pub fn decompress_meshopt_glb(bytes: &[u8]) -> Result<Vec<u8>, GlbError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::encode::storage_order::{relative_f32, storage_order};
 
     /// xorshift64 bytes.
     fn random_bytes(n: usize, seed: u64) -> Vec<u8> {

@@ -11,7 +11,7 @@ use super::gltf::{
     Accessor, AccessorType, Buffer, BufferView, ComponentType, KHR_GAUSSIAN_SPLATTING,
     KHR_GAUSSIAN_SPLATTING_SPZ_2,
 };
-use super::storage_order::{gather, in_caller_order, relative_f32, storage_order};
+use super::storage_order::{in_caller_order, in_storage_order};
 use super::tile::{
     ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, IDENTITY, check_writable,
     sh_attribute, splat_document,
@@ -218,8 +218,7 @@ fn write_spz2(
     let n = splats.len();
     // Stored in Morton order of the tile-relative positions (`super::storage_order`).
     let (raw, order) = if morton {
-        let order = storage_order(&relative_f32(splats, centre));
-        let stored = gather(splats, &order, opts.max_sh_degree);
+        let (order, stored) = in_storage_order(splats, centre, opts.max_sh_degree);
         (encode_spz_v2_raw(&stored, centre, opts), Some(order))
     } else {
         (encode_spz_v2_raw(splats, centre, opts), None)
@@ -340,6 +339,7 @@ pub fn read_spz2_glb(bytes: &[u8]) -> Result<(Splats, [f64; 16]), GlbError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::encode::storage_order::{relative_f32, storage_order};
     use crate::splat::Splat;
 
     fn scene() -> Splats {

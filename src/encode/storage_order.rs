@@ -1,5 +1,5 @@
-//! The order High and Medium store a tile's splats in: Morton (Z-order) of their tile-relative
-//! positions, so the vertex codec's deltas see neighbours (these variants are decoded whole).
+//! The order High, Medium and Low store a tile's splats in: Morton (Z-order) of their
+//! tile-relative positions, so the codecs see neighbours (these variants are decoded whole).
 
 use crate::splat::{Splats, sh_rest_count};
 use crate::tiling::morton::encode3;
@@ -48,6 +48,14 @@ pub fn relative_f32(splats: &Splats, centre: [f64; 3]) -> Vec<[f32; 3]> {
         .iter()
         .map(|p| [0, 1, 2].map(|a| (p[a] - centre[a]) as f32))
         .collect()
+}
+
+/// `splats` in storage order around `centre` (SH kept up to `degree`), and that order: splat `j`
+/// is the caller's `order[j]`.
+pub fn in_storage_order(splats: &Splats, centre: [f64; 3], degree: u8) -> (Vec<usize>, Splats) {
+    let order = storage_order(&relative_f32(splats, centre));
+    let stored = gather(splats, &order, degree);
+    (order, stored)
 }
 
 /// `splats` in `order`, keeping only the SH coefficients up to `degree` (at most the input's).

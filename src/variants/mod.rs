@@ -24,7 +24,7 @@ use crate::encode::spz2::{
     SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
     write_spz2_glb_as_given_and_decoded,
 };
-use crate::encode::storage_order::{aligned_to_best, gather, relative_f32, storage_order};
+use crate::encode::storage_order::{aligned_to_best, in_storage_order};
 use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
 use crate::splat::Splats;
 use crate::tiling::load::{
@@ -128,7 +128,8 @@ impl Variant {
 
     /// [`Self::encode`] of High, Medium or Low for a tile already in storage order (`stored`,
     /// `encode::storage_order`): the same glb, and when `decode` the decoded splats in `stored`'s
-    /// order.
+    /// order. Best is prefix-rendered, so `write_tile_contents` never stores it this way; here it
+    /// is encoded as given.
     fn encode_stored(
         self,
         stored: &Splats,
@@ -145,10 +146,9 @@ impl Variant {
                 write_spz2_glb_as_given_and_decoded(stored, centre, node_matrix, &LOW_SPZ)
                     .map(|(g, d)| (g, decode.then_some(d)))
             }
-            Variant::Best if decode => self
-                .encode_decoded(stored, centre, node_matrix)
-                .map(|(g, d)| (g, Some(d))),
-            Variant::Best => self.encode(stored, centre, node_matrix).map(|g| (g, None)),
+            Variant::Best => self
+                .encode(stored, centre, node_matrix)
+                .map(|g| (g, decode.then(|| relative(stored, centre)))),
         }
     }
 }
@@ -310,20 +310,20 @@ pub fn write_tile_contents(
                     source,
                 }
             })?;
-            let order = storage_order(&relative_f32(splats, centre_s));
-            Some(gather(splats, &order, splats.sh_degree))
+            Some(in_storage_order(splats, centre_s, splats.sh_degree).1)
         }
         None => None,
     };
     for v in written_variants {
         let t = Instant::now();
-        let encoded = match (&stored, v) {
-            // Best's reader returns the tile-relative splats (`Variant::encode_decoded`).
-            (Some(s), Variant::Best) if curve => v
-                .encode(splats, centre_s, node_matrix)
-                .map(|g| (g, Some(relative(s, centre_s)))),
-            (Some(s), _) if v != Variant::Best => v.encode_stored(s, centre_s, node_matrix, curve),
-            _ => v.encode_stored(splats, centre_s, node_matrix, curve),
+        let encoded = match &stored {
+            Some(s) if v != Variant::Best => v.encode_stored(s, centre_s, node_matrix, curve),
+            // Best, from the caller's splats; its reader returns the tile-relative splats
+            // (`Variant::encode_decoded`), the estimate's reference in the others' order.
+            _ => v.encode(splats, centre_s, node_matrix).map(|g| {
+                let reference = || relative(stored.as_ref().unwrap_or(splats), centre_s);
+                (g, curve.then(reference))
+            }),
         };
         let (glb, dec) = encoded.map_err(|source| ContentError::Encode {
             key,
