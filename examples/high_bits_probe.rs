@@ -4,7 +4,7 @@
 //! Run: `PROBE_CANDS="21,12,11,12,11;18,12,10,12,11" cargo run --release --example
 //! high_bits_probe` (each candidate: position, rotation, scale, opacity, SH0 bits; the rest as
 //! `HIGH`); `PROBE_SCENES=donut` runs one scene; `PROBE_LOW="18,16,15"` adds Low (SPZ v2 as
-//! `variants::LOW_SPZ`) at each number of position bits. Prints wire B/splat (file or gzip -6,
+//! `variants::LOW_SPZ` with a fixed step) at each number of position bits, then `LOW_SPZ` itself. Prints wire B/splat (file or gzip -6,
 //! the smaller) and the mean SSIM framed / at 4x zoom, to 5 and to 12 decimals.
 
 #[path = "../benches/peer_views/mod.rs"]
@@ -92,11 +92,23 @@ fn main() {
         for &bits in &lows {
             let opts = SpzOptions {
                 position_bits: bits,
+                scale_divisor: 0,
                 ..LOW_SPZ
             };
             let glb = write_spz2_glb(&rel, [0.0; 3], IDENTITY, &opts).unwrap();
             let (dec, _) = decode_variant(&glb).unwrap();
             report(&format!("low, position {bits} bits"), &glb, &dec);
+        }
+        if !lows.is_empty() {
+            let max_abs = rel
+                .positions
+                .iter()
+                .flatten()
+                .fold(0.0f64, |m, v| m.max(v.abs()));
+            let fb = splat2tiles::encode::spz2::spz_fractional_bits(&rel, max_abs, &LOW_SPZ);
+            let glb = write_spz2_glb(&rel, [0.0; 3], IDENTITY, &LOW_SPZ).unwrap();
+            let (dec, _) = decode_variant(&glb).unwrap();
+            report(&format!("low (LOW_SPZ: {fb} fractional bits)"), &glb, &dec);
         }
         eprintln!("{f}: {:.0} s", t0.elapsed().as_secs_f64());
     }

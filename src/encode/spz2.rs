@@ -30,6 +30,11 @@ pub struct SpzOptions {
     /// Bits of the largest |coordinate| (sign included): 24 keeps as many fractional bits as
     /// the 24-bit fixed point holds; fewer drop the finest ones, which gzip cannot compress.
     pub position_bits: u8,
+    /// Non-zero: positions may be coarser than `position_bits` (down to `min_position_bits`)
+    /// while the step stays at most 1/`scale_divisor` of the median smallest splat scale.
+    pub scale_divisor: u16,
+    /// Fewest bits of the largest |coordinate| that `scale_divisor` may leave.
+    pub min_position_bits: u8,
 }
 
 impl Default for SpzOptions {
@@ -39,6 +44,8 @@ impl Default for SpzOptions {
             sh1_bits: 5,
             sh_rest_bits: 4,
             position_bits: 24,
+            scale_divisor: 0,
+            min_position_bits: 24,
         }
     }
 }
@@ -47,6 +54,40 @@ impl Default for SpzOptions {
 /// bits of `max_abs`: the most that fit, less `24 - position_bits`.
 pub fn position_fractional_bits(max_abs: f64, position_bits: u8) -> u8 {
     fractional_bits(max_abs).saturating_sub(24u8.saturating_sub(position_bits))
+}
+
+/// Fractional bits of `splats`' positions under `opts`: those of `position_bits`, or with a
+/// `scale_divisor` the fewest (not below those of `min_position_bits`) whose step
+/// `2^-bits` is at most the median smallest scale over `scale_divisor`.
+pub fn spz_fractional_bits(splats: &Splats, max_abs: f64, opts: &SpzOptions) -> u8 {
+    let fine = position_fractional_bits(max_abs, opts.position_bits);
+    if opts.scale_divisor == 0 {
+        return fine;
+    }
+    let coarse = position_fractional_bits(max_abs, opts.min_position_bits.min(opts.position_bits));
+    match median_smallest_scale(&splats.scales) {
+        Some(m) => {
+            let need = (f64::from(opts.scale_divisor) / m)
+                .log2()
+                .ceil()
+                .clamp(0.0, 23.0) as u8;
+            need.clamp(coarse, fine)
+        }
+        None => fine,
+    }
+}
+
+/// Median over splats of the smallest of the three scales (the thin axis, across which a
+/// position error shows first); `None` without splats or when it is not positive and finite.
+pub fn median_smallest_scale(scales: &[[f32; 3]]) -> Option<f64> {
+    let mut smallest: Vec<f32> = scales.iter().map(|s| s[0].min(s[1]).min(s[2])).collect();
+    if smallest.is_empty() {
+        return None;
+    }
+    let mid = smallest.len() / 2;
+    let (_, m, _) = smallest.select_nth_unstable_by(mid, f32::total_cmp);
+    let m = f64::from(*m);
+    (m.is_finite() && m > 1e-20).then_some(m)
 }
 
 /// Fractional bits of the 24-bit fixed-point positions: the most that keep `max_abs` in range.
@@ -76,7 +117,7 @@ pub fn encode_spz_v2_raw(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -
         .map(|p| [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]])
         .collect();
     let max_abs = rel.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    let fb = position_fractional_bits(max_abs, opts.position_bits);
+    let fb = spz_fractional_bits(splats, max_abs, opts);
     let mut out = Vec::with_capacity(16 + n * (19 + 3 * k));
     out.extend_from_slice(b"NGSP");
     out.extend_from_slice(&2u32.to_le_bytes());
@@ -430,6 +471,95 @@ mod tests {
             }
         }
         assert_eq!(raw.len(), encode_spz_v2_raw(&s, centre, &full).len());
+    }
+
+    fn cube_of(n: usize, scale: [f32; 3]) -> Splats {
+        let mut s = Splats::new(0);
+        for i in 0..n {
+            let f = i as f64 / (n.max(2) - 1) as f64;
+            s.push(
+                Splat {
+                    position: [2.0 * f - 1.0, 1.0 - 2.0 * f, 0.5],
+                    scale,
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                    opacity: 0.5,
+                    sh0: [0.0; 3],
+                },
+                &[],
+            );
+        }
+        s
+    }
+
+    /// The scale rule: the coarsest step within 1/divisor of the median smallest scale, no finer
+    /// than `position_bits` allow and no coarser than `min_position_bits`.
+    #[test]
+    fn the_step_follows_the_median_smallest_scale_within_its_bounds() {
+        let opts = SpzOptions {
+            position_bits: 18,
+            scale_divisor: 6,
+            min_position_bits: 12,
+            ..SpzOptions::default()
+        };
+        // max |coordinate| 1: 22 fractional bits fit; 18 bits keep 16, 12 bits keep 10.
+        assert_eq!(fractional_bits(1.0), 22);
+        let fb = |scale: [f32; 3]| spz_fractional_bits(&cube_of(9, scale), 1.0, &opts);
+        // 0.001 / 6 = 1.67e-4: 2^-13 = 1.22e-4 fits, 2^-12 = 2.44e-4 does not.
+        assert_eq!(fb([0.001; 3]), 13);
+        // The smallest axis sets it.
+        assert_eq!(fb([0.1, 0.01, 0.001]), 13);
+        assert_eq!(fb([0.001, 0.5, 0.5]), 13);
+        // Tiny splats: no finer than 18 bits; huge ones: no coarser than 12.
+        assert_eq!(fb([1e-9; 3]), 16);
+        assert_eq!(fb([100.0; 3]), 10);
+        // Without the rule, 18 bits.
+        let fixed = SpzOptions {
+            scale_divisor: 0,
+            ..opts
+        };
+        assert_eq!(
+            spz_fractional_bits(&cube_of(9, [0.001; 3]), 1.0, &fixed),
+            16
+        );
+        // The encoder writes what the rule says, and positions stay within half a step.
+        let s = cube_of(9, [0.001; 3]);
+        let raw = encode_spz_v2_raw(&s, [0.0; 3], &opts);
+        assert_eq!(raw[13], 13);
+        let d = crate::io::read_bytes("t.spz", &encode_spz_v2(&s, [0.0; 3], &opts))
+            .unwrap()
+            .splats;
+        for i in 0..s.len() {
+            for k in 0..3 {
+                let e = (s.get(i).position[k] - d.get(i).position[k]).abs();
+                assert!(e <= 0.5f64.powi(14) + 1e-12, "{i} {k}: {e}");
+            }
+        }
+    }
+
+    /// Degenerate sizes fall back to `position_bits`: no splats, zero scales, infinite scales.
+    #[test]
+    fn degenerate_sizes_keep_the_fine_step() {
+        let opts = SpzOptions {
+            position_bits: 18,
+            scale_divisor: 6,
+            min_position_bits: 12,
+            ..SpzOptions::default()
+        };
+        assert_eq!(median_smallest_scale(&[]), None);
+        assert_eq!(spz_fractional_bits(&cube_of(0, [0.01; 3]), 1.0, &opts), 16);
+        assert_eq!(median_smallest_scale(&[[0.0; 3]; 5]), None);
+        assert_eq!(spz_fractional_bits(&cube_of(5, [0.0; 3]), 1.0, &opts), 16);
+        assert_eq!(median_smallest_scale(&[[f32::INFINITY; 3]; 5]), None);
+        assert_eq!(median_smallest_scale(&[[f32::NAN; 3]; 5]), None);
+        assert_eq!(
+            spz_fractional_bits(&cube_of(5, [f32::MAX; 3]), 1.0, &opts),
+            10
+        );
+        // A zero extent (one splat at the centre) stays finite and in range.
+        let fb = spz_fractional_bits(&cube_of(1, [0.01; 3]), 0.0, &opts);
+        assert!(fb <= 23);
+        let m = median_smallest_scale(&[[1.0, 2.0, 4.0], [8.0; 3], [0.5; 3]]).unwrap();
+        assert_eq!(m, 1.0);
     }
 
     #[test]

@@ -48,14 +48,17 @@ pub enum Variant {
 /// Every variant, in metadata array order.
 pub const ALL: [Variant; 4] = [Variant::Best, Variant::High, Variant::Medium, Variant::Low];
 
-/// SPZ settings of the Low variant: SH degree at most 1 (at SH3 input: 28 B/splat before gzip),
-/// positions at 18 bits of the tile's largest |coordinate| (a step of 2^-17 of it; the six finer
-/// bits SPZ's 24 would hold cost about 1.5 B/splat after gzip and no visible change).
+/// SPZ settings of the Low variant: SH degree at most 1 (at SH3 input: 28 B/splat before gzip);
+/// positions with the coarsest step that is at most 1/3 of the tile's median smallest scale,
+/// between 12 and 18 bits of the tile's largest |coordinate| (the finer bits SPZ's 24 would
+/// hold cost bytes for no visible change; BENCHMARKS.md "Low's position step").
 pub const LOW_SPZ: SpzOptions = SpzOptions {
     max_sh_degree: 1,
     sh1_bits: 5,
     sh_rest_bits: 4,
     position_bits: 18,
+    scale_divisor: 3,
+    min_position_bits: 12,
 };
 
 impl Variant {
