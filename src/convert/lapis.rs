@@ -361,7 +361,7 @@ pub fn import_lapisgs(
                     t
                 }
             };
-            let (lo, hi, mut facts) = region::write_centred(&layout, k, &tile, &dir, opts)?;
+            let (lo, hi, mut facts) = region::write_centred(&layout, k, &tile, &dir, opts, false)?;
             let path = dir.join(content_uri(layout.scheme, k, Variant::Best));
             let bytes = std::fs::read(&path).map_err(io_err(&path, "reading"))?;
             let mut parent = None;

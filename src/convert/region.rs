@@ -94,13 +94,14 @@ pub(super) enum LeafOrder {
 }
 
 /// Writes one tile's contents centred on its splats; returns the box around their visible
-/// 3-sigma ellipsoids in the tileset frame and what was written.
+/// 3-sigma ellipsoids in the tileset frame and what was written. `parent`: merged LOD splats.
 pub(super) fn write_centred(
     layout: &Layout,
     key: TileKey,
     tile: &Splats,
     dir: &Path,
     opts: &ConvertOptions,
+    parent: bool,
 ) -> Result<(DVec3, DVec3, ContentFacts), ConvertError> {
     check_interrupt()?;
     let pts: Vec<DVec3> = tile
@@ -122,6 +123,7 @@ pub(super) fn write_centred(
         centre_s.to_array(),
         node_matrix(layout.a, centre_s),
         &opts.variants,
+        parent,
     )?;
     Ok((lo, hi, facts))
 }
@@ -317,7 +319,7 @@ pub(super) fn build_leaves(
             .filter(|_| cx.write_leaves)
             .map(|(key, ind)| {
                 let tile = splats.select(ind);
-                let (lo, hi, facts) = write_centred(layout, *key, &tile, cx.dir, cx.opts)?;
+                let (lo, hi, facts) = write_centred(layout, *key, &tile, cx.dir, cx.opts, false)?;
                 Ok((*key, TreeTile::leaf(lo, hi, facts)))
             })
             .collect();
@@ -416,7 +418,7 @@ pub(super) fn write_parent(
             error: p.radius,
         });
     }
-    let (lo, hi, facts) = write_centred(cx.layout, p.key, &p.splats, cx.dir, cx.opts)?;
+    let (lo, hi, facts) = write_centred(cx.layout, p.key, &p.splats, cx.dir, cx.opts, true)?;
     Ok(WrittenParent {
         content: Some((facts, lo, hi)),
         error: p.radius,

@@ -48,10 +48,11 @@ pub enum Variant {
 /// Every variant, in metadata array order.
 pub const ALL: [Variant; 4] = [Variant::Best, Variant::High, Variant::Medium, Variant::Low];
 
-/// SPZ settings of the Low variant: SH degree at most 1 (at SH3 input: 28 B/splat before gzip);
-/// positions with the coarsest step that is at most 1/3 of the tile's median smallest scale,
-/// between 12 and 18 bits of the tile's largest |coordinate| (the finer bits SPZ's 24 would
-/// hold cost bytes for no visible change; BENCHMARKS.md "Low's position step").
+/// SPZ settings of the Low variant of a leaf tile: SH degree at most 1 (at SH3 input: 28 B/splat
+/// before gzip); positions with the coarsest step that is at most 1/3 of the tile's median
+/// smallest scale, between 12 and 18 bits of its largest |coordinate| (the finer bits SPZ's 24
+/// would hold cost bytes for no visible change; BENCHMARKS.md "Low's position step follows the
+/// splats' size"). Parents: [`LOW_SPZ_PARENT`].
 pub const LOW_SPZ: SpzOptions = SpzOptions {
     max_sh_degree: 1,
     sh1_bits: 5,
@@ -59,6 +60,15 @@ pub const LOW_SPZ: SpzOptions = SpzOptions {
     position_bits: 18,
     scale_divisor: 3,
     min_position_bits: 12,
+};
+
+/// Low's settings for a parent tile (merged LOD splats): 18 bits of the tile's largest
+/// |coordinate| whatever the splats' size. On the shared scenes the size rule of [`LOW_SPZ`]
+/// cost parents 2.4-13x the rendered utility per byte saved that it cost leaves (BENCHMARKS.md
+/// "Low's position step follows the splats' size").
+pub const LOW_SPZ_PARENT: SpzOptions = SpzOptions {
+    scale_divisor: 0,
+    ..LOW_SPZ
 };
 
 impl Variant {
@@ -139,16 +149,15 @@ impl Variant {
         centre: [f64; 3],
         node_matrix: [f64; 16],
         decode: bool,
+        low: &SpzOptions,
     ) -> Result<(Vec<u8>, Option<Splats>), GlbError> {
         match self {
             Variant::High => write_meshopt_glb_stored(stored, centre, node_matrix, &HIGH, decode),
             Variant::Medium => {
                 write_meshopt_glb_stored(stored, centre, node_matrix, &MEDIUM, decode)
             }
-            Variant::Low => {
-                write_spz2_glb_as_given_and_decoded(stored, centre, node_matrix, &LOW_SPZ)
-                    .map(|(g, d)| (g, decode.then_some(d)))
-            }
+            Variant::Low => write_spz2_glb_as_given_and_decoded(stored, centre, node_matrix, low)
+                .map(|(g, d)| (g, decode.then_some(d))),
             Variant::Best => self
                 .encode(stored, centre, node_matrix)
                 .map(|g| (g, decode.then(|| relative(stored, centre)))),
@@ -277,7 +286,8 @@ pub fn uri_template(scheme: Scheme, variant: Variant) -> String {
 /// Writes every requested variant of one tile under `dir` and measures their utilities.
 ///
 /// `splats` hold positions in the source frame S; `centre_s` is subtracted (in f64) and
-/// `node_matrix` maps the tile-relative S frame into glTF's y-up frame.
+/// `node_matrix` maps the tile-relative S frame into glTF's y-up frame. `parent`: the splats
+/// are merged LOD splats (Low then keeps [`LOW_SPZ_PARENT`]'s step).
 pub fn write_tile_contents(
     dir: &Path,
     scheme: Scheme,
@@ -286,6 +296,7 @@ pub fn write_tile_contents(
     centre_s: [f64; 3],
     node_matrix: [f64; 16],
     opts: &VariantOptions,
+    parent: bool,
 ) -> Result<ContentFacts, ContentError> {
     let mut facts = ContentFacts {
         splat_count: splats.len() as u32,
@@ -320,7 +331,10 @@ pub fn write_tile_contents(
     for v in written_variants {
         let t = Instant::now();
         let encoded = match &stored {
-            Some(s) if v != Variant::Best => v.encode_stored(s, centre_s, node_matrix, curve),
+            Some(s) if v != Variant::Best => {
+                let low = if parent { &LOW_SPZ_PARENT } else { &LOW_SPZ };
+                v.encode_stored(s, centre_s, node_matrix, curve, low)
+            }
             // Best, from the caller's splats; its reader returns the tile-relative splats
             // (`Variant::encode_decoded`), the estimate's reference in the others' order.
             _ => v.encode(splats, centre_s, node_matrix).map(|g| {
@@ -564,6 +578,69 @@ pub fn variant_table(ts: &LoadedTileset) -> Vec<VariantRow> {
 mod tests {
     use super::*;
     use crate::splat::Splat;
+
+    /// Low's position step: a leaf's follows its splats' size, a parent's keeps 18 bits of its
+    /// largest |coordinate| (the SPZ header's fractional bits, byte 13 of the raw stream).
+    #[test]
+    fn parents_keep_the_fine_low_step() {
+        let mut s = Splats::with_capacity(0, 64);
+        for i in 0..64 {
+            let f = i as f64 / 63.0;
+            s.push(
+                Splat {
+                    position: [f - 0.5, 0.5 - f, (f * 7.0).sin() * 0.5],
+                    scale: [0.01; 3],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                    opacity: 0.8,
+                    sh0: [0.1, 0.2, 0.3],
+                },
+                &[],
+            );
+        }
+        let opts = VariantOptions {
+            variants: vec![Variant::Low],
+            measure_utility: false,
+            ..VariantOptions::default()
+        };
+        let key = TileKey {
+            level: 0,
+            x: 0,
+            y: 0,
+            z: 0,
+        };
+        let fb = |parent: bool| {
+            let dir = tempfile::tempdir().unwrap();
+            write_tile_contents(
+                dir.path(),
+                Scheme::Octree,
+                key,
+                &s,
+                [0.0; 3],
+                crate::encode::tile::IDENTITY,
+                &opts,
+                parent,
+            )
+            .unwrap();
+            let glb = std::fs::read(dir.path().join(content_uri(
+                Scheme::Octree,
+                key,
+                Variant::Low,
+            )))
+            .unwrap();
+            let doc = crate::encode::glb::read_glb(&glb).unwrap();
+            let bin = doc.bin.expect("SPZ payload");
+            let mut raw = vec![];
+            std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&bin[..]), &mut raw)
+                .unwrap();
+            raw[13]
+        };
+        let max_abs = 0.5;
+        let fine = crate::encode::spz2::position_fractional_bits(max_abs, 18);
+        let by_size = crate::encode::spz2::spz_fractional_bits(&s, max_abs, &LOW_SPZ);
+        assert!(by_size < fine, "{by_size} {fine}");
+        assert_eq!(fb(false), by_size);
+        assert_eq!(fb(true), fine);
+    }
 
     /// What [`Variant::encode_decoded`] returns for Best without decoding is what the reader
     /// decodes from the glb, bit for bit, at every SH degree and far from the centre.
