@@ -19,7 +19,7 @@ use crate::tiling::TileKey;
 use crate::tiling::extent::{reach, reach_bounds};
 use crate::tiling::levels::keeps_content;
 use crate::tiling::partition::partition_subtree_with;
-use crate::variants::{ContentFacts, write_tile_contents};
+use crate::variants::{ContentFacts, TileSlot, write_tile_contents};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
@@ -115,15 +115,18 @@ pub(super) fn write_centred(
     );
     let (lo, hi) = reach_bounds(&pts, &three_sigma(tile, layout));
     let centre_s = layout.a.transpose() * ((clo + chi) * 0.5);
+    let slot = TileSlot {
+        scheme: layout.scheme,
+        key,
+        parent,
+    };
     let facts = write_tile_contents(
         dir,
-        layout.scheme,
-        key,
+        slot,
         tile,
         centre_s.to_array(),
         node_matrix(layout.a, centre_s),
         &opts.variants,
-        parent,
     )?;
     Ok((lo, hi, facts))
 }

@@ -283,21 +283,34 @@ pub fn uri_template(scheme: Scheme, variant: Variant) -> String {
     }
 }
 
+/// Which tile `write_tile_contents` writes: its place in the tree and what its splats are.
+#[derive(Debug, Clone, Copy)]
+pub struct TileSlot {
+    /// Subdivision scheme (for the content URIs).
+    pub scheme: Scheme,
+    /// The tile.
+    pub key: TileKey,
+    /// Its splats are merged LOD splats (Low then keeps [`LOW_SPZ_PARENT`]'s step).
+    pub parent: bool,
+}
+
 /// Writes every requested variant of one tile under `dir` and measures their utilities.
 ///
 /// `splats` hold positions in the source frame S; `centre_s` is subtracted (in f64) and
-/// `node_matrix` maps the tile-relative S frame into glTF's y-up frame. `parent`: the splats
-/// are merged LOD splats (Low then keeps [`LOW_SPZ_PARENT`]'s step).
+/// `node_matrix` maps the tile-relative S frame into glTF's y-up frame.
 pub fn write_tile_contents(
     dir: &Path,
-    scheme: Scheme,
-    key: TileKey,
+    slot: TileSlot,
     splats: &Splats,
     centre_s: [f64; 3],
     node_matrix: [f64; 16],
     opts: &VariantOptions,
-    parent: bool,
 ) -> Result<ContentFacts, ContentError> {
+    let TileSlot {
+        scheme,
+        key,
+        parent,
+    } = slot;
     let mut facts = ContentFacts {
         splat_count: splats.len() as u32,
         variant_bytes: [0; 4],
@@ -610,15 +623,18 @@ mod tests {
         };
         let fb = |parent: bool| {
             let dir = tempfile::tempdir().unwrap();
+            let slot = TileSlot {
+                scheme: Scheme::Octree,
+                key,
+                parent,
+            };
             write_tile_contents(
                 dir.path(),
-                Scheme::Octree,
-                key,
+                slot,
                 &s,
                 [0.0; 3],
                 crate::encode::tile::IDENTITY,
                 &opts,
-                parent,
             )
             .unwrap();
             let glb = std::fs::read(dir.path().join(content_uri(
@@ -630,8 +646,7 @@ mod tests {
             let doc = crate::encode::glb::read_glb(&glb).unwrap();
             let bin = doc.bin.expect("SPZ payload");
             let mut raw = vec![];
-            std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&bin[..]), &mut raw)
-                .unwrap();
+            std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(bin), &mut raw).unwrap();
             raw[13]
         };
         let max_abs = 0.5;
