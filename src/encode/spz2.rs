@@ -473,6 +473,17 @@ mod tests {
         assert_eq!(raw.len(), encode_spz_v2_raw(&s, centre, &full).len());
     }
 
+    /// The size rule the two tests below exercise: 18 to 12 bits, a step of at most 1/6 of the
+    /// median smallest scale.
+    const RULE: SpzOptions = SpzOptions {
+        max_sh_degree: 3,
+        sh1_bits: 5,
+        sh_rest_bits: 4,
+        position_bits: 18,
+        scale_divisor: 6,
+        min_position_bits: 12,
+    };
+
     fn cube_of(n: usize, scale: [f32; 3]) -> Splats {
         let mut s = Splats::new(0);
         for i in 0..n {
@@ -495,12 +506,7 @@ mod tests {
     /// than `position_bits` allow and no coarser than `min_position_bits`.
     #[test]
     fn the_step_follows_the_median_smallest_scale_within_its_bounds() {
-        let opts = SpzOptions {
-            position_bits: 18,
-            scale_divisor: 6,
-            min_position_bits: 12,
-            ..SpzOptions::default()
-        };
+        let opts = RULE;
         // max |coordinate| 1: 22 fractional bits fit; 18 bits keep 16, 12 bits keep 10.
         assert_eq!(fractional_bits(1.0), 22);
         let fb = |scale: [f32; 3]| spz_fractional_bits(&cube_of(9, scale), 1.0, &opts);
@@ -539,12 +545,7 @@ mod tests {
     /// Degenerate sizes fall back to `position_bits`: no splats, zero scales, infinite scales.
     #[test]
     fn degenerate_sizes_keep_the_fine_step() {
-        let opts = SpzOptions {
-            position_bits: 18,
-            scale_divisor: 6,
-            min_position_bits: 12,
-            ..SpzOptions::default()
-        };
+        let opts = RULE;
         assert_eq!(median_smallest_scale(&[]), None);
         assert_eq!(spz_fractional_bits(&cube_of(0, [0.01; 3]), 1.0, &opts), 16);
         assert_eq!(median_smallest_scale(&[[0.0; 3]; 5]), None);

@@ -643,10 +643,10 @@ mod tests {
                 Variant::Low,
             )))
             .unwrap();
-            let doc = crate::encode::glb::read_glb(&glb).unwrap();
-            let bin = doc.bin.expect("SPZ payload");
+            let payload = spz2_payload(&glb).unwrap().expect("SPZ payload");
             let mut raw = vec![];
-            std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(bin), &mut raw).unwrap();
+            std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&payload[..]), &mut raw)
+                .unwrap();
             raw[13]
         };
         let max_abs = 0.5;
