@@ -6,14 +6,20 @@
 //! `HIGH`); `PROBE_SCENES=donut` runs one scene; `PROBE_LOW="18,16,15"` adds Low (SPZ v2 as
 //! `variants::LOW_SPZ` with a fixed step) at each number of position bits, then `LOW_SPZ` itself. Prints wire B/splat (file or gzip -6,
 //! the smaller) and the mean SSIM framed / at 4x zoom, to 5 and to 12 decimals.
+//! `PROBE_SH="high:c:8:3;medium:v:4:2"` adds the peers bench's generated SH3 scene with every
+//! Table 6 level, our SPZ v2 writer, High, Medium and each higher-SH candidate
+//! (`base:mode:bits:SH degree`; mode v = `ExpMode::SharedVector`, c = `SharedComponent`).
 
+#[path = "../benches/common/mod.rs"]
+mod common;
 #[path = "../benches/peer_views/mod.rs"]
 mod peer_views;
 
 use glam::DVec3;
 use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
-use splat2tiles::encode::meshopt::{HIGH, MeshoptLevel, write_meshopt_glb};
-use splat2tiles::encode::spz2::{SpzOptions, gzip, write_spz2_glb};
+use splat2tiles::encode::exp_filter::ExpMode;
+use splat2tiles::encode::meshopt::{HIGH, MEDIUM, MeshoptLevel, write_meshopt_glb};
+use splat2tiles::encode::spz2::{SpzOptions, encode_spz_v2, gzip, write_spz2_glb};
 use splat2tiles::encode::table6;
 use splat2tiles::encode::tile::IDENTITY;
 use splat2tiles::frame::UpAxis;
@@ -38,14 +44,49 @@ fn main() {
         .filter(|x| !x.is_empty())
         .map(|x| x.parse().unwrap())
         .collect();
-    for f in ["donut_fused_sh0.ply", "plant.splat", "biker.spz"] {
+    // Higher-SH candidates, `base:mode:bits:degree` (base high|medium, mode v = one exponent per
+    // coefficient's RGB, c = fixed point over the tile), on the generated SH3 scene only.
+    let sh_cands: Vec<(String, MeshoptLevel)> = std::env::var("PROBE_SH")
+        .unwrap_or_default()
+        .split(';')
+        .filter(|c| !c.is_empty())
+        .map(|c| {
+            let v: Vec<&str> = c.split(':').collect();
+            let base = if v[0] == "high" { HIGH } else { MEDIUM };
+            let mode = if v[1] == "c" {
+                ExpMode::SharedComponent
+            } else {
+                ExpMode::SharedVector
+            };
+            let l = MeshoptLevel {
+                sh_rest_mode: mode,
+                sh_rest_bits: v[2].parse().unwrap(),
+                max_sh_degree: v[3].parse().unwrap(),
+                ..base
+            };
+            (c.to_string(), l)
+        })
+        .collect();
+    let mut files = vec!["donut_fused_sh0.ply", "plant.splat", "biker.spz"];
+    if !sh_cands.is_empty() {
+        files.push("sh3");
+    }
+    for f in files {
         if !only.is_empty() && !f.contains(&only) {
             continue;
         }
         let t0 = std::time::Instant::now();
-        let sc = read_path(&dir.join(f)).unwrap();
-        let up: UpAxis = sc.format.default_up_axis().parse().unwrap();
-        let splats = sc.splats;
+        let (splats, up) = if f == "sh3" {
+            // The peers bench's generated SH3 scene: every 4th splat of the plant + SH1-3.
+            let plant = read_path(&dir.join("plant.splat")).unwrap().splats;
+            let sh3 = common::plant_sh3(&plant);
+            let quarter: Vec<usize> = (0..sh3.len()).step_by(4).collect();
+            (sh3.select(&quarter), "-y".parse::<UpAxis>().unwrap())
+        } else {
+            let sc = read_path(&dir.join(f)).unwrap();
+            let up: UpAxis = sc.format.default_up_axis().parse().unwrap();
+            (sc.splats, up)
+        };
         let (lo, hi) = core_box(&splats);
         let centre = ((lo + hi) * 0.5).to_array();
         let rel = relative(&splats, centre);
@@ -63,10 +104,25 @@ fn main() {
                 s[0], s[1], s[0], s[1]
             );
         };
-        let bits = table6::LEVELS.iter().find(|(l, _)| *l == "best").unwrap().1;
-        let enc = table6::encode(&rel, &bits);
-        report("table6 best", &enc, &table6::decode(&enc).unwrap());
+        for (name, bits) in table6::LEVELS {
+            if name != "best" && f != "sh3" {
+                continue;
+            }
+            let enc = table6::encode(&rel, &bits);
+            report(
+                &format!("table6 {name}"),
+                &enc,
+                &table6::decode(&enc).unwrap(),
+            );
+        }
         let mut levels: Vec<(String, MeshoptLevel)> = vec![("high (current)".into(), HIGH)];
+        if f == "sh3" {
+            let spz = encode_spz_v2(&rel, [0.0; 3], &SpzOptions::default());
+            let dec = splat2tiles::io::read_bytes("v2.spz", &spz).unwrap().splats;
+            report("spz v2 (ours)", &spz, &dec);
+            levels.push(("medium (current)".into(), MEDIUM));
+            levels.extend(sh_cands.iter().cloned());
+        }
         for v in &cands {
             let l = MeshoptLevel {
                 position_bits: v[0],

@@ -37,8 +37,12 @@ pub struct MeshoptLevel {
     pub opacity_bits: i32,
     /// SH degree 0 bits, sign included, over the largest |value| of the tile per channel.
     pub sh0_bits: i32,
-    /// Higher SH mantissa bits, exponent shared by RGB of each coefficient.
+    /// Higher SH bits: the mantissa with [`ExpMode::SharedVector`] (one exponent for the RGB of
+    /// each coefficient), sign included over the largest |value| per channel with
+    /// [`ExpMode::SharedComponent`] (fixed point over the tile).
     pub sh_rest_bits: i32,
+    /// How the higher SH share exponents.
+    pub sh_rest_mode: ExpMode,
     /// Highest SH degree kept (lower of this and the input's).
     pub max_sh_degree: u8,
 }
@@ -57,6 +61,7 @@ pub const HIGH: MeshoptLevel = MeshoptLevel {
     opacity_bits: 12,
     sh0_bits: 11,
     sh_rest_bits: 6,
+    sh_rest_mode: ExpMode::SharedVector,
     max_sh_degree: 3,
 };
 
@@ -70,6 +75,7 @@ pub const MEDIUM: MeshoptLevel = MeshoptLevel {
     opacity_bits: 10,
     sh0_bits: 10,
     sh_rest_bits: 4,
+    sh_rest_mode: ExpMode::SharedVector,
     max_sh_degree: 2,
 };
 
@@ -236,12 +242,12 @@ fn streams(splats: &Splats, centre: [f64; 3], level: &MeshoptLevel) -> Vec<Strea
         let k = crate::splat::sh_rest_count(degree);
         // Every coefficient kept (High at SH3): the input's own array, without a copy.
         let bytes = if k == k_in {
-            exp3(&splats.sh_rest, level.sh_rest_bits, ExpMode::SharedVector)
+            exp3(&splats.sh_rest, level.sh_rest_bits, level.sh_rest_mode)
         } else {
             let kept: Vec<[f32; 3]> = (0..n)
                 .flat_map(|i| splats.sh_rest[i * k_in..i * k_in + k].iter().copied())
                 .collect();
-            exp3(&kept, level.sh_rest_bits, ExpMode::SharedVector)
+            exp3(&kept, level.sh_rest_bits, level.sh_rest_mode)
         };
         let mut accs = vec![];
         for l in 1..=degree {
@@ -863,5 +869,74 @@ mod tests {
                 assert!((a.opacity - b.opacity).abs() < 0.05);
             }
         }
+    }
+
+    #[test]
+    fn fixed_point_sh_rest_keeps_an_absolute_step() {
+        // Coefficients from 1e-4 to 0.5: fixed point over the tile rounds the small ones to zero
+        // and keeps every one within half a step; one exponent per coefficient's RGB keeps the
+        // small ones to their own relative step.
+        let mut s = Splats::new(1);
+        for i in 0..200 {
+            let c = if i % 2 == 0 {
+                1e-4
+            } else {
+                0.5 * i as f32 / 200.0
+            };
+            s.push(
+                Splat {
+                    position: [i as f64 * 0.01, 0.0, 0.0],
+                    scale: [0.01; 3],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                    opacity: 0.5,
+                    sh0: [0.1; 3],
+                },
+                &[[c, -c, c]; 3],
+            );
+        }
+        s.push(
+            Splat {
+                position: [3.0, 0.0, 0.0],
+                scale: [0.01; 3],
+                rotation: [0.0, 0.0, 0.0, 1.0],
+                opacity: 0.5,
+                sh0: [0.1; 3],
+            },
+            &[[0.5, -0.5, 0.5]; 3],
+        );
+        let decode = |mode| {
+            let level = MeshoptLevel {
+                sh_rest_mode: mode,
+                sh_rest_bits: 8,
+                ..HIGH
+            };
+            let glb = write_meshopt_glb(&s, [0.0; 3], IDENTITY, &level).unwrap();
+            let d = read_tile_glb(&decompress_meshopt_glb(&glb).unwrap())
+                .unwrap()
+                .splats;
+            in_caller_order(&d, &storage_order(&relative_f32(&s, [0.0; 3])))
+        };
+        let fixed = decode(ExpMode::SharedComponent);
+        // The exponent is a power of two: 0.5 lies in [2^-1, 2^0), so 8 bits with the sign
+        // give a step of 2^0 / 2^7.
+        let step = 1.0 / 128.0;
+        for (a, b) in s.sh_rest.iter().zip(&fixed.sh_rest) {
+            for k in 0..3 {
+                assert!((a[k] - b[k]).abs() <= step * 0.5 + 1e-6, "{a:?} -> {b:?}");
+                if a[k].abs() < step * 0.25 {
+                    assert_eq!(b[k], 0.0, "{a:?} -> {b:?}");
+                }
+            }
+        }
+        let relative = decode(ExpMode::SharedVector);
+        let tiny = relative
+            .sh_rest
+            .iter()
+            .filter(|c| c[0].abs() > 0.0 && c[0].abs() < 1e-3);
+        assert_eq!(
+            tiny.count(),
+            100 * 3,
+            "the small coefficients keep their own exponent"
+        );
     }
 }
