@@ -876,12 +876,13 @@ mod tests {
         // Coefficients from 1e-4 to 0.5: fixed point over the tile rounds the small ones to zero
         // and keeps every one within half a step; one exponent per coefficient's RGB keeps the
         // small ones to their own relative step.
+        // Odd splats 0.0025-0.4975, even ones 1e-4, the last 0.5: the tile's largest |value|.
         let mut s = Splats::new(1);
-        for i in 0..200 {
-            let c = if i % 2 == 0 {
-                1e-4
-            } else {
-                0.5 * i as f32 / 200.0
+        for i in 0..=200 {
+            let c = match i {
+                200 => 0.5,
+                _ if i % 2 == 0 => 1e-4,
+                _ => 0.5 * i as f32 / 200.0,
             };
             s.push(
                 Splat {
@@ -894,16 +895,6 @@ mod tests {
                 &[[c, -c, c]; 3],
             );
         }
-        s.push(
-            Splat {
-                position: [3.0, 0.0, 0.0],
-                scale: [0.01; 3],
-                rotation: [0.0, 0.0, 0.0, 1.0],
-                opacity: 0.5,
-                sh0: [0.1; 3],
-            },
-            &[[0.5, -0.5, 0.5]; 3],
-        );
         let decode = |mode| {
             let level = MeshoptLevel {
                 sh_rest_mode: mode,
