@@ -42,7 +42,7 @@ fn glb_seeds_and_prefixes_never_panic() {
         let r = validate_glb_bytes(&bytes, &opts);
         assert_eq!(r.num_errors, 0, "{name}: {}", r.to_text(&name));
         for n in cuts(bytes.len()) {
-            let _ = splat2tiles::encode::tile::read_tile_glb(&bytes[..n]);
+            let _ = splat2tiles::encode::read_tile_glb(&bytes[..n]);
             let r = validate_glb_bytes(&bytes[..n], &opts);
             assert!(r.num_errors > 0, "{name}: prefix {n} accepted");
         }
@@ -119,7 +119,7 @@ fn fuzz_crash_regressions_replay_cleanly() {
             n += 1;
             match target {
                 "glb" => {
-                    let _ = splat2tiles::encode::tile::read_tile_glb(&bytes);
+                    let _ = splat2tiles::encode::read_tile_glb(&bytes);
                     let _ = validate_glb_bytes(&bytes, &opts);
                 }
                 "subtree" => {

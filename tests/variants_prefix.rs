@@ -4,7 +4,8 @@
 mod common;
 
 use common::*;
-use splat2tiles::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
+use splat2tiles::encode::read_tile_glb;
+use splat2tiles::encode::tile::{TileLayout, try_write_tile_glb};
 use splat2tiles::encode::{decode_prefix, prefix::prefix_layout};
 use splat2tiles::splat::Splats;
 

@@ -1,10 +1,10 @@
-//! Fuzz target `glb`: glb bytes through `encode::tile::read_tile_glb`, the layer extension reader
+//! Fuzz target `glb`: glb bytes through `encode::read_tile_glb`, the layer extension reader
 //! (`layers::glb::read_layer`, sparse and ancestor deltas) and the validator's glb checks.
 //! Under `cargo fuzz` libFuzzer drives it; a plain build replays one input from stdin.
 #![cfg_attr(fuzzing, no_main)]
 
 fn run(data: &[u8]) {
-    let _ = splat2tiles::encode::tile::read_tile_glb(data);
+    let _ = splat2tiles::encode::read_tile_glb(data);
     let _ = splat2tiles::layers::glb::read_layer(data);
     let opts = splat2tiles::validate::ValidateOptions::default();
     let _ = splat2tiles::validate::validate_glb_bytes(data, &opts);

@@ -784,7 +784,8 @@ mod tests {
             );
         }
     }
-    use crate::encode::tile::{IDENTITY, read_tile_glb};
+    use crate::encode::read_tile_glb;
+    use crate::encode::tile::IDENTITY;
     use crate::splat::{Splat, normalize_quat};
 
     /// What [`write_meshopt_glb_and_decoded`] returns is what the reader decodes from the glb

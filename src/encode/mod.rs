@@ -10,8 +10,10 @@ pub mod spz2;
 pub mod storage_order;
 pub mod table6;
 pub mod tile;
+pub mod tile_read;
 pub mod vertex_codec;
 
 pub use glb::GlbError;
 pub use prefix::decode_prefix;
-pub use tile::{DecodedTile, TileLayout, read_tile_glb, try_write_tile_glb, write_tile_glb};
+pub use tile::{TileLayout, try_write_tile_glb, write_tile_glb};
+pub use tile_read::{DecodedTile, read_tile_glb};

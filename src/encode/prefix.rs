@@ -3,7 +3,7 @@
 
 use super::glb::{CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, GlbError, write_gltf_glb};
 use super::gltf::Gltf;
-use super::tile::read_tile_glb;
+use super::tile_read::read_tile_glb;
 use crate::splat::Splats;
 
 fn u32_at(b: &[u8], at: usize) -> u32 {

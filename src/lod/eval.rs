@@ -6,7 +6,7 @@
 //! the renderer's default camera): `D = e * f / 16` with `f` = that viewer's focal length. Images
 //! are rendered smaller (same field of view) to keep the measurement fast.
 
-use crate::encode::tile::read_tile_glb;
+use crate::encode::read_tile_glb;
 use crate::render::camera::{DEFAULT_FOV_Y_DEG, fov_to_focal};
 use crate::render::cli::{box_corners, content_model};
 use crate::render::{Camera, RenderOptions, auto_views_with, render, ssim};

@@ -11,7 +11,7 @@
 //! cropped to the scene's bounding sphere so that empty background does not inflate the SSIM.
 
 use super::eval::{MAX_SSE, VIEWER_HEIGHT, parents_of, sphere, switching_distance};
-use crate::encode::tile::read_tile_glb;
+use crate::encode::read_tile_glb;
 use crate::render::camera::{DEFAULT_FOV_Y_DEG, fov_to_focal};
 use crate::render::cli::{content_model, select_tiles};
 use crate::render::{Camera, Image, RenderOptions, render, ssim};

@@ -20,12 +20,13 @@ use crate::encode::meshopt::{
     HIGH, MEDIUM, decompress_meshopt_glb, write_meshopt_glb, write_meshopt_glb_and_decoded,
     write_meshopt_glb_stored,
 };
+use crate::encode::read_tile_glb;
 use crate::encode::spz2::{
     SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
     write_spz2_glb_as_given_and_decoded,
 };
 use crate::encode::storage_order::{aligned_to_best, in_storage_order};
-use crate::encode::tile::{TileLayout, read_tile_glb, try_write_tile_glb};
+use crate::encode::tile::{TileLayout, try_write_tile_glb};
 use crate::splat::Splats;
 use crate::tiling::load::{
     LoadedTileset, expand_template, implicit_root, parse_subtree_tiles, resolve_inside,

@@ -8,7 +8,7 @@ pub mod scenes;
 pub mod splat_file;
 
 use glam::{DMat3, DMat4, DVec3};
-use splat2tiles::encode::tile::read_tile_glb;
+use splat2tiles::encode::read_tile_glb;
 use splat2tiles::splat::{Splat, Splats, sh_rest_count};
 use splat2tiles::tiling::TileKey;
 use splat2tiles::tiling::load::load_tileset;
