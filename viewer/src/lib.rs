@@ -7,6 +7,7 @@
 pub mod alloc;
 #[cfg(feature = "native")]
 pub mod app;
+mod attr_tex;
 #[cfg(feature = "native")]
 pub mod cli;
 pub mod clock;
@@ -17,6 +18,7 @@ pub mod layered;
 pub mod nav;
 pub mod renderer;
 pub mod sort;
+mod sort_job;
 #[cfg(feature = "native")]
 pub mod stream;
 

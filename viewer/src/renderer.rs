@@ -13,7 +13,8 @@ use splat2tiles::render::raster::NEAR_Z;
 use splat2tiles::splat::{Splats, normalize_quat};
 
 use crate::alloc::{Run, SlotAllocator, page_pieces};
-use crate::sort::{RadixSorter, back_to_front_key};
+use crate::attr_tex::{AttrTex, table_texture};
+use crate::sort_job::{Chunk, SortJob, SortResult, Sorter};
 
 /// Splats per page (one layer of every attribute texture array).
 pub const PAGE_SPLATS: u32 = 1 << PAGE_BITS;
@@ -113,13 +114,6 @@ pub struct FrameStats {
     pub fading: bool,
 }
 
-/// The CPU copy kept per uploaded batch: tile-local positions and their slots (for depth keys).
-#[derive(Debug)]
-struct Chunk {
-    positions: Vec<[f32; 3]>,
-    slots: Vec<u32>,
-}
-
 #[derive(Debug)]
 struct Tile {
     row: u32,
@@ -137,168 +131,6 @@ struct Tile {
     source: Vec<u32>,
 }
 
-/// A depth-sort request: batches with the depth row (camera z of the tile frame) to apply.
-struct SortJob {
-    generation: u64,
-    chunks: Vec<(Arc<Chunk>, [f32; 4])>,
-}
-
-struct SortResult {
-    generation: u64,
-    order: Vec<u32>,
-    ms: f64,
-}
-
-/// Computes back-to-front keys for every splat of the job and sorts the slots.
-fn run_sort(job: &SortJob, sorter: &mut RadixSorter, pairs: &mut Vec<u64>) -> SortResult {
-    let t0 = crate::clock::now_ms();
-    pairs.clear();
-    for (chunk, r) in &job.chunks {
-        pairs.extend(chunk.positions.iter().zip(&chunk.slots).map(|(p, &slot)| {
-            let z = r[0] * p[0] + r[1] * p[1] + r[2] * p[2] + r[3];
-            ((back_to_front_key(z) as u64) << 32) | slot as u64
-        }));
-    }
-    sorter.sort_packed(pairs);
-    let order = pairs.iter().map(|&p| p as u32).collect();
-    SortResult {
-        generation: job.generation,
-        order,
-        ms: crate::clock::now_ms() - t0,
-    }
-}
-
-/// Runs sorts on a worker thread (native) or inline (wasm).
-struct Sorter {
-    #[cfg(not(target_arch = "wasm32"))]
-    tx: Option<std::sync::mpsc::Sender<SortJob>>,
-    #[cfg(not(target_arch = "wasm32"))]
-    rx: std::sync::mpsc::Receiver<SortResult>,
-    #[cfg(not(target_arch = "wasm32"))]
-    worker: Option<std::thread::JoinHandle<()>>,
-    /// Inline sorter (wasm, or native when the worker could not start).
-    inline: RadixSorter,
-    inline_pairs: Vec<u64>,
-    inline_result: Option<SortResult>,
-    in_flight: bool,
-}
-
-impl Sorter {
-    #[cfg(not(target_arch = "wasm32"))]
-    fn new() -> Self {
-        let (tx, job_rx) = std::sync::mpsc::channel::<SortJob>();
-        let (res_tx, rx) = std::sync::mpsc::channel::<SortResult>();
-        let worker = std::thread::Builder::new()
-            .name("splat-sort".into())
-            .spawn(move || {
-                let mut sorter = RadixSorter::new();
-                let mut pairs = Vec::new();
-                while let Ok(mut job) = job_rx.recv() {
-                    // Only the newest request matters.
-                    while let Ok(newer) = job_rx.try_recv() {
-                        job = newer;
-                    }
-                    if res_tx
-                        .send(run_sort(&job, &mut sorter, &mut pairs))
-                        .is_err()
-                    {
-                        break;
-                    }
-                }
-            })
-            .ok();
-        let tx = worker.as_ref().map(|_| tx);
-        Sorter {
-            tx,
-            rx,
-            worker,
-            inline: RadixSorter::new(),
-            inline_pairs: Vec::new(),
-            inline_result: None,
-            in_flight: false,
-        }
-    }
-
-    #[cfg(target_arch = "wasm32")]
-    fn new() -> Self {
-        Sorter {
-            inline: RadixSorter::new(),
-            inline_pairs: Vec::new(),
-            inline_result: None,
-            in_flight: false,
-        }
-    }
-
-    fn submit(&mut self, job: SortJob) {
-        self.in_flight = true;
-        #[cfg(not(target_arch = "wasm32"))]
-        if let Some(tx) = &self.tx {
-            match tx.send(job) {
-                Ok(()) => return,
-                Err(e) => {
-                    self.tx = None;
-                    self.inline_result =
-                        Some(run_sort(&e.0, &mut self.inline, &mut self.inline_pairs));
-                    return;
-                }
-            }
-        }
-        self.inline_result = Some(run_sort(&job, &mut self.inline, &mut self.inline_pairs));
-    }
-
-    /// The finished result, if any; blocks for it when `wait`.
-    fn poll(&mut self, wait: bool) -> Option<SortResult> {
-        if !self.in_flight {
-            return None;
-        }
-        if let Some(r) = self.inline_result.take() {
-            self.in_flight = false;
-            return Some(r);
-        }
-        self.poll_worker(wait)
-    }
-
-    #[cfg(not(target_arch = "wasm32"))]
-    fn poll_worker(&mut self, wait: bool) -> Option<SortResult> {
-        let got = if wait {
-            self.rx.recv().ok()
-        } else {
-            self.rx.try_recv().ok()
-        };
-        if got.is_some() {
-            self.in_flight = false;
-        } else if wait {
-            // The worker is gone: nothing will arrive.
-            self.in_flight = false;
-            self.tx = None;
-        }
-        got
-    }
-
-    #[cfg(target_arch = "wasm32")]
-    fn poll_worker(&mut self, _wait: bool) -> Option<SortResult> {
-        // Sorts run inline on wasm: nothing can be pending here.
-        self.in_flight = false;
-        None
-    }
-
-    fn bytes(&self) -> usize {
-        self.inline.bytes() + self.inline_pairs.capacity() * 8
-    }
-}
-
-impl Drop for Sorter {
-    fn drop(&mut self) {
-        #[cfg(not(target_arch = "wasm32"))]
-        {
-            self.tx = None;
-            if let Some(w) = self.worker.take() {
-                let _ = w.join();
-            }
-        }
-    }
-}
-
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct FrameUniform {
@@ -306,114 +138,6 @@ struct FrameUniform {
     focal: [f32; 4],
     lim: [f32; 4],
     params: [f32; 4],
-}
-
-/// One attribute texture array: `blocks` texels per splat, stored block-major across the row.
-struct AttrTex {
-    texture: wgpu::Texture,
-    format: wgpu::TextureFormat,
-    blocks: u32,
-    layers: u32,
-    texel_bytes: u32,
-}
-
-impl AttrTex {
-    fn new(
-        device: &wgpu::Device,
-        label: &str,
-        format: wgpu::TextureFormat,
-        blocks: u32,
-        layers: u32,
-    ) -> Self {
-        let texture = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: PAGE_ROW * blocks,
-                height: PAGE_SPLATS / PAGE_ROW,
-                depth_or_array_layers: layers,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_DST
-                | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let texel_bytes = format.block_copy_size(None).unwrap_or(16);
-        AttrTex {
-            texture,
-            format,
-            blocks,
-            layers,
-            texel_bytes,
-        }
-    }
-
-    fn bytes(&self) -> u64 {
-        self.texel_bytes as u64 * PAGE_SPLATS as u64 * self.blocks as u64 * self.layers as u64
-    }
-
-    /// A bigger copy (more layers and/or blocks) holding this one's contents.
-    fn grown(
-        &self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        label: &str,
-        blocks: u32,
-        layers: u32,
-    ) -> Self {
-        let new = AttrTex::new(device, label, self.format, blocks, layers);
-        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("grow attribute texture"),
-        });
-        enc.copy_texture_to_texture(
-            self.texture.as_image_copy(),
-            new.texture.as_image_copy(),
-            wgpu::Extent3d {
-                width: PAGE_ROW * self.blocks.min(blocks),
-                height: PAGE_SPLATS / PAGE_ROW,
-                depth_or_array_layers: self.layers.min(layers),
-            },
-        );
-        queue.submit([enc.finish()]);
-        new
-    }
-
-    /// Writes `texels` (block `b` of splats `[local, local + n)` of `page`, row-aligned piece).
-    fn write(&self, queue: &wgpu::Queue, page: u32, local: u32, n: u32, block: u32, data: &[u8]) {
-        let x = local % PAGE_ROW;
-        let y = local / PAGE_ROW;
-        let (w, h) = if n <= PAGE_ROW - x && (x != 0 || n < PAGE_ROW) {
-            (n, 1)
-        } else {
-            (PAGE_ROW, n / PAGE_ROW)
-        };
-        queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &self.texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d {
-                    x: block * PAGE_ROW + x,
-                    y,
-                    z: page,
-                },
-                aspect: wgpu::TextureAspect::All,
-            },
-            data,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(w * self.texel_bytes),
-                rows_per_image: Some(h),
-            },
-            wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-        );
-    }
 }
 
 /// Renders resident splat tiles with WebGL2-compatible wgpu.
@@ -450,23 +174,6 @@ pub struct SplatRenderer {
     table_scratch: Vec<f32>,
     /// Inserted tiles fade in over `fade_s` (off for layered tilesets: the layer ramp fades).
     insert_fade: bool,
-}
-
-fn table_texture(device: &wgpu::Device, rows: u32) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("splat tile table"),
-        size: wgpu::Extent3d {
-            width: TILES_PER_ROW * TILE_TEXELS,
-            height: rows,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba32Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    })
 }
 
 fn instance_buffer(device: &wgpu::Device, cap: u64) -> wgpu::Buffer {
@@ -1256,25 +963,5 @@ mod tests {
             [1, 3, 7, 12],
             "3 (d+1)^2 floats in RGBA texels"
         );
-    }
-
-    #[test]
-    fn sort_job_orders_back_to_front_over_tiles() {
-        let a = Arc::new(Chunk {
-            positions: vec![[0.0, 0.0, 1.0], [0.0, 0.0, 5.0]],
-            slots: vec![10, 11],
-        });
-        let b = Arc::new(Chunk {
-            positions: vec![[0.0, 0.0, 3.0]],
-            slots: vec![20],
-        });
-        // Tile b is shifted 10 m farther along the camera's z.
-        let job = SortJob {
-            generation: 7,
-            chunks: vec![(a, [0.0, 0.0, 1.0, 0.0]), (b, [0.0, 0.0, 1.0, 10.0])],
-        };
-        let r = run_sort(&job, &mut RadixSorter::new(), &mut Vec::new());
-        assert_eq!(r.order, vec![20, 11, 10]);
-        assert_eq!(r.generation, 7);
     }
 }
