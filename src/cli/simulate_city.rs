@@ -87,7 +87,7 @@ fn mirrored(poses: &[ViewPose]) -> Vec<ViewPose> {
         .collect()
 }
 
-/// One session of `predictor` (a [`PREDICTORS`] name) planned by `planner`.
+/// One session of `predictor` (a `PREDICTORS` name) planned by `planner`.
 pub fn session(
     dir: &Path,
     tr: &Trace,

@@ -296,7 +296,7 @@ pub struct Accessor {
     pub byte_offset: u64,
     /// Component type code (see [`ComponentType`]).
     pub component_type: u32,
-    /// Integer components map to [0,1] / [-1,1].
+    /// Integer components map to `[0, 1]` / `[-1, 1]`.
     #[serde(default, skip_serializing_if = "is_false")]
     pub normalized: bool,
     /// Number of elements.

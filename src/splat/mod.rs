@@ -1,6 +1,6 @@
 //! The scene model every stage shares: Gaussians in structure-of-arrays form, with f64 centres
 //! and f32 attributes already in the KHR_gaussian_splatting conventions (linear scale, opacity in
-//! [0,1], unit quaternion x,y,z,w, SH coefficients per coefficient as RGB).
+//! `[0, 1]`, unit quaternion x,y,z,w, SH coefficients per coefficient as RGB).
 
 pub mod city;
 pub mod importance;

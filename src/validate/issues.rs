@@ -169,7 +169,7 @@ catalogue! {
     SUBTREE_FILE_MISSING => Error,
     /// A subtree file exists for a child subtree marked unavailable (it is never loaded).
     SUBTREE_FILE_UNREFERENCED => Warning,
-    /// A metadata schema identifier does not match ^[a-zA-Z_][a-zA-Z0-9_]*$.
+    /// A metadata schema identifier does not match `^[a-zA-Z_][a-zA-Z0-9_]*$`.
     IDENTIFIER_NOT_VALID => Error,
     /// A class property's type, componentType, array or count is invalid.
     CLASS_PROPERTY_TYPE_ERROR => Error,

@@ -87,7 +87,7 @@ impl LossCurve {
     }
 
     /// The estimated utility of variant `index` viewed at geometric error `error` (as
-    /// [`Self::setup`] views it): `exp(-loss)` from the interpolated sums ([`interpolate`]).
+    /// [`Self::setup`] views it): `exp(-loss)` from the interpolated sums (`interpolate`).
     /// `None` where the variant was not compared.
     pub fn utility(&self, index: usize, error: f64) -> Option<f64> {
         let weighted = self.weighted.get(index)?.as_ref()?;

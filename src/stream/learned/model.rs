@@ -1,5 +1,5 @@
 //! The trained TCN + LSTM trajectory model (TileSplat sec. 3.3, App. C; `tools/tcn/train.py`):
-//! its ONNX export's weights run by a small forward pass ([`super::net`]), behind [`Predictor`].
+//! its ONNX export's weights run by a small forward pass (`net`), behind [`Predictor`].
 
 use super::net::Net;
 use super::onnx::Graph;
