@@ -109,8 +109,8 @@ pub struct FrameArgs {
     /// Turn the scene about its up axis by this many degrees (counter-clockwise from above).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub heading: f64,
-    /// Georeference the scene: lon,lat or lon,lat,height (degrees, metres) of its origin. Tiles then form a
-    /// Web-Mercator quadtree and the root carries an ECEF transform.
+    /// Georeference the scene: lon,lat or lon,lat,height (degrees, metres) of its origin. Tiles
+    /// then form a Web-Mercator quadtree and the root carries an ECEF transform.
     #[arg(long, value_parser = Geodetic::parse, allow_hyphen_values = true)]
     pub origin: Option<Geodetic>,
     /// Subdivision of local scenes.
