@@ -6,6 +6,7 @@
 //! `HIGH`); `PROBE_SCENES=donut` runs one scene; `PROBE_LOW="18,16,15"` adds Low (SPZ v2 as
 //! `variants::LOW_SPZ` with a fixed step) at each number of position bits, then `LOW_SPZ` itself. Prints wire B/splat (file or gzip -6,
 //! the smaller) and the mean SSIM framed / at 4x zoom, to 5 and to 12 decimals.
+//! `PROBE_ROT=nearest` rounds Low's rotation bytes instead of fitting them to the covariance.
 //! `PROBE_SH="high:c:8:3;medium:v:4:2"` adds the peers bench's generated SH3 scene with every
 //! Table 6 level, our SPZ v2 writer, High, Medium and each higher-SH candidate
 //! (`base:mode:bits:SH degree`; mode v = `ExpMode::SharedVector`, c = `SharedComponent`).
@@ -19,6 +20,7 @@ use glam::DVec3;
 use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
 use splat2tiles::encode::exp_filter::ExpMode;
 use splat2tiles::encode::meshopt::{HIGH, MEDIUM, MeshoptLevel, write_meshopt_glb};
+use splat2tiles::encode::spz_rotation::RotationFit;
 use splat2tiles::encode::spz2::{SpzOptions, encode_spz_v2, gzip, write_spz2_glb};
 use splat2tiles::encode::table6;
 use splat2tiles::encode::tile::IDENTITY;
@@ -67,6 +69,14 @@ fn main() {
             (c.to_string(), l)
         })
         .collect();
+    // `PROBE_ROT=nearest`: Low's rotation bytes rounded, not fitted to the covariance.
+    let low_spz = SpzOptions {
+        rotation_fit: match std::env::var("PROBE_ROT").as_deref() {
+            Ok("nearest") => RotationFit::Nearest,
+            _ => RotationFit::Covariance,
+        },
+        ..LOW_SPZ
+    };
     let mut files = vec!["donut_fused_sh0.ply", "plant.splat", "biker.spz"];
     if !sh_cands.is_empty() {
         files.push("sh3");
@@ -149,7 +159,7 @@ fn main() {
             let opts = SpzOptions {
                 position_bits: bits,
                 scale_divisor: 0,
-                ..LOW_SPZ
+                ..low_spz
             };
             let glb = write_spz2_glb(&rel, [0.0; 3], IDENTITY, &opts).unwrap();
             let (dec, _) = decode_variant(&glb).unwrap();
@@ -161,8 +171,8 @@ fn main() {
                 .iter()
                 .flatten()
                 .fold(0.0f64, |m, v| m.max(v.abs()));
-            let fb = splat2tiles::encode::spz2::spz_fractional_bits(&rel, max_abs, &LOW_SPZ);
-            let glb = write_spz2_glb(&rel, [0.0; 3], IDENTITY, &LOW_SPZ).unwrap();
+            let fb = splat2tiles::encode::spz2::spz_fractional_bits(&rel, max_abs, &low_spz);
+            let glb = write_spz2_glb(&rel, [0.0; 3], IDENTITY, &low_spz).unwrap();
             let (dec, _) = decode_variant(&glb).unwrap();
             report(&format!("low (LOW_SPZ: {fb} fractional bits)"), &glb, &dec);
         }

@@ -7,6 +7,7 @@ pub mod gltf;
 pub mod meshopt;
 pub mod prefix;
 pub mod spz2;
+pub mod spz_rotation;
 pub mod storage_order;
 pub mod table6;
 pub mod tile;

@@ -11,12 +11,13 @@ use super::gltf::{
     Accessor, AccessorType, Buffer, BufferView, ComponentType, KHR_GAUSSIAN_SPLATTING,
     KHR_GAUSSIAN_SPLATTING_SPZ_2,
 };
+use super::spz_rotation::{RotationFit, rotation_bytes};
 use super::storage_order::{in_caller_order, in_storage_order};
 use super::tile::{
     ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, IDENTITY, check_writable,
     sh_attribute, splat_document,
 };
-use crate::splat::{Splats, normalize_quat, sh_rest_count};
+use crate::splat::{Splats, sh_rest_count};
 
 /// Settings of the SPZ v2 encoder.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -35,6 +36,8 @@ pub struct SpzOptions {
     pub scale_divisor: u16,
     /// Fewest bits of the largest |coordinate| that `scale_divisor` may leave.
     pub min_position_bits: u8,
+    /// How the rotation bytes are chosen.
+    pub rotation_fit: RotationFit,
 }
 
 impl Default for SpzOptions {
@@ -46,6 +49,7 @@ impl Default for SpzOptions {
             position_bits: 24,
             scale_divisor: 0,
             min_position_bits: 24,
+            rotation_fit: RotationFit::Covariance,
         }
     }
 }
@@ -139,12 +143,8 @@ pub fn encode_spz_v2_raw(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -
     for s in &splats.scales {
         out.extend(s.iter().map(|&v| q8((v.max(1e-30).ln() + 10.0) * 16.0)));
     }
-    for q in &splats.rotations {
-        let mut q = normalize_quat(*q);
-        if q[3] < 0.0 {
-            q = q.map(|v| -v);
-        }
-        out.extend(q[..3].iter().map(|&v| q8(v * 127.5 + 127.5)));
+    for (q, s) in splats.rotations.iter().zip(&splats.scales) {
+        out.extend(rotation_bytes(*q, *s, opts.rotation_fit));
     }
     let bucket = |v: f32, bits: u8| -> u8 {
         let q = (v * 128.0 + 128.0).round().clamp(0.0, 255.0) as u32;
@@ -381,7 +381,7 @@ pub fn read_spz2_glb(bytes: &[u8]) -> Result<(Splats, [f64; 16]), GlbError> {
 mod tests {
     use super::*;
     use crate::encode::storage_order::{relative_f32, storage_order};
-    use crate::splat::Splat;
+    use crate::splat::{Splat, normalize_quat};
 
     fn scene() -> Splats {
         let mut s = Splats::new(3);
@@ -482,6 +482,7 @@ mod tests {
         position_bits: 18,
         scale_divisor: 6,
         min_position_bits: 12,
+        rotation_fit: RotationFit::Covariance,
     };
 
     fn cube_of(n: usize, scale: [f32; 3]) -> Splats {

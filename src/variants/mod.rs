@@ -21,6 +21,7 @@ use crate::encode::meshopt::{
     write_meshopt_glb_stored,
 };
 use crate::encode::read_tile_glb;
+use crate::encode::spz_rotation::RotationFit;
 use crate::encode::spz2::{
     SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
     write_spz2_glb_as_given_and_decoded,
@@ -61,6 +62,7 @@ pub const LOW_SPZ: SpzOptions = SpzOptions {
     position_bits: 18,
     scale_divisor: 3,
     min_position_bits: 12,
+    rotation_fit: RotationFit::Covariance,
 };
 
 /// Low's settings for a parent tile (merged LOD splats): 18 bits of the tile's largest
