@@ -199,10 +199,12 @@ fn main() {
                 splats: n,
             };
             eprintln!(
-                "{name}: {} {} {:.2} B/splat, SSIM {:.5} / {:.5}",
+                "{name}: {} {} {:.2} B/splat, SSIM {:.5} / {:.5} (raw {:.9} / {:.9})",
                 p.family,
                 p.codec,
                 p.wire() as f64 / n as f64,
+                p.ssim[0],
+                p.ssim[1],
                 p.ssim[0],
                 p.ssim[1]
             );
