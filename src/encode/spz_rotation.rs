@@ -78,8 +78,8 @@ pub fn rotation_bytes(q: [f32; 4], scale: [f32; 3], fit: RotationFit) -> [u8; 3]
     ];
     // The rounded triple as a reader takes it; the others only where |xyz| <= 1, so every
     // reader derives the same unit quaternion from them.
-    let mut best = (nearest, shape_error(q, read_back(nearest), weight));
-    if best.1 == 0.0 {
+    let rounded = shape_error(q, read_back(nearest), weight);
+    if rounded == 0.0 {
         return as_bytes(nearest);
     }
     // The vector part of conj(q) c is `M c - c_w q_xyz` with `M c = w c - q_xyz x c`, linear in
@@ -105,8 +105,9 @@ pub fn rotation_bytes(q: [f32; 4], scale: [f32; 3], fit: RotationFit) -> [u8; 3]
             sq[k][j] = c * c;
         }
     }
+    // Index 9 i + 3 j + k of the best triple so far; 13 is the rounded one.
     let mut arg = 13;
-    let mut least = best.1 * TIE;
+    let mut least = rounded * TIE;
     for i in 0..3 {
         let (ni, pi) = (sq[0][i], part[0][i]);
         for j in 0..3 {
@@ -136,11 +137,8 @@ pub fn rotation_bytes(q: [f32; 4], scale: [f32; 3], fit: RotationFit) -> [u8; 3]
             }
         }
     }
-    if arg != 13 {
-        let off = [arg / 9, arg / 3 % 3, arg % 3].map(|o| o as i32 - 1);
-        best.0 = [0, 1, 2].map(|a| nearest[a] + off[a]);
-    }
-    as_bytes(best.0)
+    let off = [arg / 9, arg / 3 % 3, arg % 3].map(|o| o as i32 - 1);
+    as_bytes([0, 1, 2].map(|a| nearest[a] + off[a]))
 }
 
 #[cfg(test)]
