@@ -5,6 +5,7 @@ pub mod exp_filter;
 pub mod glb;
 pub mod gltf;
 pub mod meshopt;
+pub mod meshopt_read;
 pub mod prefix;
 pub mod spz2;
 pub mod spz_rotation;
