@@ -22,8 +22,6 @@ use super::tile::{
 };
 use crate::splat::Splats;
 
-#[cfg(test)]
-use super::meshopt_read::decode_attributes;
 pub use super::meshopt_read::{decompress_meshopt_glb, filter_in_place};
 
 /// Bit depths of one level. Positions and DC colour are fixed point over the tile (the
@@ -526,6 +524,7 @@ fn encode_meshopt(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::encode::meshopt_read::decode_attributes;
     use crate::encode::storage_order::{relative_f32, storage_order};
 
     /// xorshift64 bytes.

@@ -1,6 +1,7 @@
 //! SPZ v2 rotation bytes chosen for the splat's shape: among the 27 byte triples around the
 //! rounded `x, y, z`, the one whose decoded quaternion gives the covariance nearest the splat's.
 
+use crate::io::spz::v2_rotation;
 use crate::splat::normalize_quat;
 
 /// How the SPZ v2 writer picks a splat's three rotation bytes.
@@ -13,23 +14,6 @@ pub enum RotationFit {
     /// (Frobenius norm); the rounded triple on ties and for round splats.
     #[default]
     Covariance,
-}
-
-/// The decoded rotation of a byte triple (`b / 127.5 - 1`, `w >= 0`), or `None` when the three
-/// components alone exceed unit length (a reader's `w` would be clamped to 0).
-fn decoded(b: [i32; 3]) -> Option<[f32; 4]> {
-    let c = b.map(|v| v as f32 / 127.5 - 1.0);
-    let n2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
-    (n2 <= 1.0).then(|| [c[0], c[1], c[2], (1.0 - n2).sqrt()])
-}
-
-/// What `io::spz` reads from a byte triple: `w` clamped at 0, then normalised.
-fn read_back(b: [i32; 3]) -> [f32; 4] {
-    decoded(b).unwrap_or_else(|| {
-        let c = b.map(|v| v as f32 / 127.5 - 1.0);
-        let n = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
-        [c[0] / n, c[1] / n, c[2] / n, 0.0]
-    })
 }
 
 /// How far the covariance of `d` (a decoded rotation) is from the splat's, to first order: the
@@ -78,7 +62,7 @@ pub fn rotation_bytes(q: [f32; 4], scale: [f32; 3], fit: RotationFit) -> [u8; 3]
     ];
     // The rounded triple as a reader takes it; the others only where |xyz| <= 1, so every
     // reader derives the same unit quaternion from them.
-    let rounded = shape_error(q, read_back(nearest), weight);
+    let rounded = shape_error(q, v2_rotation(as_bytes(nearest)), weight);
     if rounded == 0.0 {
         return as_bytes(nearest);
     }
@@ -146,7 +130,7 @@ mod tests {
     use super::*;
 
     fn decode(b: [u8; 3]) -> [f64; 4] {
-        read_back(b.map(i32::from)).map(f64::from)
+        v2_rotation(b).map(f64::from)
     }
 
     /// Upper triangle (xx, yy, zz, xy, xz, yz) of `R diag(s2) R^T` for the unit quaternion `q`.

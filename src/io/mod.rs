@@ -14,7 +14,7 @@ mod ply_header;
 mod ply_write;
 mod splat_file;
 mod splat_write;
-mod spz;
+pub(crate) mod spz;
 
 pub use spz::MAX_SPZ_POINTS;
 

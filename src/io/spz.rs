@@ -422,12 +422,8 @@ fn build(h: Header, a: &[&[u8]]) -> Scene {
             splat::normalize_quat(q)
         }));
     } else {
-        s.rotations.extend(rot.chunks_exact(3).map(|r| {
-            let c = |b: u8| b as f32 / 127.5 - 1.0;
-            let [x, y, z] = [c(r[0]), c(r[1]), c(r[2])];
-            let w = (1.0 - (x * x + y * y + z * z)).max(0.0).sqrt();
-            splat::normalize_quat([x, y, z, w])
-        }));
+        s.rotations
+            .extend(rot.chunks_exact(3).map(|r| v2_rotation([r[0], r[1], r[2]])));
     }
     let q8 = |b: u8| (b as f32 - 128.0) / 128.0;
     s.sh_rest
@@ -440,6 +436,14 @@ fn build(h: Header, a: &[&[u8]]) -> Scene {
         repaired_rotations: repaired,
         overflowed_scales: 0,
     }
+}
+
+/// Decodes SPZ v2 rotation bytes: `x, y, z = b / 127.5 - 1`, `w = sqrt(1 - |xyz|^2)` clamped at
+/// 0, normalised (also the model the writer fits its bytes to, `encode::spz_rotation`).
+pub(crate) fn v2_rotation(b: [u8; 3]) -> [f32; 4] {
+    let [x, y, z] = b.map(|v| v as f32 / 127.5 - 1.0);
+    let w = (1.0 - (x * x + y * y + z * z)).max(0.0).sqrt();
+    splat::normalize_quat([x, y, z, w])
 }
 
 /// Decodes a "smallest three" quaternion into `[x, y, z, w]`.
