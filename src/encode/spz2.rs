@@ -164,18 +164,54 @@ pub fn encode_spz_v2_raw(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -
     out
 }
 
-/// Gzips `raw` (the SPZ v2 container is a gzip stream) at zlib's default level 6: level 9
-/// made the Low variant most of `--variants all`'s encoding time for well under 1% of its
-/// bytes (BENCHMARKS.md, "Quality variants").
+/// Gzips `raw` at zlib's default level 6 (flate2): what `gzip -6` makes of a file, the
+/// transfer-encoding measure of the benches (an SPZ payload itself is [`spz_gzip`]).
 pub fn gzip(raw: &[u8]) -> Vec<u8> {
     let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
     enc.write_all(raw).expect("writing to memory");
     enc.finish().expect("writing to memory")
 }
 
-/// The SPZ v2 file of `splats` (gzip of [`encode_spz_v2_raw`]).
+/// libdeflate's level for SPZ payloads: its near-optimal parser (levels 10-12) takes about as long
+/// as zlib's level 6 at level 10 and gave 2.3-4.5% smaller Low payloads on the shared scenes;
+/// 11 and 12 save under 0.4% more for 1.2-1.5x the time (BENCHMARKS.md, "Low's gzip stream").
+#[cfg(feature = "native")]
+const SPZ_DEFLATE_LEVEL: i32 = 10;
+
+/// Gzips an SPZ v2 payload (the container is one gzip member): libdeflate at
+/// [`SPZ_DEFLATE_LEVEL`] in the native build; without it (wasm, which only reads SPZ) flate2 at
+/// level 6. Every gzip reader inflates either.
+pub fn spz_gzip(raw: &[u8]) -> Vec<u8> {
+    #[cfg(feature = "native")]
+    {
+        use libdeflater::{CompressionLvl, Compressor};
+        use std::cell::RefCell;
+        thread_local! {
+            // One compressor a thread: the near-optimal parser's state is about 1 MB.
+            static COMPRESSOR: RefCell<Option<Compressor>> = const { RefCell::new(None) };
+        }
+        COMPRESSOR.with_borrow_mut(|c| {
+            let c = c.get_or_insert_with(|| {
+                Compressor::new(CompressionLvl::new(SPZ_DEFLATE_LEVEL).expect("level in 0..=12"))
+            });
+            // The bound covers incompressible input plus the gzip framing, so this cannot fail.
+            let mut out = vec![0u8; c.gzip_compress_bound(raw.len())];
+            let n = c
+                .gzip_compress(raw, &mut out)
+                .expect("output sized by the bound");
+            out.truncate(n);
+            out
+        })
+    }
+    #[cfg(not(feature = "native"))]
+    {
+        gzip(raw)
+    }
+}
+
+/// The SPZ v2 file of `splats` ([`spz_gzip`] of [`encode_spz_v2_raw`]).
 pub fn encode_spz_v2(splats: &Splats, centre: [f64; 3], opts: &SpzOptions) -> Vec<u8> {
-    gzip(&encode_spz_v2_raw(splats, centre, opts))
+    spz_gzip(&encode_spz_v2_raw(splats, centre, opts))
 }
 
 fn float_acc(kind: AccessorType, n: usize) -> Accessor {
@@ -272,7 +308,7 @@ fn write_spz2(
         Some(order) => in_caller_order(&decoded, order),
         None => decoded,
     };
-    let payload = gzip(&raw);
+    let payload = spz_gzip(&raw);
     drop(raw);
     if payload.len() as u64 > u32::MAX as u64 {
         return Err(GlbError::TooLarge {
