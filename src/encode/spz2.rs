@@ -172,9 +172,9 @@ pub fn gzip(raw: &[u8]) -> Vec<u8> {
     enc.finish().expect("writing to memory")
 }
 
-/// libdeflate's level for SPZ payloads: its near-optimal parser (levels 10-12) takes about as long
-/// as zlib's level 6 at level 10 and gave 2.3-4.5% smaller Low payloads on the shared scenes;
-/// 11 and 12 save under 0.4% more for 1.2-1.5x the time (BENCHMARKS.md, "Low's gzip stream").
+/// libdeflate's level for SPZ payloads: level 10, the first with its near-optimal parser, made Low
+/// payloads 2.5-4.5% smaller than zlib's level 6 on the shared scenes for 1.6-2.6x its time; 11
+/// and 12 saved under 0.4% more for up to 2x longer again (BENCHMARKS.md, "Low's gzip stream").
 #[cfg(feature = "native")]
 const SPZ_DEFLATE_LEVEL: i32 = 10;
 
