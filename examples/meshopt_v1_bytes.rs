@@ -6,10 +6,9 @@
 //! tile's JSON and binary chunk, as stored and gzipped (`gzip -6`), at version 0 (what we write)
 //! and at version 1, levels 2 (upstream's default) and 3.
 
-// Only `plant_sh3` and `core_box` are used here.
-#[allow(dead_code)]
 #[path = "../benches/common/mod.rs"]
 mod common;
+// Only its `core_box` is used here.
 #[allow(dead_code)]
 #[path = "../benches/peer_views/mod.rs"]
 mod peer_views;
@@ -74,9 +73,18 @@ fn main() {
             let glb = write_meshopt_glb(&rel, [0.0; 3], IDENTITY, &level).unwrap();
             let cell = |v: u8, l: u8| {
                 let b = rewritten(&glb, v, l);
-                format!("{:.2} / {:.2}", b.len() as f64 / n, gzip(&b).len() as f64 / n)
+                format!(
+                    "{:.2} / {:.2}",
+                    b.len() as f64 / n,
+                    gzip(&b).len() as f64 / n
+                )
             };
-            println!("| {f} | {name} | {} | {} | {} |", cell(0, 0), cell(1, 2), cell(1, 3));
+            println!(
+                "| {f} | {name} | {} | {} | {} |",
+                cell(0, 0),
+                cell(1, 2),
+                cell(1, 3)
+            );
         }
     }
 }

@@ -7,7 +7,7 @@ use super::part::{PART_FILE, PART_VERSION, PartFile, ROOTS_FILE};
 use super::plan::Plan;
 use super::region::{RegionCtx, RootContent, WrittenParent};
 use super::shard::{arr_key, bad, parse, read_bounded};
-use super::spill::Codec;
+use super::spill_records::Codec;
 use super::store::ContentStore;
 use super::tileset::{
     TreeTile, build_tree, finish_tree, tileset_json, view_error, write_subtrees, write_tileset_json,

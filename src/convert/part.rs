@@ -12,7 +12,8 @@
 use super::plan::{Plan, open_input};
 use super::region::{self, GroupLeaves, RegionCtx, RootContent, WrittenParent};
 use super::shard::{F, bad, f3, key_arr, parse, read_bounded, v3};
-use super::spill::{Codec, SpillFormat, Spiller};
+use super::spill::Spiller;
+use super::spill_records::{Codec, SpillFormat};
 use super::store::ContentStore;
 use super::tileset::{TreeTile, build_tree, finish_tree, view_error};
 use super::{Budget, ConvertError, SPACING_SAMPLES, SPILL_DIR, default_radius, io_err, read_ahead};

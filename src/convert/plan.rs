@@ -8,7 +8,8 @@
 use super::frame::Layout;
 use super::shard::{F, arr_key, bad, digest, f3, key_arr, parse, read_bounded, v3, write_atomic};
 use super::source::Input;
-use super::spill::{SpillFormat, count_cells, histogram_levels, prefix_sums};
+use super::spill::{count_cells, histogram_levels, prefix_sums};
+use super::spill_records::SpillFormat;
 use super::{
     ConvertError, ConvertOptions, check_counts, check_interrupt, frame_and_budget, frame_pass,
 };

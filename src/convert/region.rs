@@ -7,7 +7,8 @@
 //! how the scene was split, so the in-memory path (one region) and the spill path agree.
 
 use super::frame::Layout;
-use super::spill::{Group, GroupData, RegionSpec, SpillFormat};
+use super::spill::{Group, GroupData, RegionSpec};
+use super::spill_records::SpillFormat;
 use super::store::ContentStore;
 use super::tileset::TreeTile;
 use super::{ConvertError, ConvertOptions, check_interrupt};

@@ -3,7 +3,7 @@
 //! the levels above the regions hold only the parents being built and their children.
 
 use super::ConvertError;
-use super::spill::Codec;
+use super::spill_records::Codec;
 use crate::splat::Splats;
 use crate::tiling::TileKey;
 use std::collections::HashMap;
