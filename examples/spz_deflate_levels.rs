@@ -4,6 +4,9 @@
 //! Run: `cargo run --release --example spz_deflate_levels` (about 1 min). Each scene is one tile
 //! as the peers bench encodes it (`variants::LOW_SPZ`); prints B/splat of the gzip member and the
 //! fastest of 3 runs in ms, for flate2 (zlib-rs) at levels 6 and 9 and libdeflate at 1-12.
+//! `LEVELS_PLY=target/tmp-big/variants_speed/generated_1000000_sh3.ply` adds one tile of that
+//! scene (the `variants_speed` bench's input, kept by `VARIANTS_SPEED_KEEP=1`): its splats with x
+//! and z in the lowest tenth of their range.
 
 #[path = "../benches/common/mod.rs"]
 mod common;
@@ -38,8 +41,19 @@ fn main() {
     let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
     println!("| scene | coder | level | B/splat | ms |");
     println!("|---|---|---:|---:|---:|");
-    for f in ["plant.splat", "donut_fused_sh0.ply", "biker.spz", "sh3"] {
-        let splats = if f == "sh3" {
+    let extra = std::env::var("LEVELS_PLY").ok();
+    let mut files = vec!["plant.splat", "donut_fused_sh0.ply", "biker.spz", "sh3"];
+    files.extend(extra.as_deref());
+    for f in files {
+        let splats = if extra.as_deref() == Some(f) {
+            let all = read_path(std::path::Path::new(f)).unwrap().splats;
+            let (lo, hi) = all.bounds().unwrap();
+            let corner = |p: &[f64; 3]| {
+                [0, 2].iter().all(|&a| p[a] <= lo[a] + 0.1 * (hi[a] - lo[a]))
+            };
+            let keep: Vec<usize> = (0..all.len()).filter(|&i| corner(&all.positions[i])).collect();
+            all.select(&keep)
+        } else if f == "sh3" {
             // The peers bench's generated SH3 scene: every 4th splat of the plant + SH1-3.
             let plant = read_path(&dir.join("plant.splat")).unwrap().splats;
             let sh3 = common::plant_sh3(&plant);

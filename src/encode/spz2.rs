@@ -172,11 +172,13 @@ pub fn gzip(raw: &[u8]) -> Vec<u8> {
     enc.finish().expect("writing to memory")
 }
 
-/// libdeflate's level for SPZ payloads: level 10, the first with its near-optimal parser, made Low
-/// payloads 2.5-4.5% smaller than zlib's level 6 on the shared scenes for 1.6-2.6x its time; 11
-/// and 12 saved under 0.4% more for up to 2x longer again (BENCHMARKS.md, "Low's gzip stream").
+/// libdeflate's level for SPZ payloads. Level 6 made Low payloads 1.1-3.2% smaller than zlib-rs's
+/// level 6 in 0.55-0.8x its time on every scene measured. Level 10 (its near-optimal parser) saves
+/// 2.5-4.5% on the shared scenes for 1.6-2.6x zlib-rs's time, but 6x on the generated scene of
+/// the `variants_speed` bench, which took `--variants all` past 2x Best-only at 5M splats
+/// (BENCHMARKS.md, "Low's gzip stream").
 #[cfg(feature = "native")]
-const SPZ_DEFLATE_LEVEL: i32 = 10;
+const SPZ_DEFLATE_LEVEL: i32 = 6;
 
 /// Gzips an SPZ v2 payload (the container is one gzip member): libdeflate at
 /// [`SPZ_DEFLATE_LEVEL`] in the native build; without it (wasm, which only reads SPZ) flate2 at
@@ -187,7 +189,7 @@ pub fn spz_gzip(raw: &[u8]) -> Vec<u8> {
         use libdeflater::{CompressionLvl, Compressor};
         use std::cell::RefCell;
         thread_local! {
-            // One compressor a thread: the near-optimal parser's state is about 1 MB.
+            // One compressor a thread, reused tile after tile.
             static COMPRESSOR: RefCell<Option<Compressor>> = const { RefCell::new(None) };
         }
         COMPRESSOR.with_borrow_mut(|c| {
