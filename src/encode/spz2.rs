@@ -173,7 +173,7 @@ pub fn gzip(raw: &[u8]) -> Vec<u8> {
 }
 
 /// libdeflate's level for SPZ payloads. Level 6 made Low payloads 1.1-3.2% smaller than zlib-rs's
-/// level 6 in 0.55-0.8x its time on every scene measured. Level 10 (its near-optimal parser) saves
+/// level 6 in 0.55-0.8x its time, on every scene measured. Level 10 (its near-optimal parser) saves
 /// 2.5-4.5% on the shared scenes for 1.6-2.6x zlib-rs's time, but 6x on the generated scene of
 /// the `variants_speed` bench, which took `--variants all` past 2x Best-only at 5M splats
 /// (BENCHMARKS.md, "Low's gzip stream").
