@@ -49,9 +49,13 @@ fn main() {
             let all = read_path(std::path::Path::new(f)).unwrap().splats;
             let (lo, hi) = all.bounds().unwrap();
             let corner = |p: &[f64; 3]| {
-                [0, 2].iter().all(|&a| p[a] <= lo[a] + 0.1 * (hi[a] - lo[a]))
+                [0, 2]
+                    .iter()
+                    .all(|&a| p[a] <= lo[a] + 0.1 * (hi[a] - lo[a]))
             };
-            let keep: Vec<usize> = (0..all.len()).filter(|&i| corner(&all.positions[i])).collect();
+            let keep: Vec<usize> = (0..all.len())
+                .filter(|&i| corner(&all.positions[i]))
+                .collect();
             all.select(&keep)
         } else if f == "sh3" {
             // The peers bench's generated SH3 scene: every 4th splat of the plant + SH1-3.

@@ -421,6 +421,36 @@ mod tests {
     use crate::encode::storage_order::{relative_f32, storage_order};
     use crate::splat::{Splat, normalize_quat};
 
+    #[test]
+    fn spz_gzip_is_one_gzip_member_that_inflates_back() {
+        use std::io::Read;
+        // Empty, incompressible and repetitive payloads, the last past one deflate block.
+        let mut noise = 0x2545_F491u32;
+        let random: Vec<u8> = (0..100_000)
+            .map(|_| {
+                noise ^= noise << 13;
+                noise ^= noise >> 17;
+                noise ^= noise << 5;
+                noise as u8
+            })
+            .collect();
+        let repeats: Vec<u8> = (0..300_000u32).map(|i| (i % 7) as u8).collect();
+        for raw in [vec![], random, repeats] {
+            let gz = spz_gzip(&raw);
+            assert_eq!(&gz[..2], &[0x1f, 0x8b], "gzip magic");
+            let mut back = vec![];
+            let mut dec = flate2::bufread::GzDecoder::new(&gz[..]);
+            dec.read_to_end(&mut back).unwrap();
+            assert_eq!(back, raw);
+            // Nothing after the member (a single-member reader sees it all).
+            let mut rest = vec![];
+            dec.into_inner().read_to_end(&mut rest).unwrap();
+            assert!(rest.is_empty());
+            // Bounded: incompressible input grows by little more than the gzip framing.
+            assert!(gz.len() <= raw.len() + raw.len() / 100 + 64);
+        }
+    }
+
     fn scene() -> Splats {
         let mut s = Splats::new(3);
         for i in 0..50 {
