@@ -181,7 +181,7 @@ pub fn gzip(raw: &[u8]) -> Vec<u8> {
 const SPZ_DEFLATE_LEVEL: i32 = 6;
 
 /// Gzips an SPZ v2 payload (the container is one gzip member): libdeflate at
-/// [`SPZ_DEFLATE_LEVEL`] in the native build; without it (wasm, which only reads SPZ) flate2 at
+/// level 6 in the native build; without it (wasm, which only reads SPZ) flate2 at
 /// level 6. Every gzip reader inflates either.
 pub fn spz_gzip(raw: &[u8]) -> Vec<u8> {
     #[cfg(feature = "native")]
