@@ -87,11 +87,8 @@ fn main() {
         }
         let t0 = std::time::Instant::now();
         let (splats, up) = if f == "sh3" {
-            // The peers bench's generated SH3 scene: every 4th splat of the plant + SH1-3.
             let plant = read_path(&dir.join("plant.splat")).unwrap().splats;
-            let sh3 = common::plant_sh3(&plant);
-            let quarter: Vec<usize> = (0..sh3.len()).step_by(4).collect();
-            (sh3.select(&quarter), "-y".parse::<UpAxis>().unwrap())
+            (common::peers_sh3(&plant), "-y".parse::<UpAxis>().unwrap())
         } else {
             let sc = read_path(&dir.join(f)).unwrap();
             let up: UpAxis = sc.format.default_up_axis().parse().unwrap();

@@ -58,11 +58,7 @@ fn main() {
     println!("|---|---|---|---|---|");
     for f in ["plant.splat", "donut_fused_sh0.ply", "biker.spz", "sh3"] {
         let splats = if f == "sh3" {
-            // The peers bench's generated SH3 scene: every 4th splat of the plant + SH1-3.
-            let plant = read_path(&dir.join("plant.splat")).unwrap().splats;
-            let sh3 = common::plant_sh3(&plant);
-            let quarter: Vec<usize> = (0..sh3.len()).step_by(4).collect();
-            sh3.select(&quarter)
+            common::peers_sh3(&read_path(&dir.join("plant.splat")).unwrap().splats)
         } else {
             read_path(&dir.join(f)).unwrap().splats
         };

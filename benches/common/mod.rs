@@ -49,6 +49,14 @@ pub fn generate_sh3_ply(path: &Path, n: usize) {
     splat2tiles::io::write_ply(&all, std::io::BufWriter::new(file)).unwrap();
 }
 
+/// The SH3 scene of the peers bench and its probes: every 4th splat of [`plant_sh3`] (28,412
+/// splats; splat-transform's SOG palette would not finish on all of them).
+pub fn peers_sh3(plant: &Splats) -> Splats {
+    let sh3 = plant_sh3(plant);
+    let quarter: Vec<usize> = (0..sh3.len()).step_by(4).collect();
+    sh3.select(&quarter)
+}
+
 /// The plant with small random SH1-3 coefficients (|c| <= 0.08), the generated SH3
 /// scene of the variant benches (xorshift, seed 99).
 pub fn plant_sh3(plant: &Splats) -> Splats {
