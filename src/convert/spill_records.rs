@@ -97,24 +97,13 @@ impl Codec {
         records: usize,
         mut f: impl FnMut(&Splats, &[u64]) -> Result<(), ConvertError>,
     ) -> Result<(), ConvertError> {
-        let file = std::fs::File::open(path).map_err(super::io_err(path, "reading spill file"))?;
-        let mut r = BufReader::with_capacity(1 << 20, file);
         let rb = self.record_bytes();
-        let mut buf = vec![0u8; rb * records.max(1)];
-        loop {
-            let n =
-                read_full(&mut r, &mut buf).map_err(super::io_err(path, "reading spill file"))?;
-            if n == 0 {
-                return Ok(());
-            }
-            let mut s = Splats::with_capacity(self.degree, n / rb);
-            let mut idx = Vec::with_capacity(n / rb);
-            self.decode(&buf[..n - n % rb], &mut s, &mut idx);
-            f(&s, &idx)?;
-            if n < buf.len() {
-                return Ok(());
-            }
-        }
+        read_records(path, rb, records, |bytes| {
+            let mut s = Splats::with_capacity(self.degree, bytes.len() / rb);
+            let mut idx = Vec::with_capacity(bytes.len() / rb);
+            self.decode(bytes, &mut s, &mut idx);
+            f(&s, &idx)
+        })
     }
 }
 
