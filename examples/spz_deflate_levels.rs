@@ -19,8 +19,7 @@ use std::io::{Read, Write};
 
 use libdeflater::{CompressionLvl, Compressor};
 use peer_views::core_box;
-use splat2tiles::encode::glb::read_glb;
-use splat2tiles::encode::spz2::write_spz2_glb;
+use splat2tiles::encode::spz2::{spz2_payload, write_spz2_glb};
 use splat2tiles::encode::tile::IDENTITY;
 use splat2tiles::io::read_path;
 use splat2tiles::variants::{LOW_SPZ, relative};
@@ -67,13 +66,9 @@ fn main() {
         // The payload exactly as the Low tile stores it (storage order, the tile's position
         // step), inflated back from the tile.
         let glb = write_spz2_glb(&rel, [0.0; 3], IDENTITY, &LOW_SPZ).unwrap();
-        let chunks = read_glb(&glb).unwrap();
-        let json: serde_json::Value = serde_json::from_slice(chunks.json).unwrap();
-        let view = &json["bufferViews"][0];
-        let at = view["byteOffset"].as_u64().unwrap_or(0) as usize;
-        let len = view["byteLength"].as_u64().unwrap() as usize;
+        let payload = spz2_payload(&glb).unwrap().expect("an SPZ_2 tile");
         let mut raw = vec![];
-        flate2::read::GzDecoder::new(&chunks.bin.unwrap()[at..at + len])
+        flate2::read::GzDecoder::new(&payload[..])
             .read_to_end(&mut raw)
             .unwrap();
         let n = rel.len() as f64;
