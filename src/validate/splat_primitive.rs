@@ -5,6 +5,8 @@ use super::content::ContentGeom;
 use super::context::Ctx;
 use super::glb_buffers::Buffers;
 use super::issues::Issue;
+use std::collections::BTreeMap;
+
 use crate::encode::gltf::{
     AccessorType, ComponentType, Gltf, KHR_GAUSSIAN_SPLATTING, KHR_GAUSSIAN_SPLATTING_SPZ_2,
     KhrGaussianSplatting, MODE_DEFAULT, MODE_POINTS, Primitive,
@@ -77,19 +79,57 @@ pub(super) fn check(
     want_shapes: bool,
     geom: &mut ContentGeom,
 ) -> bool {
-    let Glb {
-        doc,
-        name,
-        buffers,
-        meshopt_views,
-        placements,
-        quantized,
-    } = *g;
-    let (views_ok, buffers) = (&buffers.views_ok, &buffers.data);
+    let name = g.name;
     let at = |p: &str| format!("{name}#{p}");
-    let mut decoded = false;
     let pp = format!("/meshes/{m}/primitives/{p}");
     let ep = format!("{pp}/extensions/{KHR_GAUSSIAN_SPLATTING}");
+    let compressed = check_extension(ctx, g.doc, name, &pp, &ep, prim, ext);
+    let attrs = &prim.attributes;
+    check_attribute_set(ctx, name, &pp, attrs, compressed);
+    let views = check_accessors(ctx, g, &pp, attrs, compressed);
+    if compressed {
+        ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
+            at(&ep),
+            "attribute data is inside a compression extension; values were not decoded",
+        ));
+    }
+    check_values(ctx, g.doc, name, &pp, attrs, &views);
+
+    // Geometry for containment: every placement of this mesh.
+    let get = |want: &str| {
+        views
+            .iter()
+            .find(|(a, _)| *a == want)
+            .and_then(|(_, v)| v.as_ref())
+    };
+    let count_ok = views
+        .iter()
+        .filter_map(|(_, v)| v.as_ref().map(|v| v.count))
+        .all(|c| Some(c) == get("POSITION").map(|p| p.count));
+    let Some(pos) = get("POSITION") else {
+        return false;
+    };
+    if !count_ok || pos.n != 3 {
+        return false;
+    }
+    // Wrongly typed attributes were reported above; their values are not used.
+    let rot = get(ROTATION).filter(|r| r.n == 4);
+    let scale = get(SCALE).filter(|s| s.n == 3);
+    gather_geometry(g.placements, m, (pos, rot, scale), want_shapes, geom)
+}
+
+/// The extension object's properties (mode, kernel, colorSpace, projection, sortingMethod) and
+/// its child extensions; true when a child extension compresses the attribute data.
+fn check_extension(
+    ctx: &mut Ctx<'_>,
+    doc: &Gltf,
+    name: &str,
+    pp: &str,
+    ep: &str,
+    prim: &Primitive,
+    ext: &KhrGaussianSplatting,
+) -> bool {
+    let at = |p: &str| format!("{name}#{p}");
     // "mode MUST be POINTS".
     let mode = prim.mode.unwrap_or(MODE_DEFAULT);
     if mode != MODE_POINTS {
@@ -101,7 +141,7 @@ pub(super) fn check(
     // "kernel" and "colorSpace" are required.
     match ext.kernel.as_deref() {
         None => ctx.push(Issue::PROPERTY_MISSING(
-            at(&ep),
+            at(ep),
             "'kernel' is required (\"ellipse\")",
         )),
         Some("ellipse") => {}
@@ -112,7 +152,7 @@ pub(super) fn check(
     }
     match ext.color_space.as_deref() {
         None => ctx.push(Issue::PROPERTY_MISSING(
-            at(&ep),
+            at(ep),
             "'colorSpace' is required (srgb_rec709_display or lin_rec709_display)",
         )),
         Some("srgb_rec709_display" | "lin_rec709_display") => {}
@@ -156,9 +196,18 @@ pub(super) fn check(
             ));
         }
     }
+    compressed
+}
 
-    // Attributes present, SH completeness, allowed types.
-    let attrs = &prim.attributes;
+/// Required attributes present, names the extension defines, SH degrees complete.
+fn check_attribute_set(
+    ctx: &mut Ctx<'_>,
+    name: &str,
+    pp: &str,
+    attrs: &BTreeMap<String, u32>,
+    compressed: bool,
+) {
+    let at = |p: &str| format!("{name}#{p}");
     let mut required = vec!["POSITION", ROTATION, SCALE, OPACITY];
     // SPZ_2 tiles carry DC colour in COLOR_0 (spec/validation.md, deviation D1).
     if !compressed {
@@ -209,8 +258,28 @@ pub(super) fn check(
             }
         }
     }
+}
 
-    // Per attribute accessor checks.
+/// Each attribute's accessor: type allowed for the attribute, counts agree, bytes inside the
+/// bufferView and aligned, min/max on POSITION; returns the readable ones (`None`: no
+/// bufferView, implicit zeros).
+fn check_accessors<'a>(
+    ctx: &mut Ctx<'_>,
+    g: &Glb<'a>,
+    pp: &str,
+    attrs: &'a BTreeMap<String, u32>,
+    compressed: bool,
+) -> Vec<(&'a str, Option<View<'a>>)> {
+    let Glb {
+        doc,
+        name,
+        buffers,
+        meshopt_views,
+        quantized,
+        ..
+    } = *g;
+    let (views_ok, buffers) = (&buffers.views_ok, &buffers.data);
+    let at = |p: &str| format!("{name}#{p}");
     let mut count: Option<(u64, &str)> = None;
     let mut views: Vec<(&str, Option<View<'_>>)> = Vec::new();
     for (attr, &ai) in attrs {
@@ -374,25 +443,21 @@ pub(super) fn check(
             ));
         }
     }
-    if compressed {
-        ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
-            at(&ep),
-            "attribute data is inside a compression extension; values were not decoded",
-        ));
-    }
+    views
+}
 
-    // Data checks.
-    let get = |want: &str| {
-        views
-            .iter()
-            .find(|(a, _)| *a == want)
-            .and_then(|(_, v)| v.as_ref())
-    };
-    let count_ok = views
-        .iter()
-        .filter_map(|(_, v)| v.as_ref().map(|v| v.count))
-        .all(|c| Some(c) == get("POSITION").map(|p| p.count));
-    for (attr, v) in &views {
+/// The values: finite, declared min/max match the data, opacities in [0, 1], scales
+/// non-negative, rotations unit.
+fn check_values(
+    ctx: &mut Ctx<'_>,
+    doc: &Gltf,
+    name: &str,
+    pp: &str,
+    attrs: &BTreeMap<String, u32>,
+    views: &[(&str, Option<View<'_>>)],
+) {
+    let at = |p: &str| format!("{name}#{p}");
+    for (attr, v) in views {
         let Some(v) = v else { continue };
         let ai = attrs[*attr];
         let acc = &doc.accessors[ai as usize];
@@ -490,7 +555,7 @@ pub(super) fn check(
             _ => {}
         }
     }
-    for (attr, v) in &views {
+    for (attr, v) in views {
         if v.is_none() && *attr == ROTATION {
             ctx.push(Issue::SPLAT_ROTATION_NOT_UNIT(
                 at(&format!("{pp}/attributes/{attr}")),
@@ -498,14 +563,18 @@ pub(super) fn check(
             ));
         }
     }
+}
 
-    // Geometry for containment: every placement of this mesh.
-    let Some(pos) = get("POSITION") else {
-        return false;
-    };
-    if !count_ok || pos.n != 3 {
-        return false;
-    }
+/// Appends the splat centres (and shapes when `want_shapes`) of mesh `m` in its first 16
+/// placements, in the tile frame (node matrix, then y-up -> z-up); true when any was appended.
+fn gather_geometry(
+    placements: &[(usize, DMat4)],
+    m: usize,
+    (pos, rot, scale): (&View<'_>, Option<&View<'_>>, Option<&View<'_>>),
+    want_shapes: bool,
+    geom: &mut ContentGeom,
+) -> bool {
+    let mut decoded = false;
     let y_to_z = DMat4::from_cols_array(&[
         1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
     ]);
@@ -519,9 +588,6 @@ pub(super) fn check(
     }
     // A mesh placed many times is checked in its first 16 placements (memory stays bounded).
     worlds.truncate(16);
-    // Wrongly typed attributes were reported above; their values are not used.
-    let rot = get(ROTATION).filter(|r| r.n == 4);
-    let scale = get(SCALE).filter(|s| s.n == 3);
     for w in worlds {
         let full = y_to_z * w;
         let lin = DMat3::from_mat4(full);
