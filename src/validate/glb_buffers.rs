@@ -57,26 +57,7 @@ pub(super) fn check_buffers(
                     .parent()
                     .map(|p| p.to_string_lossy().into_owned())
                     .unwrap_or_default();
-                let rel = if dir.is_empty() {
-                    uri.clone()
-                } else {
-                    format!("{dir}/{uri}")
-                };
-                let file = ctx.resolve(&rel, &format!("{path}/uri"));
-                let data = file.and_then(|f| ctx.read(&f, &rel));
-                if let Some(d) = &data
-                    && (d.len() as u64) < b.byte_length
-                {
-                    ctx.push(Issue::BUFFERS_INCONSISTENT(
-                        format!("{path}/byteLength"),
-                        format!(
-                            "byteLength {} exceeds the {} bytes of '{uri}'",
-                            b.byte_length,
-                            d.len()
-                        ),
-                    ));
-                }
-                data
+                read_uri_buffer(ctx, &dir, uri, b.byte_length, &path)
             }
         };
         buffers.push(data);
@@ -119,4 +100,35 @@ pub(super) fn check_buffers(
         data: buffers,
         views_ok,
     }
+}
+
+/// Reads the buffer file `uri` (relative to the folder `dir`, itself relative to the root) that
+/// the buffer at JSON path `path` names, and reports a `byteLength` larger than the file.
+pub(super) fn read_uri_buffer(
+    ctx: &mut Ctx<'_>,
+    dir: &str,
+    uri: &str,
+    byte_length: u64,
+    path: &str,
+) -> Option<Vec<u8>> {
+    let rel = if dir.is_empty() {
+        uri.to_string()
+    } else {
+        format!("{dir}/{uri}")
+    };
+    let data = ctx
+        .resolve(&rel, &format!("{path}/uri"))
+        .and_then(|f| ctx.read(&f, &rel));
+    if let Some(d) = &data
+        && (d.len() as u64) < byte_length
+    {
+        ctx.push(Issue::BUFFERS_INCONSISTENT(
+            format!("{path}/byteLength"),
+            format!(
+                "byteLength {byte_length} exceeds the {} bytes of '{uri}'",
+                d.len()
+            ),
+        ));
+    }
+    data
 }

@@ -178,29 +178,13 @@ pub(crate) fn check_views(
                 }
                 buffers.push(data);
             }
-            Some(uri) => {
-                let rel = if dir_rel.is_empty() {
-                    uri.clone()
-                } else {
-                    format!("{dir_rel}/{uri}")
-                };
-                let data = ctx
-                    .resolve(&rel, &format!("{path}/uri"))
-                    .and_then(|f| ctx.read(&f, &rel));
-                if let Some(d) = &data
-                    && (d.len() as u64) < b.byte_length
-                {
-                    ctx.push(Issue::BUFFERS_INCONSISTENT(
-                        format!("{path}/byteLength"),
-                        format!(
-                            "byteLength {} exceeds the {} bytes of '{uri}'",
-                            b.byte_length,
-                            d.len()
-                        ),
-                    ));
-                }
-                buffers.push(data);
-            }
+            Some(uri) => buffers.push(super::glb_buffers::read_uri_buffer(
+                ctx,
+                dir_rel,
+                uri,
+                b.byte_length,
+                &path,
+            )),
         }
     }
     let mut views = Vec::new();
