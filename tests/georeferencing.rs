@@ -16,7 +16,6 @@ use splat2tiles::io::read_path;
 use splat2tiles::splat::Splats;
 use splat2tiles::tiling::TileKey;
 use splat2tiles::tiling::extent::{reach_bounds, reaches};
-use splat2tiles::tiling::levels::content_floor;
 use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
 use splat2tiles::tiling::tileset::mercator_root;
 use std::collections::HashSet;
@@ -45,38 +44,11 @@ fn centres_t(input: &Path, up: &str) -> (Vec<DVec3>, Vec<DVec3>) {
     (pos, reaches(&s, a))
 }
 
-/// The chain rule: every non-leaf tile with content holds at least the floor of splats, and its
-/// geometric error never exceeds its parent's.
-fn assert_no_near_empty_levels(ts: &LoadedTileset, max_splats: usize) {
-    let parents: HashSet<TileKey> = ts.tiles.iter().filter_map(|t| t.key.parent()).collect();
-    let floor = content_floor(max_splats) as u32;
-    let mut contents = 0;
-    for t in ts.tiles.iter().filter(|t| t.content.is_some()) {
-        contents += 1;
-        if parents.contains(&t.key) {
-            let n = t.splat_count.expect("content metadata has splatCount");
-            assert!(
-                n >= floor,
-                "non-leaf content {:?} holds {n} splats (< floor {floor})",
-                t.key
-            );
-        }
-    }
-    assert!(contents > 0);
-    let errors: std::collections::HashMap<TileKey, f64> = ts
-        .tiles
-        .iter()
-        .map(|t| (t.key, t.geometric_error))
-        .collect();
-    for t in &ts.tiles {
-        if let Some(p) = t.key.parent() {
-            assert!(
-                errors[&t.key] <= errors[&p],
-                "{:?} error above its parent's",
-                t.key
-            );
-        }
-    }
+/// The level rule: content on every tile but single-child pass-throughs, which carry their
+/// parent's box and error; errors never grow downwards.
+fn assert_no_near_empty_levels(ts: &LoadedTileset, _max_splats: usize) {
+    common::assert_levels_complete(ts);
+    assert!(ts.tiles.iter().any(|t| t.content.is_some()));
 }
 
 /// `splat2tiles validate` finds no error (exit 0) in a tileset.
@@ -231,17 +203,28 @@ fn a_scene_straddling_coarse_tile_edges_has_no_chain_of_near_empty_levels() {
         1000,
     );
     assert_eq!((root.zoom, root.x, root.y), (0, 0, 0));
-    // Contents only where the scene has structure: not on the zoom 0..10 chain above it (a
-    // zoom-10 tile is 39 km wide, the scene 0.3 km).
+    // Contents only where the scene has structure: the root (the four quarters of the world
+    // meet in it, so every cut starts with a level of detail) and not on the single-child
+    // chains of zoom 1..10 below it (a zoom-10 tile is 39 km wide, the scene 0.3 km), which
+    // carry the root's box and error.
     let ts = load_tileset(&out.join("tileset.json")).unwrap();
+    let root_tile = ts.tiles.iter().find(|t| t.key == TileKey::ROOT).unwrap();
+    assert!(
+        root_tile.content.is_some(),
+        "the root holds a level of detail"
+    );
     let shallowest = ts
         .tiles
         .iter()
-        .filter(|t| t.content.is_some())
+        .filter(|t| t.content.is_some() && t.key.level > 0)
         .map(|t| t.key.level)
         .min()
         .unwrap();
     assert!(shallowest > 10, "content at level {shallowest}");
+    assert!(
+        common::assert_levels_complete(&ts) >= 4 * 10,
+        "the chains are pass-throughs"
+    );
     assert_eq!(report.splats_out, 20_000);
     assert_valid(&out);
 }

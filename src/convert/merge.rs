@@ -186,10 +186,6 @@ pub fn merge_parts(
         .collect();
     let mut top_keys: HashSet<TileKey> = HashSet::new();
     if let Some(r) = radius.filter(|_| opts.lod.enabled) {
-        let diagonals: HashMap<TileKey, f64> = tree
-            .iter()
-            .map(|(k, t)| (*k, (t.hi - t.lo).length()))
-            .collect();
         let spill = dir.join(SPILL_DIR);
         std::fs::create_dir_all(&spill)
             .map_err(io_err(&spill, "creating folder"))
@@ -217,8 +213,8 @@ pub fn merge_parts(
             write_leaves: true,
             must_split: None,
         };
-        let top = super::top::build_top(&roots, &store, degree, r, &diagonals, &cx, &|_| false)
-            .map_err(relocate)?;
+        let top =
+            super::top::build_top(&roots, &store, degree, r, &cx, &|_| false).map_err(relocate)?;
         drop(store);
         report.top_tiles = top.len();
         let mut parents: BTreeMap<TileKey, WrittenParent> = BTreeMap::new();

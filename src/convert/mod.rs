@@ -345,10 +345,6 @@ fn run(
                 layout.tile_edge(0),
             )
         });
-        let diagonals: HashMap<TileKey, f64> = tree
-            .iter()
-            .map(|(k, t)| (*k, (t.hi - t.lo).length()))
-            .collect();
         let lod_bar = bar(opts.progress, built.len() as u64, "building LOD");
         let mut parents = std::collections::BTreeMap::new();
         let mut roots = Vec::new();
@@ -361,7 +357,7 @@ fn run(
         read_ahead(
             built,
             |g| region::load_group(g, &format),
-            |loaded| region::build_parents(loaded, r, &diagonals, &store, &cx),
+            |loaded| region::build_parents(loaded, r, &store, &cx),
             |(p, rc)| {
                 parents.extend(p);
                 roots.extend(rc);
@@ -373,10 +369,8 @@ fn run(
         report
             .stage_seconds
             .push(("parents", start.elapsed().as_secs_f64()));
-        parents.extend(
-            top::build_top(&roots, &store, degree, r, &diagonals, &cx, &|_| false)
-                .map_err(relocate)?,
-        );
+        parents
+            .extend(top::build_top(&roots, &store, degree, r, &cx, &|_| false).map_err(relocate)?);
         drop(store);
         report
             .stage_seconds

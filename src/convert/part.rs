@@ -359,10 +359,6 @@ pub fn convert_part(
     let mut parent_recs = Vec::new();
     let mut unit_out = Vec::with_capacity(units.len());
     if let Some(r) = r {
-        let diagonals: HashMap<TileKey, f64> = tree
-            .iter()
-            .map(|(k, t)| (*k, (t.hi - t.lo).length()))
-            .collect();
         let spill = dir.join(SPILL_DIR);
         std::fs::create_dir_all(&spill)
             .map_err(io_err(&spill, "creating folder"))
@@ -374,7 +370,7 @@ pub fn convert_part(
         read_ahead(
             built,
             |g| region::load_group(g, &format),
-            |loaded| region::build_parents(loaded, r, &diagonals, &store, &cx),
+            |loaded| region::build_parents(loaded, r, &store, &cx),
             |(p, rc)| {
                 parents.extend(p);
                 roots.extend(rc);
@@ -383,8 +379,7 @@ pub fn convert_part(
         .map_err(relocate)?;
         let in_unit = |k: TileKey| unit_set.contains(&k);
         parents.extend(
-            super::top::build_top(&roots, &store, degree, r, &diagonals, &cx, &in_unit)
-                .map_err(relocate)?,
+            super::top::build_top(&roots, &store, degree, r, &cx, &in_unit).map_err(relocate)?,
         );
         // The units' contents, in order, for the levels the merge builds above them.
         let path = dir.join(super::part::ROOTS_FILE);

@@ -403,20 +403,14 @@ pub(super) struct WrittenParent {
     pub(super) error: f64,
 }
 
-/// Writes a built parent when it is a real level of detail ([`keeps_content`] against its box
-/// diagonal) through the same per-tile writer as the leaves.
+/// Writes a built parent through the same per-tile writer as the leaves, unless it is a
+/// pass-through ([`keeps_content`]: a single child, below the root), which the tree completes
+/// with its parent's box and error instead.
 pub(super) fn write_parent(
     p: &ParentTile,
-    diagonals: &HashMap<TileKey, f64>,
     cx: &RegionCtx<'_>,
 ) -> Result<WrittenParent, ConvertError> {
-    let diagonal = diagonals.get(&p.key).copied().unwrap_or(f64::INFINITY);
-    if !keeps_content(
-        p.splats.len(),
-        p.radius,
-        diagonal,
-        cx.opts.max_splats_per_tile,
-    ) {
+    if !keeps_content(p.key, p.children) {
         return Ok(WrittenParent {
             content: None,
             error: p.radius,
@@ -460,7 +454,6 @@ pub(super) fn load_group(
 pub(super) fn build_parents(
     group: LoadedGroup,
     r: f64,
-    diagonals: &HashMap<TileKey, f64>,
     store: &ContentStore,
     cx: &RegionCtx<'_>,
 ) -> Result<(BTreeMap<TileKey, WrittenParent>, Vec<RootContent>), ConvertError> {
@@ -513,7 +506,7 @@ pub(super) fn build_parents(
                         *root.lock().unwrap_or_else(|e| e.into_inner()) =
                             Some(store.put(root_key, &p.splats, p.radius));
                     }
-                    write_parent(p, diagonals, cx)
+                    write_parent(p, cx)
                 },
             )?
         } else {

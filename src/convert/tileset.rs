@@ -3,7 +3,7 @@
 
 use super::frame::{Layout, box_array, padded_box};
 use super::{ConvertError, ConvertReport, check_interrupt, io_err};
-use crate::tiling::levels::monotone_errors;
+use crate::tiling::levels::{child_counts, monotone_errors, pass_through};
 use crate::tiling::subtree::{self, Column, SubtreeData, Table};
 use crate::tiling::tileset::{self, Asset, Content, ImplicitTiling, Tile, Tileset};
 use crate::tiling::{Scheme, TileKey};
@@ -55,10 +55,11 @@ pub(super) fn build_tree(leaves: HashMap<TileKey, TreeTile>) -> BTreeMap<TileKey
 
 /// A tile's own geometric error: 0 for leaves (full detail); for LOD parents, the clustering
 /// radius they were built with (no merged splat moved further than that from its members'
-/// reach); for tiles without content, the diagonal of their box (rendering nothing misses
+/// reach); 0 for a pass-through (it takes its parent's in [`finish_tree`]); for other tiles
+/// without content (builds without LOD), the diagonal of their box (rendering nothing misses
 /// everything below).
-fn own_error(t: &TreeTile) -> f64 {
-    if t.is_leaf {
+fn own_error(t: &TreeTile, pass_through: bool) -> f64 {
+    if t.is_leaf || pass_through {
         0.0
     } else if t.has_content {
         t.error.max(1e-9)
@@ -74,7 +75,10 @@ fn geometric_error(t: &TreeTile) -> f64 {
 }
 
 /// Last pass over the tree: every box encloses its descendants' and its own content's splats,
-/// and errors are the tiles' own raised so they never grow downwards.
+/// errors are the tiles' own raised so they never grow downwards, and every pass-through
+/// (`levels::pass_through`: no content, one child, below the root) takes its parent's box and
+/// error, so its screen-space error is its parent's for every camera and a traversal that
+/// refines the parent refines it too.
 pub(super) fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
     let keys: Vec<TileKey> = tree.keys().rev().copied().collect();
     for k in &keys {
@@ -86,10 +90,28 @@ pub(super) fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
             }
         }
     }
-    let mut errors: BTreeMap<TileKey, f64> = tree.iter().map(|(k, t)| (*k, own_error(t))).collect();
+    let children = child_counts(tree.keys());
+    let passes = |k: &TileKey, t: &TreeTile| {
+        !t.has_content && pass_through(*k, children.get(k).copied().unwrap_or(0))
+    };
+    let mut errors: BTreeMap<TileKey, f64> = tree
+        .iter()
+        .map(|(k, t)| (*k, own_error(t, passes(k, t))))
+        .collect();
     monotone_errors(&mut errors);
-    for (k, t) in tree.iter_mut() {
-        t.error = errors[k];
+    // Keys order by level first: a parent is final before its children.
+    for k in keys.iter().rev() {
+        let t = &tree[k];
+        let e = if passes(k, t) {
+            let p = &tree[&k.parent().expect("a pass-through has a parent")];
+            let (lo, hi, pe) = (p.lo, p.hi, p.error);
+            let t = tree.get_mut(k).expect("a tree key");
+            (t.lo, t.hi) = (lo, hi);
+            pe
+        } else {
+            errors[k]
+        };
+        tree.get_mut(k).expect("a tree key").error = e;
     }
 }
 

@@ -18,7 +18,6 @@ pub(super) fn build_top(
     store: &ContentStore,
     sh_degree: u8,
     r: f64,
-    diagonals: &HashMap<TileKey, f64>,
     cx: &RegionCtx<'_>,
     ceiling: &dyn Fn(TileKey) -> bool,
 ) -> Result<BTreeMap<TileKey, WrittenParent>, ConvertError> {
@@ -75,7 +74,7 @@ pub(super) fn build_top(
                 };
                 let tile: ParentTile = build_parent(key, sh_degree, &kids, &params);
                 drop(loaded);
-                let w = write_parent(&tile, diagonals, cx)?;
+                let w = write_parent(&tile, cx)?;
                 store.put(key, &tile.splats, tile.radius)?;
                 Ok((key, w))
             })

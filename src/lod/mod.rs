@@ -111,6 +111,8 @@ pub struct ParentTile {
     pub mean_displacement: f64,
     /// Splats gathered from the children.
     pub input: usize,
+    /// Children it was built from.
+    pub children: usize,
 }
 
 /// Median distance from a splat centre to its nearest other centre, over a deterministic sample
@@ -198,12 +200,29 @@ pub struct ParentParams {
 
 /// Builds one parent from its children's content: a pure, deterministic function of the inputs
 /// (children in the order given), so in-memory and region-by-region builds agree byte for byte.
+/// A tile below the root with a single child passes that child's content and error through.
 pub fn build_parent(
     key: TileKey,
     sh_degree: u8,
     children: &[ChildContent<'_>],
     params: &ParentParams,
 ) -> ParentTile {
+    // A single child below the root: the tile is a pass-through, written without content
+    // (`tiling::levels::keeps_content`), so its child's content goes up unchanged and a chain of
+    // such tiles neither thins the content nor grows the error.
+    if let [only] = children
+        && key.parent().is_some()
+    {
+        return ParentTile {
+            key,
+            splats: only.splats.clone(),
+            radius: only.radius,
+            cluster_radius: only.radius / ERROR_PER_RADIUS,
+            mean_displacement: 0.0,
+            input: only.splats.len(),
+            children: 1,
+        };
+    }
     let mut input = Splats::new(sh_degree);
     let mut child_radius = 0.0f64;
     for c in children {
@@ -236,6 +255,7 @@ pub fn build_parent(
         cluster_radius: c.radius,
         mean_displacement: c.mean_displacement,
         input: input.len(),
+        children: children.len(),
     }
 }
 

@@ -1,27 +1,34 @@
 //! Which parent tiles carry a level-of-detail content, and geometric errors that never grow down
-//! the tree: no chains of near-empty levels above a scene (spec/georeferencing.md).
+//! the tree and never let a traversal stop at a tile without content (spec/georeferencing.md).
 
 use super::TileKey;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 
-/// Fewest splats a parent (LOD) content holds: 32 (a few kB, less than a request's overhead
-/// buys), or the leaf budget when that is smaller.
-pub fn content_floor(max_splats_per_tile: usize) -> usize {
-    32.min(max_splats_per_tile.max(1))
+/// Whether a built parent is written with its content: the root always, and every tile with
+/// two or more children. A tile below the root with a single child is a pass-through: written
+/// without content, with its parent's bounding box and geometric error ([`pass_through`]), so a
+/// REPLACE traversal refines it exactly when it refines the parent and never stops there with
+/// nothing to draw. Every other tile holds an approximation of everything below it, however few
+/// splats that takes: a distant object is drawn as a blob of merged splats, never dropped.
+pub fn keeps_content(key: TileKey, children: usize) -> bool {
+    key.parent().is_none() || children != 1
 }
 
-/// Whether a parent whose clustering kept `splats` splats within `radius` is a real level of
-/// detail for a tile whose box has diagonal `diagonal`: it holds at least the floor of splats,
-/// and the radius is below the diagonal (a client shows a content while its error projects to
-/// under its screen-space threshold; with radius >= diagonal the whole tile is that small then,
-/// and the content is a blob of a few merged splats).
-pub fn keeps_content(
-    splats: usize,
-    radius: f64,
-    diagonal: f64,
-    max_splats_per_tile: usize,
-) -> bool {
-    splats >= content_floor(max_splats_per_tile) && radius < diagonal
+/// Children of every tile of `keys` (a tree: every key's ancestors are in it).
+pub fn child_counts<'a>(keys: impl IntoIterator<Item = &'a TileKey>) -> HashMap<TileKey, usize> {
+    let mut n = HashMap::new();
+    for k in keys {
+        if let Some(p) = k.parent() {
+            *n.entry(p).or_insert(0) += 1;
+        }
+    }
+    n
+}
+
+/// Whether the tile `key`, without content and with `children` children, is a pass-through:
+/// below the root with exactly one child (see [`keeps_content`]).
+pub fn pass_through(key: TileKey, children: usize) -> bool {
+    !keeps_content(key, children)
 }
 
 /// Raises each tile's error to the largest error below it, so errors never grow from a tile to
@@ -51,14 +58,17 @@ mod tests {
     }
 
     #[test]
-    fn floor_and_radius_rule() {
-        assert_eq!(content_floor(32_768), 32);
-        assert_eq!(content_floor(500), 32);
-        assert_eq!(content_floor(10), 10);
-        assert!(keeps_content(600, 0.1, 2.0, 32_768));
-        // A chain tile: a handful of splats merged over a radius larger than the tile.
-        assert!(!keeps_content(7, 0.1, 2.0, 32_768));
-        assert!(!keeps_content(5000, 3.0, 2.0, 32_768));
+    fn content_everywhere_but_single_child_chains() {
+        assert!(keeps_content(TileKey::ROOT, 1));
+        assert!(keeps_content(TileKey::ROOT, 4));
+        assert!(keeps_content(key(3, 1, 2), 2));
+        assert!(!keeps_content(key(3, 1, 2), 1));
+        assert!(pass_through(key(1, 0, 1), 1));
+        let keys = [TileKey::ROOT, key(1, 0, 0), key(1, 1, 0), key(2, 0, 0)];
+        let n = child_counts(&keys);
+        assert_eq!(n[&TileKey::ROOT], 2);
+        assert_eq!(n[&key(1, 0, 0)], 1);
+        assert!(!n.contains_key(&key(2, 0, 0)));
     }
 
     #[test]

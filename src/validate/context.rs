@@ -72,6 +72,11 @@ pub(crate) struct Ctx<'a> {
     /// A content checked so far lists `SPLAT2TILES_layer` in its `extensionsUsed`: only then does
     /// the layered pass walk the tiles and read their contents again (`layered::validate`).
     pub layered_seen: bool,
+    /// The tiles of the tileset document being walked, for the completeness rule
+    /// (`cut::check`, run when its walk ends).
+    pub cut: Vec<super::cut::CutTile>,
+    /// More tiles than `cut::MAX_TILES` were walked in this document: the rule is skipped.
+    pub cut_truncated: bool,
 }
 
 /// Most issues one report lists (hostile inputs can produce millions).
@@ -105,6 +110,8 @@ impl<'a> Ctx<'a> {
             memory: None,
             variant_templates: Vec::new(),
             layered_seen: false,
+            cut: Vec::new(),
+            cut_truncated: false,
         }
     }
 

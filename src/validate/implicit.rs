@@ -3,15 +3,15 @@
 //! each available tile's content against its volume.
 
 use super::context::Ctx;
+use super::cut::{CutTile, record};
 use super::issues::Issue;
 use super::metadata::Schema;
 use super::subtree_file::{availability, check_views, parse_subtree, table_column};
-use super::tileset::content_file;
+use super::tileset::{Parent, content_file};
 use super::volume::{Volume, parse_box};
 use crate::tiling::load::expand_template;
 use crate::tiling::subtree::tile_count;
 use crate::tiling::{Scheme, TileKey};
-use glam::DMat4;
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 
@@ -60,18 +60,18 @@ fn template(ctx: &mut Ctx<'_>, uri: &str, path: &str, octree: bool) {
     }
 }
 
-/// Validates an implicit root tile and walks its subtrees.
-#[allow(clippy::too_many_arguments)]
+/// Validates an implicit root tile and walks its subtrees; `at` holds the root tile's own
+/// geometric error, world transform and refinement, and its parent's place in the walk.
 pub(crate) fn validate(
     ctx: &mut Ctx<'_>,
     tile: &Value,
     it: &Value,
     path: &str,
     volume: Option<Volume>,
-    world: DMat4,
-    root_error: Option<f64>,
+    at: Parent,
     schema: &Schema,
 ) {
+    let (world, root_error) = (at.world, at.error);
     let ip = format!("{path}/implicitTiling");
     // "children, metadata and content.boundingVolume MUST NOT be defined on an implicit root".
     if tile.get("children").is_some() {
@@ -206,6 +206,7 @@ pub(crate) fn validate(
     let tile_class_err = "TILE_GEOMETRIC_ERROR";
 
     let mut errors: HashMap<TileKey, f64> = HashMap::new();
+    let mut walked: HashMap<TileKey, usize> = HashMap::new();
     let mut queue = vec![(TileKey::ROOT, true)];
     let mut seen = HashSet::new();
     while let Some((root, is_root)) = queue.pop() {
@@ -449,6 +450,22 @@ pub(crate) fn validate(
                 },
                 None => volume.map(|v| v.subdivide(octree, key.level, key.x, key.y, key.z)),
             };
+            let parent = match key.parent() {
+                None => at.cut,
+                Some(p) => walked.get(&p).copied(),
+            };
+            let cut = CutTile {
+                path: format!("{uri}#tile {}/{}/{}/{}", key.level, key.x, key.y, key.z),
+                parent,
+                content: layers.iter().any(|l| l.as_ref().is_some_and(|l| l[idx])),
+                volume: tile_volume,
+                world,
+                error,
+                replace: at.replace,
+            };
+            if let Some(i) = record(ctx, cut) {
+                walked.insert(key, i);
+            }
             for (c, layer) in layers.iter().enumerate() {
                 if !layer.as_ref().is_some_and(|l| l[idx]) {
                     continue;

@@ -133,6 +133,10 @@ catalogue! {
     CONTENT_BOUNDING_VOLUME_NOT_IN_TILE => Error,
     /// A tile's geometric error is larger than its parent's.
     TILE_GEOMETRIC_ERRORS_INCONSISTENT => Warning,
+    /// A tile without content has content below it and can end a REPLACE traversal (its region
+    /// is then drawn empty): it needs a level-of-detail content, or its parent's bounding volume
+    /// and geometric error.
+    TILE_WITHOUT_CONTENT_ENDS_REFINEMENT => Warning,
     /// An implicit root has children, metadata or a content bounding volume.
     TILE_IMPLICIT_ROOT_INVALID => Error,
     /// A template URI uses a variable that the subdivision scheme does not define.

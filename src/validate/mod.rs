@@ -8,6 +8,7 @@
 
 mod content;
 mod context;
+mod cut;
 mod declarations;
 mod entity;
 mod external;

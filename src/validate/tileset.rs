@@ -176,13 +176,17 @@ fn transform(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Option<DMat4> {
     Some(m)
 }
 
-/// Where a tile sits: its parent's geometric error and world transform.
+/// Where a tile sits: its parent's geometric error, world transform and place in the walk.
 #[derive(Clone, Copy)]
 pub(crate) struct Parent {
     /// Parent's geometric error.
     pub error: Option<f64>,
     /// World transform of the parent (tileset frame to ECEF for georeferenced tilesets).
     pub world: DMat4,
+    /// The parent's index in `Ctx::cut` (`None` above the root).
+    pub cut: Option<usize>,
+    /// The parent and its ancestors refine by REPLACE (true above the root).
+    pub replace: bool,
 }
 
 /// Validates one tile and its subtree of explicit children.
@@ -219,8 +223,9 @@ pub(crate) fn tile(
             format!("geometricError {e} is larger than the parent's {p}"),
         ));
     }
+    let mut replace = parent.replace;
     match obj.get("refine") {
-        Some(Value::String(r)) if r == "ADD" || r == "REPLACE" => {}
+        Some(Value::String(r)) if r == "ADD" || r == "REPLACE" => replace &= r == "REPLACE",
         Some(Value::String(r)) => ctx.push(Issue::VALUE_NOT_IN_LIST(
             format!("{path}/refine"),
             format!("refine '{r}' is not ADD or REPLACE"),
@@ -255,9 +260,29 @@ pub(crate) fn tile(
             "a tile has either content or contents, not both",
         ));
     }
+    let has_content = obj.contains_key("content") || obj.contains_key("contents");
+    let mut here = None;
     if let Some(it) = obj.get("implicitTiling") {
-        implicit::validate(ctx, v, it, path, volume, world, error, schema);
+        let at = Parent {
+            error,
+            world,
+            cut: parent.cut,
+            replace,
+        };
+        implicit::validate(ctx, v, it, path, volume, at, schema);
     } else {
+        here = super::cut::record(
+            ctx,
+            super::cut::CutTile {
+                path: path.to_string(),
+                parent: parent.cut,
+                content: has_content,
+                volume,
+                world,
+                error,
+                replace,
+            },
+        );
         let contents: Vec<(String, &Value)> = match (obj.get("content"), obj.get("contents")) {
             (Some(c), _) => vec![(format!("{path}/content"), c)],
             (None, Some(Value::Array(cs))) => cs
@@ -304,7 +329,12 @@ pub(crate) fn tile(
                 ctx,
                 c,
                 &format!("{path}/children/{i}"),
-                Parent { error, world },
+                Parent {
+                    error,
+                    world,
+                    cut: here,
+                    replace,
+                },
                 false,
                 schema,
                 depth + 1,
@@ -557,15 +587,21 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value, world: DMat4) {
     }
     match v.get("root") {
         None => ctx.push(Issue::PROPERTY_MISSING(path, "'root' is required")),
-        Some(root) => tile(
-            ctx,
-            root,
-            &format!("{path}/root"),
-            Parent { error, world },
-            true,
-            &schema,
-            0,
-        ),
+        Some(root) => {
+            // An external tileset walked from this one's contents has its own tree.
+            let outer = std::mem::take(&mut ctx.cut);
+            let outer_truncated = std::mem::take(&mut ctx.cut_truncated);
+            let at = Parent {
+                error,
+                world,
+                cut: None,
+                replace: true,
+            };
+            tile(ctx, root, &format!("{path}/root"), at, true, &schema, 0);
+            let tiles = std::mem::replace(&mut ctx.cut, outer);
+            super::cut::check(ctx, &tiles);
+            ctx.cut_truncated = outer_truncated;
+        }
     }
 }
 

@@ -275,3 +275,53 @@ pub fn spearman(a: &[f64], b: &[f64]) -> f64 {
     let vb: f64 = rb.iter().map(|y| (y - mb).powi(2)).sum();
     cov / (va * vb).sqrt()
 }
+
+/// The level rule (spec/georeferencing.md "Levels"): every tile without content is a
+/// pass-through, below the root with a single child and its parent's bounding box and geometric
+/// error, so a REPLACE traversal never stops at it; errors never grow downwards. Returns the
+/// number of pass-throughs.
+pub fn assert_levels_complete(ts: &splat2tiles::tiling::load::LoadedTileset) -> usize {
+    let by_key: HashMap<TileKey, &splat2tiles::tiling::load::LoadedTile> =
+        ts.tiles.iter().map(|t| (t.key, t)).collect();
+    let mut children: HashMap<TileKey, usize> = HashMap::new();
+    for t in &ts.tiles {
+        if let Some(p) = t.key.parent() {
+            *children.entry(p).or_insert(0) += 1;
+        }
+    }
+    let mut passes = 0;
+    for t in &ts.tiles {
+        if let Some(p) = t.key.parent().map(|p| by_key[&p]) {
+            assert!(
+                t.geometric_error <= p.geometric_error,
+                "{:?} error {} above its parent's {}",
+                t.key,
+                t.geometric_error,
+                p.geometric_error
+            );
+        }
+        if t.content.is_some() {
+            continue;
+        }
+        let p = t.key.parent().map(|p| by_key[&p]);
+        let p = p.unwrap_or_else(|| panic!("the root {:?} has no content", t.key));
+        assert_eq!(
+            children.get(&t.key),
+            Some(&1),
+            "{:?} has no content and not exactly one child",
+            t.key
+        );
+        assert_eq!(
+            t.bounding_box, p.bounding_box,
+            "pass-through {:?} box",
+            t.key
+        );
+        assert_eq!(
+            t.geometric_error, p.geometric_error,
+            "pass-through {:?} error",
+            t.key
+        );
+        passes += 1;
+    }
+    passes
+}
