@@ -21,6 +21,7 @@ fn params(budget: usize) -> ParentParams {
         levels_above_deepest: 1,
         budget,
         rule: MergeRule::Moment,
+        pass_through: true,
     }
 }
 
@@ -291,4 +292,28 @@ fn every_level_of_a_generated_city_is_a_real_reduction() {
         "parents hold {} of {n}",
         r.parent_splats
     );
+}
+
+#[test]
+fn a_single_child_below_the_root_passes_through_unless_layered() {
+    let child = cloud(3000, 7);
+    let kids = [ChildContent {
+        splats: &child,
+        radius: 0.5,
+    }];
+    let p = build_parent(INNER, 0, &kids, &params(1024));
+    assert_eq!(p.splats, child, "content goes up unchanged");
+    assert_eq!((p.radius, p.children), (0.5, 1), "and so does the error");
+    let layered = ParentParams {
+        pass_through: false,
+        ..params(1024)
+    };
+    let q = build_parent(INNER, 0, &kids, &layered);
+    assert!(
+        q.splats.len() < child.len() && q.radius > 0.5,
+        "a layer of its own"
+    );
+    // The root always clusters (it is written whatever its children).
+    let r = build_parent(TileKey::ROOT, 0, &kids, &params(1024));
+    assert!(r.splats.len() < child.len());
 }

@@ -50,6 +50,20 @@ pub(super) struct RegionCtx<'a> {
     pub(super) must_split: Option<&'a std::collections::BTreeSet<TileKey>>,
 }
 
+impl RegionCtx<'_> {
+    /// The clustering parameters of every parent, with leaf radius `r` (the per-tile level count
+    /// is set where each is built).
+    pub(super) fn parent_params(&self, r: f64) -> crate::lod::ParentParams {
+        crate::lod::ParentParams {
+            leaf_radius: r,
+            levels_above_deepest: 1,
+            budget: self.opts.max_splats_per_tile,
+            rule: self.opts.lod.merge,
+            pass_through: !self.opts.layers,
+        }
+    }
+}
+
 /// One region after pass 1: its leaves in Morton order with their splat counts.
 #[derive(Debug, Clone)]
 pub(super) struct RegionLeaves {
@@ -405,12 +419,13 @@ pub(super) struct WrittenParent {
 
 /// Writes a built parent through the same per-tile writer as the leaves, unless it is a
 /// pass-through ([`keeps_content`]: a single child, below the root), which the tree completes
-/// with its parent's box and error instead.
+/// with its parent's box and error instead. Layered builds (ADD refinement, a layer on every
+/// tile) have no pass-throughs.
 pub(super) fn write_parent(
     p: &ParentTile,
     cx: &RegionCtx<'_>,
 ) -> Result<WrittenParent, ConvertError> {
-    if !keeps_content(p.key, p.children) {
+    if !cx.opts.layers && !keeps_content(p.key, p.children) {
         return Ok(WrittenParent {
             content: None,
             error: p.radius,
@@ -497,9 +512,7 @@ pub(super) fn build_parents(
                 root_key,
                 &keys,
                 splats.sh_degree,
-                r,
-                cx.opts.max_splats_per_tile,
-                cx.opts.lod.merge,
+                cx.parent_params(r),
                 |k| splats.select(&range_of(k)),
                 |p: &ParentTile| {
                     if p.key == root_key {

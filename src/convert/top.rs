@@ -67,10 +67,8 @@ pub(super) fn build_top(
                     })
                     .collect();
                 let params = ParentParams {
-                    leaf_radius: r,
                     levels_above_deepest: deepest[&key] - key.level,
-                    budget: cx.opts.max_splats_per_tile,
-                    rule: cx.opts.lod.merge,
+                    ..cx.parent_params(r)
                 };
                 let tile: ParentTile = build_parent(key, sh_degree, &kids, &params);
                 drop(loaded);

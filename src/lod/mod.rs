@@ -196,11 +196,16 @@ pub struct ParentParams {
     pub budget: usize,
     /// Shape rule for merged splats.
     pub rule: MergeRule,
+    /// A tile below the root with a single child passes that child's content and error through
+    /// (the tile is a pass-through without content, `tiling::levels::keeps_content`); off for
+    /// layered builds, where every tile holds a layer of its own.
+    pub pass_through: bool,
 }
 
 /// Builds one parent from its children's content: a pure, deterministic function of the inputs
 /// (children in the order given), so in-memory and region-by-region builds agree byte for byte.
-/// A tile below the root with a single child passes that child's content and error through.
+/// With `params.pass_through`, a tile below the root with a single child passes that child's
+/// content and error through.
 pub fn build_parent(
     key: TileKey,
     sh_degree: u8,
@@ -212,6 +217,7 @@ pub fn build_parent(
     // such tiles neither thins the content nor grows the error.
     if let [only] = children
         && key.parent().is_some()
+        && params.pass_through
     {
         return ParentTile {
             key,
@@ -260,18 +266,16 @@ pub fn build_parent(
 }
 
 /// Builds every ancestor of `leaves` bottom-up up to `root` (their subtree's root; nothing
-/// above it: a region's parents, the levels above it are built from the region roots).
+/// above it: a region's parents, the levels above it are built from the region roots), each
+/// with `params` (its `levels_above_deepest` set per tile).
 /// `leaf_splats(key)` gives a leaf's splats;
 /// `sink` receives each parent as soon as it is built (in parallel within a level) and returns
 /// what the caller wants to keep per tile. Returns those values keyed by tile.
-#[allow(clippy::too_many_arguments)]
 pub fn build_parents<T, E, L, S>(
     root: TileKey,
     leaves: &[TileKey],
     sh_degree: u8,
-    r: f64,
-    budget: usize,
-    rule: MergeRule,
+    params: ParentParams,
     leaf_splats: L,
     sink: S,
 ) -> Result<BTreeMap<TileKey, T>, E>
@@ -335,10 +339,8 @@ where
                     })
                     .collect();
                 let params = ParentParams {
-                    leaf_radius: r,
                     levels_above_deepest: deepest[&key] - key.level,
-                    budget,
-                    rule,
+                    ..params
                 };
                 let tile = build_parent(key, sh_degree, &kids, &params);
                 let v = sink(&tile)?;
