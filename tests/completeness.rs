@@ -66,18 +66,6 @@ fn source(step: usize) -> Splats {
     normalise_source(&scene.splats.select(&order), UpAxis::NegY)
 }
 
-/// A splitmix64 stream for the placements.
-struct Rng(u64);
-impl Rng {
-    fn f(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// Appends `src` turned by `heading` about z, scaled by `k` and moved to `at`; returns its box.
 fn place(out: &mut Splats, src: &Splats, heading: f64, k: f64, at: DVec3) -> Object {
     let rot = DMat3::from_rotation_z(heading);
@@ -112,7 +100,7 @@ fn place(out: &mut Splats, src: &Splats, heading: f64, k: f64, at: DVec3) -> Obj
 /// stacked `stack` (min, max) high; jittered by a quarter of the spacing.
 fn city(side: usize, spacing: f64, size: (f64, f64), stack: (usize, usize), seed: u64) -> City {
     let src = source(16);
-    let mut rng = Rng(seed);
+    let mut rng = common::Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
     let mut splats = Splats::new(src.sh_degree);
     let mut objects = vec![];
     for gy in 0..side {
