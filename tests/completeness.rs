@@ -16,14 +16,13 @@ use rayon::prelude::*;
 use splat2tiles::convert::{ConvertOptions, SchemeChoice, convert_scene};
 use splat2tiles::frame::UpAxis;
 use splat2tiles::frame::geo::Geodetic;
-use splat2tiles::io::read_path;
 use splat2tiles::render::camera::{Camera, look_at_pose};
 use splat2tiles::render::cli::{content_model, select_tiles};
 use splat2tiles::render::image::Image;
 use splat2tiles::render::metrics::ssim;
 use splat2tiles::render::raster::{RenderOptions, render};
 use splat2tiles::splat::Splats;
-use splat2tiles::splat::city::{city_scene, normalise_source};
+use splat2tiles::splat::city::city_scene;
 use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
 use splat2tiles::validate::{ValidateOptions, validate_tileset};
 use std::path::Path;
@@ -55,15 +54,6 @@ struct City {
     objects: Vec<Object>,
     /// Street-level eye and where it looks (between objects).
     street: (DVec3, DVec3),
-}
-
-/// A copy of the sample, normalised (z up, ground at 0, horizontal size 1), every `step`-th
-/// splat.
-fn source(step: usize) -> Splats {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/plant.splat");
-    let scene = read_path(&path).unwrap();
-    let order: Vec<usize> = (0..scene.splats.len()).step_by(step).collect();
-    normalise_source(&scene.splats.select(&order), UpAxis::NegY)
 }
 
 /// Appends `src` turned by `heading` about z, scaled by `k` and moved to `at`; returns its box.
@@ -99,7 +89,7 @@ fn place(out: &mut Splats, src: &Splats, heading: f64, k: f64, at: DVec3) -> Obj
 /// A `side` x `side` grid of copies `spacing` apart, each `size` (min, max) metres across and
 /// stacked `stack` (min, max) high; jittered by a quarter of the spacing.
 fn city(side: usize, spacing: f64, size: (f64, f64), stack: (usize, usize), seed: u64) -> City {
-    let src = source(16);
+    let src = common::plant_sample(16);
     let mut rng = common::Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
     let mut splats = Splats::new(src.sh_degree);
     let mut objects = vec![];

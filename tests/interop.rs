@@ -464,13 +464,9 @@ fn cesiumjs_draws_every_object_of_a_flat_georeferenced_city_in_the_overview() {
     // and georeferenced: at CesiumJS's default maximumScreenSpaceError (16) the overview must
     // draw every object that the full-detail view (maximumScreenSpaceError 0, every leaf) shows.
     require_browser_harness();
-    use splat2tiles::splat::city::{CityLayout, generate_city, normalise_source};
+    use splat2tiles::splat::city::{CityLayout, generate_city};
     let tmp = tempfile::tempdir().unwrap();
-    let plant = splat2tiles::io::read_path(&scene("plant.splat"))
-        .unwrap()
-        .splats;
-    let every: Vec<usize> = (0..plant.len()).step_by(16).collect();
-    let source = normalise_source(&plant.select(&every), splat2tiles::frame::UpAxis::NegY);
+    let source = plant_sample(16);
     let layout = CityLayout {
         splats: source.len() * 16,
         spacing: 200.0,

@@ -325,3 +325,15 @@ pub fn assert_levels_complete(ts: &splat2tiles::tiling::load::LoadedTileset) -> 
     }
     passes
 }
+
+/// The repository's sample scene (`samples/plant.splat`, CC-BY-4.0), every `step`-th splat,
+/// normalised for generated cities (z up, ground at 0, horizontal size 1).
+pub fn plant_sample(step: usize) -> Splats {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/plant.splat");
+    let scene = splat2tiles::io::read_path(&path).unwrap();
+    let order: Vec<usize> = (0..scene.splats.len()).step_by(step).collect();
+    splat2tiles::splat::city::normalise_source(
+        &scene.splats.select(&order),
+        splat2tiles::frame::UpAxis::NegY,
+    )
+}
