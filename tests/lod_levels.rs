@@ -308,7 +308,11 @@ fn a_single_child_below_the_root_passes_through_unless_layered() {
     };
     let p = build_parent(INNER, 0, &kids, &passing);
     assert_eq!(p.splats, child, "content goes up unchanged");
-    assert_eq!((p.radius, p.children), (0.5, 1), "and so does the error");
+    assert_eq!(
+        (p.radius, p.passed_through),
+        (0.5, true),
+        "and so does the error"
+    );
     let q = build_parent(INNER, 0, &kids, &params(1024));
     assert!(
         q.splats.len() < child.len() && q.radius > 0.5,

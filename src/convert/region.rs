@@ -18,7 +18,6 @@ use crate::splat::Splats;
 use crate::splat::importance::sort_indices_by_importance;
 use crate::tiling::TileKey;
 use crate::tiling::extent::{reach, reach_bounds};
-use crate::tiling::levels::keeps_content;
 use crate::tiling::partition::partition_subtree_with;
 use crate::variants::{ContentFacts, TileSlot, write_tile_contents};
 use glam::DVec3;
@@ -417,15 +416,14 @@ pub(super) struct WrittenParent {
     pub(super) error: f64,
 }
 
-/// Writes a built parent through the same per-tile writer as the leaves, unless it is a
-/// pass-through ([`keeps_content`]: a single child, below the root), which the tree completes
-/// with its parent's box and error instead. Layered builds (ADD refinement, a layer on every
-/// tile) have no pass-throughs.
+/// Writes a built parent through the same per-tile writer as the leaves, unless it passed its
+/// single child through (`tiling::levels::keeps_content`; never in layered builds, where every
+/// tile holds a layer), which the tree completes with its parent's box and error instead.
 pub(super) fn write_parent(
     p: &ParentTile,
     cx: &RegionCtx<'_>,
 ) -> Result<WrittenParent, ConvertError> {
-    if !cx.opts.layers && !keeps_content(p.key, p.children) {
+    if p.passed_through {
         return Ok(WrittenParent {
             content: None,
             error: p.radius,

@@ -3,7 +3,7 @@
 
 use super::frame::{Layout, box_array, padded_box};
 use super::{ConvertError, ConvertReport, check_interrupt, io_err};
-use crate::tiling::levels::{child_counts, monotone_errors, pass_through};
+use crate::tiling::levels::{child_counts, keeps_content, monotone_errors};
 use crate::tiling::subtree::{self, Column, SubtreeData, Table};
 use crate::tiling::tileset::{self, Asset, Content, ImplicitTiling, Tile, Tileset};
 use crate::tiling::{Scheme, TileKey};
@@ -76,7 +76,7 @@ fn geometric_error(t: &TreeTile) -> f64 {
 
 /// Last pass over the tree: every box encloses its descendants' and its own content's splats,
 /// errors are the tiles' own raised so they never grow downwards, and every pass-through
-/// (`levels::pass_through`: no content, one child, below the root) takes its parent's box and
+/// (no content, one child, below the root: `levels::keeps_content`) takes its parent's box and
 /// error, so its screen-space error is its parent's for every camera and a traversal that
 /// refines the parent refines it too.
 pub(super) fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
@@ -92,7 +92,7 @@ pub(super) fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
     }
     let children = child_counts(tree.keys());
     let passes = |k: &TileKey, t: &TreeTile| {
-        !t.has_content && pass_through(*k, children.get(k).copied().unwrap_or(0))
+        !t.has_content && !keeps_content(*k, children.get(k).copied().unwrap_or(0))
     };
     let mut errors: BTreeMap<TileKey, f64> = tree
         .iter()
@@ -101,17 +101,14 @@ pub(super) fn finish_tree(tree: &mut BTreeMap<TileKey, TreeTile>) {
     monotone_errors(&mut errors);
     // Keys order by level first: a parent is final before its children.
     for k in keys.iter().rev() {
-        let t = &tree[k];
-        let e = if passes(k, t) {
+        if passes(k, &tree[k]) {
             let p = &tree[&k.parent().expect("a pass-through has a parent")];
-            let (lo, hi, pe) = (p.lo, p.hi, p.error);
+            let (lo, hi, e) = (p.lo, p.hi, p.error);
             let t = tree.get_mut(k).expect("a tree key");
-            (t.lo, t.hi) = (lo, hi);
-            pe
+            (t.lo, t.hi, t.error) = (lo, hi, e);
         } else {
-            errors[k]
-        };
-        tree.get_mut(k).expect("a tree key").error = e;
+            tree.get_mut(k).expect("a tree key").error = errors[k];
+        }
     }
 }
 

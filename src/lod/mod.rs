@@ -111,8 +111,9 @@ pub struct ParentTile {
     pub mean_displacement: f64,
     /// Splats gathered from the children.
     pub input: usize,
-    /// Children it was built from.
-    pub children: usize,
+    /// It passed its single child's content through (`ParentParams::pass_through`): a
+    /// pass-through tile, written without content.
+    pub passed_through: bool,
 }
 
 /// Median distance from a splat centre to its nearest other centre, over a deterministic sample
@@ -216,8 +217,8 @@ pub fn build_parent(
     // (`tiling::levels::keeps_content`), so its child's content goes up unchanged and a chain of
     // such tiles neither thins the content nor grows the error.
     if let [only] = children
-        && key.parent().is_some()
         && params.pass_through
+        && !crate::tiling::levels::keeps_content(key, 1)
     {
         return ParentTile {
             key,
@@ -226,7 +227,7 @@ pub fn build_parent(
             cluster_radius: only.radius / ERROR_PER_RADIUS,
             mean_displacement: 0.0,
             input: only.splats.len(),
-            children: 1,
+            passed_through: true,
         };
     }
     let mut input = Splats::new(sh_degree);
@@ -261,7 +262,7 @@ pub fn build_parent(
         cluster_radius: c.radius,
         mean_displacement: c.mean_displacement,
         input: input.len(),
-        children: children.len(),
+        passed_through: false,
     }
 }
 

@@ -6,7 +6,7 @@ use std::collections::{BTreeMap, HashMap};
 
 /// Whether a built parent is written with its content: the root always, and every tile with
 /// two or more children. A tile below the root with a single child is a pass-through: written
-/// without content, with its parent's bounding box and geometric error ([`pass_through`]), so a
+/// without content, with its parent's bounding box and geometric error, so a
 /// REPLACE traversal refines it exactly when it refines the parent and never stops there with
 /// nothing to draw. Every other tile holds an approximation of everything below it, however few
 /// splats that takes: a distant object is drawn as a blob of merged splats, never dropped.
@@ -23,12 +23,6 @@ pub fn child_counts<'a>(keys: impl IntoIterator<Item = &'a TileKey>) -> HashMap<
         }
     }
     n
-}
-
-/// Whether the tile `key`, without content and with `children` children, is a pass-through:
-/// below the root with exactly one child (see [`keeps_content`]).
-pub fn pass_through(key: TileKey, children: usize) -> bool {
-    !keeps_content(key, children)
 }
 
 /// Raises each tile's error to the largest error below it, so errors never grow from a tile to
@@ -63,7 +57,6 @@ mod tests {
         assert!(keeps_content(TileKey::ROOT, 4));
         assert!(keeps_content(key(3, 1, 2), 2));
         assert!(!keeps_content(key(3, 1, 2), 1));
-        assert!(pass_through(key(1, 0, 1), 1));
         let keys = [TileKey::ROOT, key(1, 0, 0), key(1, 1, 0), key(2, 0, 0)];
         let n = child_counts(&keys);
         assert_eq!(n[&TileKey::ROOT], 2);

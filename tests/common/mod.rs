@@ -283,12 +283,7 @@ pub fn spearman(a: &[f64], b: &[f64]) -> f64 {
 pub fn assert_levels_complete(ts: &splat2tiles::tiling::load::LoadedTileset) -> usize {
     let by_key: HashMap<TileKey, &splat2tiles::tiling::load::LoadedTile> =
         ts.tiles.iter().map(|t| (t.key, t)).collect();
-    let mut children: HashMap<TileKey, usize> = HashMap::new();
-    for t in &ts.tiles {
-        if let Some(p) = t.key.parent() {
-            *children.entry(p).or_insert(0) += 1;
-        }
-    }
+    let children = splat2tiles::tiling::levels::child_counts(ts.tiles.iter().map(|t| &t.key));
     let mut passes = 0;
     for t in &ts.tiles {
         if let Some(p) = t.key.parent().map(|p| by_key[&p]) {
