@@ -404,80 +404,15 @@ fn cesiumjs_renders_a_georeferenced_city_like_a_placed_local_one() {
     eprintln!("city of {n} splats: SSIM {ssim}");
 }
 
-/// Foreground of a CesiumJS screenshot: a pixel whose colour differs from the page's background
-/// (sRGB 26, 26, 26) by more than 12 in some channel; its ink is that difference (0-1).
-fn cesium_ink(img: &splat2tiles::render::image::Image, x: u32, y: u32) -> f64 {
-    let p = img.get(x, y);
-    let bg = 26.0 / 255.0;
-    let d = p.iter().fold(0.0f32, |m, &v| m.max((v - bg).abs())) as f64;
-    if d > 12.0 / 255.0 { d } else { 0.0 }
-}
-
-/// Connected (8-neighbour) foreground components of `img` with at least 3 pixels: their
-/// bounding boxes (x0, y0, x1, y1).
-fn components(img: &splat2tiles::render::image::Image) -> Vec<(u32, u32, u32, u32)> {
-    let (w, h) = (img.width, img.height);
-    let mut seen = vec![false; (w * h) as usize];
-    let mut out = vec![];
-    for start in 0..w * h {
-        if seen[start as usize] || cesium_ink(img, start % w, start / w) == 0.0 {
-            continue;
-        }
-        seen[start as usize] = true;
-        let (mut stack, mut n) = (vec![start], 0);
-        let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
-        while let Some(i) = stack.pop() {
-            let (x, y) = (i % w, i / w);
-            n += 1;
-            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
-            for (dx, dy) in [
-                (-1i64, -1i64),
-                (0, -1),
-                (1, -1),
-                (-1, 0),
-                (1, 0),
-                (-1, 1),
-                (0, 1),
-                (1, 1),
-            ] {
-                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                    continue;
-                }
-                let j = (ny as u32 * w + nx as u32) as usize;
-                if !seen[j] && cesium_ink(img, nx as u32, ny as u32) > 0.0 {
-                    seen[j] = true;
-                    stack.push(j as u32);
-                }
-            }
-        }
-        if n >= 3 {
-            out.push((x0, y0, x1, y1));
-        }
-    }
-    out
-}
-
 #[test]
 fn cesiumjs_draws_every_object_of_a_flat_georeferenced_city_in_the_overview() {
     // 16 copies of the sample plant (every 16th splat, 7-16 m wide) on a 200 m grid, lying flat
     // and georeferenced: at CesiumJS's default maximumScreenSpaceError (16) the overview must
     // draw every object that the full-detail view (maximumScreenSpaceError 0, every leaf) shows.
     require_browser_harness();
-    use splat2tiles::splat::city::{CityLayout, generate_city};
     let tmp = tempfile::tempdir().unwrap();
-    let source = plant_sample(16);
-    let layout = CityLayout {
-        splats: source.len() * 16,
-        spacing: 200.0,
-        block: 7.0,
-        scale: (1.0, 2.3),
-        ..CityLayout::default()
-    };
-    let city = generate_city(&[source], &layout);
     let ply = tmp.path().join("city.ply");
-    let f = std::fs::File::create(&ply).unwrap();
-    splat2tiles::io::write_ply(&city, std::io::BufWriter::new(f)).unwrap();
+    common::objects::write_flat_city(&ply);
     let geo = tmp.path().join("geo");
     let place = (8.5417, 47.3769, 400.0);
     let args = [
@@ -522,20 +457,8 @@ fn cesiumjs_draws_every_object_of_a_flat_georeferenced_city_in_the_overview() {
     };
     let (full, vf) = shot(Some("0"), "cesium_city_full.png");
     let (cut, vc) = shot(None, "cesium_city_default_sse.png");
-    let objects = components(&full);
-    let ink = |img: &splat2tiles::render::image::Image, b: &(u32, u32, u32, u32)| {
-        let mut s = 0.0;
-        for y in b.1.saturating_sub(2)..=(b.3 + 2).min(img.height - 1) {
-            for x in b.0.saturating_sub(2)..=(b.2 + 2).min(img.width - 1) {
-                s += cesium_ink(img, x, y);
-            }
-        }
-        s
-    };
-    let missing: Vec<_> = objects
-        .iter()
-        .filter(|b| ink(&cut, b) < 0.1 * ink(&full, b))
-        .collect();
+    // CesiumJS clears to its dark grey (26/255).
+    let (objects, missing) = common::objects::missing_objects(&full, &cut, 26.0 / 255.0, 0.1);
     eprintln!(
         "CesiumJS city overview: {} objects in the full view ({} tiles), {} missing at the default \
          SSE ({} tiles)",

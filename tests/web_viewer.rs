@@ -855,3 +855,89 @@ fn web_viewer_blends_a_layered_level_change_pose_by_pose() {
     eprintln!("web last pose vs the CPU layered render: SSIM {s:.4}");
     assert!(s >= MIN_SSIM, "last pose vs the reference: SSIM {s}");
 }
+
+/// Completeness in the web viewer: on a flat sparse city (16 plants on a 200 m grid, local and
+/// georeferenced) the viewer at its default maxSse (16) draws every object that the CPU
+/// reference's full-detail render (every leaf, `render --max-sse 0`) of the same camera shows:
+/// each connected component of the full render keeps at least a tenth of its colour in the
+/// viewer's frame. Overview and a low oblique view over the local city, overview of the
+/// georeferenced one.
+#[test]
+fn web_viewer_draws_every_object_of_a_flat_city_at_its_default_max_sse() {
+    require_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let ply = tmp.path().join("city.ply");
+    common::objects::write_flat_city(&ply);
+    let convert = |name: &str, extra: &[&str]| {
+        let out = tmp.path().join(name);
+        run(Command::new(bin())
+            .arg("convert")
+            .arg(&ply)
+            .arg("-o")
+            .arg(&out)
+            .args(["-q", "--up-axis", "+z", "--max-splats", "2048"])
+            .args(extra));
+        out
+    };
+    let local = convert("local", &[]);
+    let geo = convert("geo", &["--origin", "8.5417,47.3769,400"]);
+    let ts = splat2tiles::tiling::load::load_tileset(&local.join("tileset.json")).unwrap();
+    let (lo, hi) = splat2tiles::render::cli::tileset_bounds(&ts).unwrap();
+    let c = (lo + hi) * 0.5;
+    let low = format!(
+        "look-at:{},{},{}:{},{},0:0,0,1",
+        lo.x - 0.3 * (hi.x - lo.x),
+        lo.y - 0.4 * (hi.y - lo.y),
+        0.12 * (hi.x - lo.x),
+        c.x,
+        c.y
+    );
+    let (w, h) = (320u32, 240u32);
+    let cases: [(&Path, [&str; 2], &str); 3] = [
+        (&local, ["--auto-view", "0"], "local-overview"),
+        (&local, ["--camera", &low], "local-low"),
+        (&geo, ["--auto-view", "0"], "geo-overview"),
+    ];
+    let mut bad = vec![];
+    for (dir, how, name) in cases {
+        let full = tmp.path().join(format!("{name}-full.png"));
+        run(Command::new(bin())
+            .arg("render")
+            .arg(dir.join("tileset.json"))
+            .args(how)
+            .args(["--max-sse", "0", "--width", &w.to_string()])
+            .args(["--height", &h.to_string(), "-o"])
+            .arg(&full));
+        let shot = tmp.path().join(format!("{name}-web.png"));
+        let mut extra = vec!["--still", "--throttle", "100000000", "--timeout", "120"];
+        extra.extend(how);
+        let (o, v) = run_web_viewer(
+            dir,
+            &tmp.path().join(format!("{name}-view.log")),
+            &shot,
+            (w, h),
+            &extra,
+            &format!("{name}: web_viewer.mjs"),
+        );
+        assert_clean_run(&o, &v, name);
+        let full = Image::load_png(&full).unwrap();
+        let cut = Image::load_png(&shot).unwrap();
+        let (objects, missing) = common::objects::missing_objects(&full, &cut, 0.0, 0.1);
+        eprintln!(
+            "{name}: {} objects in the full render, {} missing in the web viewer at maxSse 16 \
+             ({} splats resident)",
+            objects.len(),
+            missing.len(),
+            v["final"]["residentSplats"]
+        );
+        assert!(
+            objects.len() >= 8,
+            "{name}: the full render shows {} objects",
+            objects.len()
+        );
+        if !missing.is_empty() {
+            bad.push(format!("{name}: missing {missing:?} of {}", objects.len()));
+        }
+    }
+    assert!(bad.is_empty(), "objects missing:\n{}", bad.join("\n"));
+}

@@ -4,6 +4,7 @@
 
 pub mod city;
 pub mod lapis;
+pub mod objects;
 pub mod scenes;
 pub mod splat_file;
 
