@@ -2,8 +2,9 @@
 //! runners and turns their results into exit codes (0 ok, 1 findings, 2 could not run).
 
 use clap::{Parser, Subcommand};
-use splat2tiles::cli;
-use splat2tiles::render::cli as render_cli;
+mod cli;
+
+use cli::render as render_cli;
 
 /// Make huge 3D Gaussian Splatting scenes streamable: OGC 3D Tiles 1.1 of glTF
 /// KHR_gaussian_splatting tiles.
@@ -29,8 +30,6 @@ enum Command {
     Render(render_cli::RenderArgs),
     /// Print SSIM and PSNR between two PNG images.
     Compare(render_cli::CompareArgs),
-    /// Run the streaming experiments (trace-driven client simulator) and write tables and plots.
-    Simulate(cli::simulate::SimulateArgs),
     /// Print a tileset's per-level table: tiles, splats, bytes, mean geometric error.
     Stats(cli::stats::StatsArgs),
     /// Serve a tileset folder over HTTP (ranges, ETags, precompressed files, CORS) until Ctrl-C.
@@ -48,7 +47,6 @@ fn main() {
         Command::Validate(a) => cli::validate::run(a),
         Command::Render(a) => report(render_cli::run_render(&a)),
         Command::Compare(a) => report(render_cli::run_compare(&a)),
-        Command::Simulate(a) => report(cli::simulate::run(&a)),
         Command::Stats(a) => cli::stats::run(a),
         Command::Serve(a) => report(cli::serve::run_serve(&a)),
         Command::View(a) => report(cli::serve::run_view(&a)),

@@ -5,15 +5,15 @@
 
 mod common;
 
-use splat2tiles::client::{Action, ClientConfig, StreamClient};
-use splat2tiles::convert::{ConvertOptions, SchemeChoice, convert};
-use splat2tiles::layers::view::{layered_instances, select_layers};
-use splat2tiles::render::camera::{Camera, auto_views_with};
-use splat2tiles::render::cli::{tileset_bounds, tileset_up};
-use splat2tiles::sim::transport::{NetModel, SimTransport};
-use splat2tiles::stream::Level;
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
+use splat2tiles_stream::client::{Action, ClientConfig, StreamClient};
+use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert};
+use splat2tiles_tiles::layers::view::{layered_instances, select_layers};
+use splat2tiles_core::camera::{Camera, auto_views_with};
+use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
+use splat2tiles_lab::sim::transport::{NetModel, SimTransport};
+use splat2tiles_stream::Level;
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -225,7 +225,7 @@ fn a_layer_whose_ancestor_is_missing_is_never_drawn() {
 /// last level's file at its opacity there.
 #[test]
 fn a_lapisgs_import_streams_with_the_reference_opacities() {
-    use splat2tiles::convert::import_lapisgs;
+    use splat2tiles_build::convert::import_lapisgs;
     let dir = tempfile::tempdir().unwrap();
     let (lv, files) = common::lapis::dense(dir.path());
     let out = dir.path().join("lapis");
@@ -280,7 +280,7 @@ fn a_lapisgs_import_streams_with_the_reference_opacities() {
                     .opacities
                     .iter()
                     .map(|&o| {
-                        if o < splat2tiles::layers::OCCUPANCY_THRESHOLD {
+                        if o < splat2tiles_tiles::layers::OCCUPANCY_THRESHOLD {
                             0.0
                         } else {
                             o

@@ -5,19 +5,19 @@ mod common;
 
 use common::{bin, scene};
 use glam::{DMat4, DVec3};
-use splat2tiles::client::native::Driver;
-use splat2tiles::client::{
+use splat2tiles_stream::client::native::Driver;
+use splat2tiles_stream::client::{
     Action, ClientConfig, PredictorKind, SceneUpdate, StreamClient, timeline,
 };
-use splat2tiles::convert::{ConvertOptions, convert};
-use splat2tiles::encode::read_tile_glb;
-use splat2tiles::render::camera::Camera;
-use splat2tiles::render::cli::{content_model, select_tiles};
-use splat2tiles::splat::Splats;
-use splat2tiles::stream::Level;
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
-use splat2tiles::variants::{Variant, VariantOptions, content_uri};
+use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_tiles::encode::read_tile_glb;
+use splat2tiles_core::camera::Camera;
+use splat2tiles_tiles::geometry::{content_model, select_tiles};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_stream::Level;
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
+use splat2tiles_tiles::variants::{Variant, VariantOptions, content_uri};
 use std::collections::{BTreeMap, HashMap};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

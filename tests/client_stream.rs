@@ -5,18 +5,18 @@ mod common;
 
 use common::scene;
 use glam::{DMat4, DVec3};
-use splat2tiles::client::{
+use splat2tiles_stream::client::{
     Action, ClientConfig, FetchRequest, PredictorKind, RequestId, SceneUpdate, StreamClient,
 };
-use splat2tiles::convert::{ConvertOptions, convert};
-use splat2tiles::encode::read_tile_glb;
-use splat2tiles::render::camera::Camera;
-use splat2tiles::render::cli::{content_model, select_tiles};
-use splat2tiles::splat::Splats;
-use splat2tiles::stream::Level;
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
-use splat2tiles::variants::{Variant, VariantOptions, content_uri};
+use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_tiles::encode::read_tile_glb;
+use splat2tiles_core::camera::Camera;
+use splat2tiles_tiles::geometry::{content_model, select_tiles};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_stream::Level;
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
+use splat2tiles_tiles::variants::{Variant, VariantOptions, content_uri};
 use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;

@@ -13,18 +13,18 @@ mod common;
 
 use glam::{DMat3, DMat4, DQuat, DVec3};
 use rayon::prelude::*;
-use splat2tiles::convert::{ConvertOptions, SchemeChoice, convert_scene};
-use splat2tiles::frame::UpAxis;
-use splat2tiles::frame::geo::Geodetic;
-use splat2tiles::render::camera::{Camera, look_at_pose};
-use splat2tiles::render::cli::{content_model, select_tiles};
-use splat2tiles::render::image::Image;
-use splat2tiles::render::metrics::ssim;
-use splat2tiles::render::raster::{RenderOptions, render};
-use splat2tiles::splat::Splats;
-use splat2tiles::splat::city::city_scene;
-use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
-use splat2tiles::validate::{ValidateOptions, validate_tileset};
+use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert_scene};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_core::camera::{Camera, look_at_pose};
+use splat2tiles_tiles::geometry::{content_model, select_tiles};
+use splat2tiles_render::image::Image;
+use splat2tiles_render::metrics::ssim;
+use splat2tiles_render::raster::{RenderOptions, render};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_lab::city::city_scene;
+use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
+use splat2tiles_validate::{ValidateOptions, validate_tileset};
 use std::path::Path;
 
 /// Default screen-space error of the clients (CesiumJS, our viewers, `render`).
@@ -165,7 +165,7 @@ fn render_cut(ts: &LoadedTileset, frame: DMat4, cam: &Camera, max_sse: f64) -> (
     let contents: Vec<(Splats, DMat4)> = picked
         .iter()
         .map(|p| {
-            let (s, node) = splat2tiles::variants::decode_variant(&std::fs::read(p).unwrap())
+            let (s, node) = splat2tiles_tiles::variants::decode_variant(&std::fs::read(p).unwrap())
                 .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
             (s, content_model(ts, &node))
         })

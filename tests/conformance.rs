@@ -8,10 +8,10 @@
 mod common;
 
 use serde_json::{Value, json};
-use splat2tiles::convert::{ConvertOptions, SchemeChoice, convert};
-use splat2tiles::encode::glb::{read_glb, write_glb};
-use splat2tiles::frame::geo::Geodetic;
-use splat2tiles::validate::{ValidateOptions, validate_tileset};
+use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert};
+use splat2tiles_tiles::encode::glb::{read_glb, write_glb};
+use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_validate::{ValidateOptions, validate_tileset};
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
@@ -61,7 +61,7 @@ fn base(name: &str) -> PathBuf {
         // 3 LapisGS-like levels (300 / 1000 / 3000 splats): every level keeps the previous
         // one's splats and changes the opacity of half of them.
         let all = common::random_splats(3000, 1, 10.0, 31);
-        let mut prev: Option<splat2tiles::splat::Splats> = None;
+        let mut prev: Option<splat2tiles_core::splat::Splats> = None;
         let mut files = vec![];
         for (k, n) in [300usize, 1000, 3000].into_iter().enumerate() {
             let mut s = all.select(&(0..n).collect::<Vec<_>>());
@@ -83,7 +83,7 @@ fn base(name: &str) -> PathBuf {
             layers: true,
             ..opts(400, SchemeChoice::Octree, Some(2), None)
         };
-        splat2tiles::convert::import_lapisgs(&files, &out, &o)
+        splat2tiles_build::convert::import_lapisgs(&files, &out, &o)
             .unwrap_or_else(|e| panic!("importing base {name}: {e}"));
         map.insert(name.to_string(), out.clone());
         return out;

@@ -4,11 +4,11 @@
 mod common;
 
 use common::*;
-use splat2tiles::convert::{ConvertOptions, convert};
-use splat2tiles::frame::geo::Geodetic;
-use splat2tiles::io::read_path;
-use splat2tiles::splat::Splats;
-use splat2tiles::tiling::load::load_tileset;
+use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_io::read_path;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::tiling::load::load_tileset;
 use std::path::Path;
 use std::process::Command;
 
@@ -181,7 +181,7 @@ fn georeferenced_scene_is_a_mercator_quadtree_with_ecef_root() {
     assert!(root.bounding_volume.region.is_some());
     // Leaves sit at Web-Mercator zooms that match a 2 km district (zoom 13-20); the implicit
     // root is the Mercator tile the tileset metadata names (spec/georeferencing.md).
-    let root_key = splat2tiles::tiling::tileset::mercator_root(&ts.tileset).unwrap();
+    let root_key = splat2tiles_tiles::tiling::tileset::mercator_root(&ts.tileset).unwrap();
     let leaf_zooms: Vec<u32> = report
         .leaves
         .iter()
@@ -198,7 +198,7 @@ fn georeferenced_scene_is_a_mercator_quadtree_with_ecef_root() {
         let p = src.positions[idx[0]];
         let g = Geodetic::from_ecef(enu.transform_point3(glam::DVec3::from_array(p)));
         let m = root_key.key_of(key.level, key.x, key.y).unwrap();
-        let (z, x, y) = splat2tiles::frame::geo::mercator_key(g.lon, g.lat, m.zoom);
+        let (z, x, y) = splat2tiles_core::frame::geo::mercator_key(g.lon, g.lat, m.zoom);
         assert_eq!((z, x, y), (m.zoom, m.x, m.y));
     }
     let total: usize = decode_leaves(&out.join("tileset.json"))

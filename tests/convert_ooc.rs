@@ -5,9 +5,9 @@ mod common;
 
 use common::city::write_city_splat;
 use common::*;
-use splat2tiles::convert::{ConvertOptions, convert};
-use splat2tiles::splat::Splats;
-use splat2tiles::tiling::TileKey;
+use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::tiling::TileKey;
 use std::path::Path;
 use std::process::Command;
 
@@ -81,7 +81,7 @@ fn convert_lib(input: &Path, out: &Path, threads: usize, limit: u64) -> Vec<(Til
         max_splats_per_tile: 1024,
         memory_limit: limit,
         keep_index_map: true,
-        variants: splat2tiles::variants::VariantOptions {
+        variants: splat2tiles_tiles::variants::VariantOptions {
             measure_utility: false,
             ..Default::default()
         },

@@ -7,7 +7,7 @@ mod common;
 
 use common::city::write_city_splat;
 use common::*;
-use splat2tiles::splat::Splats;
+use splat2tiles_core::splat::Splats;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

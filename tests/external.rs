@@ -6,7 +6,7 @@ mod common;
 
 use common::*;
 use glam::{DQuat, DVec3};
-use splat2tiles::encode::read_tile_glb;
+use splat2tiles_tiles::encode::read_tile_glb;
 use std::collections::HashMap;
 use std::path::Path;
 use std::process::Command;

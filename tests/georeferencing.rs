@@ -8,16 +8,16 @@ mod common;
 
 use common::*;
 use glam::DVec3;
-use splat2tiles::convert::{ConvertOptions, ConvertReport, convert};
-use splat2tiles::frame::geo::{Geodetic, mercator_key};
-use splat2tiles::frame::mercator::MercatorKey;
-use splat2tiles::frame::{UpAxis, source_to_tileset};
-use splat2tiles::io::read_path;
-use splat2tiles::splat::Splats;
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::extent::{reach_bounds, reaches};
-use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
-use splat2tiles::tiling::tileset::mercator_root;
+use splat2tiles_build::convert::{ConvertOptions, ConvertReport, convert};
+use splat2tiles_core::frame::geo::{Geodetic, mercator_key};
+use splat2tiles_core::frame::mercator::MercatorKey;
+use splat2tiles_core::frame::{UpAxis, source_to_tileset};
+use splat2tiles_io::read_path;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::extent::{reach_bounds, reaches};
+use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
+use splat2tiles_tiles::tiling::tileset::mercator_root;
 use std::collections::HashSet;
 use std::path::Path;
 

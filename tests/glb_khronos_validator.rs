@@ -4,13 +4,13 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use splat2tiles::encode::glb::{parse_json, read_glb, write_gltf_glb};
-use splat2tiles::encode::tile::IDENTITY;
-use splat2tiles::encode::write_tile_glb;
+use splat2tiles_tiles::encode::glb::{parse_json, read_glb, write_gltf_glb};
+use splat2tiles_tiles::encode::tile::IDENTITY;
+use splat2tiles_tiles::encode::write_tile_glb;
 mod common;
 
 use common::{js_dir, require_node_modules};
-use splat2tiles::splat::{Splat, Splats, normalize_quat};
+use splat2tiles_core::splat::{Splat, Splats, normalize_quat};
 
 fn tile(degree: u8, n: usize) -> Splats {
     let mut s = Splats::with_capacity(degree, n);
@@ -98,7 +98,7 @@ fn run_validator(paths: &[PathBuf]) -> std::process::Output {
 /// `parentOpacityDelta` accessor follows the splat data in the BIN chunk.
 #[test]
 fn layered_tiles_pass_the_khronos_validator() {
-    use splat2tiles::layers::glb::{add_layer, read_layer};
+    use splat2tiles_tiles::layers::glb::{add_layer, read_layer};
     require_node_modules();
     let dir = tempfile::tempdir().unwrap();
     let base = write_tile_glb(&tile(1, 50), [100.5, -50.0, 1.5], IDENTITY);
@@ -118,7 +118,7 @@ fn layered_tiles_pass_the_khronos_validator() {
 /// a bufferView.
 #[test]
 fn v2_layers_with_sparse_and_ancestor_deltas_pass_the_khronos_validator() {
-    use splat2tiles::layers::glb::{add_layer_v2, read_layer};
+    use splat2tiles_tiles::layers::glb::{add_layer_v2, read_layer};
     require_node_modules();
     let dir = tempfile::tempdir().unwrap();
     let child = write_tile_glb(&tile(1, 40), [100.5, -50.0, 1.5], IDENTITY);
@@ -162,7 +162,7 @@ fn v2_layers_with_sparse_and_ancestor_deltas_pass_the_khronos_validator() {
 /// parent and ancestor deltas, sparse where that is smaller) passes the Khronos validator.
 #[test]
 fn lapisgs_import_tiles_pass_the_khronos_validator() {
-    use splat2tiles::convert::{ConvertOptions, SchemeChoice, import_lapisgs};
+    use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, import_lapisgs};
     require_node_modules();
     let dir = tempfile::tempdir().unwrap();
     let (_, files) = common::lapis::dense(dir.path());

@@ -3,14 +3,14 @@
 
 mod common;
 use common::Rng;
-use splat2tiles::encode::glb::{GlbError, parse_json, read_glb, write_gltf_glb};
-use splat2tiles::encode::gltf::{
+use splat2tiles_tiles::encode::glb::{GlbError, parse_json, read_glb, write_gltf_glb};
+use splat2tiles_tiles::encode::gltf::{
     Accessor, AccessorType, Buffer, BufferView, ComponentType, Gltf, KhrGaussianSplatting, Mesh,
     Node, Primitive, PrimitiveExtensions, Scene,
 };
-use splat2tiles::encode::tile::{self, IDENTITY, sh_attribute};
-use splat2tiles::encode::{read_tile_glb, write_tile_glb};
-use splat2tiles::splat::{Splat, Splats, normalize_quat};
+use splat2tiles_tiles::encode::tile::{self, IDENTITY, sh_attribute};
+use splat2tiles_tiles::encode::{read_tile_glb, write_tile_glb};
+use splat2tiles_core::splat::{Splat, Splats, normalize_quat};
 
 fn scene(degree: u8, n: usize, seed: u64) -> Splats {
     let mut r = Rng(seed | 1);
@@ -251,7 +251,7 @@ fn malformed_glbs_give_their_errors() {
     assert_path(read_tile_glb(&bad), "/nodes/0");
 }
 
-fn assert_path(r: Result<splat2tiles::encode::DecodedTile, GlbError>, want: &str) {
+fn assert_path(r: Result<splat2tiles_tiles::encode::DecodedTile, GlbError>, want: &str) {
     match r {
         Err(GlbError::Invalid { path, .. }) => assert_eq!(path, want),
         other => panic!("expected Invalid at {want}, got {other:?}"),
@@ -355,7 +355,7 @@ fn reads_strided_quantised_layouts() {
     }
     attributes.insert("_CUSTOM".into(), 0);
     let doc = Gltf {
-        asset: splat2tiles::encode::gltf::Asset {
+        asset: splat2tiles_tiles::encode::gltf::Asset {
             version: "2.0".into(),
             ..Default::default()
         },
@@ -441,7 +441,7 @@ fn reads_strided_quantised_layouts() {
     );
     // SH0 from COLOR_0: linear 1.0 -> display 1.0; linear 188/255 -> display ~0.874; 0 -> 0.
     assert!(d.warnings.iter().any(|w| w.contains("COLOR_0")));
-    let c = splat2tiles::splat::sh::dc_color(s.sh0[0]);
+    let c = splat2tiles_core::splat::sh::dc_color(s.sh0[0]);
     assert!((c[0] - 1.0).abs() < 1e-5 && c[2].abs() < 1e-5, "{c:?}");
     assert!((c[1] - 0.8742).abs() < 1e-3, "{c:?}");
     // World matrix = parent scale 2 * child translation 5.

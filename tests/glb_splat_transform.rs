@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use splat2tiles::encode::read_tile_glb;
+use splat2tiles_tiles::encode::read_tile_glb;
 
 #[test]
 fn reads_splat_transform_glb() {

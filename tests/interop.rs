@@ -9,7 +9,7 @@ mod common;
 
 use common::*;
 use serde_json::Value;
-use splat2tiles::encode::glb::{parse_json, read_glb};
+use splat2tiles_tiles::encode::glb::{parse_json, read_glb};
 use std::path::Path;
 use std::process::Command;
 use std::sync::Mutex;
@@ -451,7 +451,7 @@ fn cesiumjs_draws_every_object_of_a_flat_georeferenced_city_in_the_overview() {
             let _ = std::fs::copy(&png, Path::new(&dir).join(name));
         }
         (
-            splat2tiles::render::image::Image::load_png(&png).unwrap(),
+            splat2tiles_render::image::Image::load_png(&png).unwrap(),
             v,
         )
     };

@@ -1,14 +1,14 @@
-//! Integration tests of `splat2tiles::io`: the shared real scenes, PLY round trips across
+//! Integration tests of `splat2tiles_io`: the shared real scenes, PLY round trips across
 //! encodings and property orders, SPZ v2/v3/v4 from a test-only encoder, and hostile inputs.
 
 mod common;
 use common::{Rng, scenes};
 use std::io::Write;
 
-use splat2tiles::io::{
+use splat2tiles_io::{
     InputFormat, PlyEncoding, ReadError, ReadErrorKind, Scene, read_bytes, read_path, write_ply,
 };
-use splat2tiles::splat::{Splat, Splats, logit, normalize_quat, sh::SH_C0};
+use splat2tiles_core::splat::{Splat, Splats, logit, normalize_quat, sh::SH_C0};
 
 // ---------------------------------------------------------------------------------------------
 // Helpers

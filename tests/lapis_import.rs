@@ -7,18 +7,18 @@ mod common;
 
 use common::lapis::{dense, levels, write_levels};
 
-use splat2tiles::convert::{ConvertOptions, LapisReport, SchemeChoice, import_lapisgs};
-use splat2tiles::layers::blend::{DrawnLayer, effective_opacities};
-use splat2tiles::layers::glb::{LayerInfo, read_layer};
-use splat2tiles::layers::view::ancestor_deltas;
-use splat2tiles::render::camera::auto_views_with;
-use splat2tiles::render::cli::finite_bounds;
-use splat2tiles::render::metrics::ssim;
-use splat2tiles::render::raster::{RenderOptions, render};
-use splat2tiles::splat::Splats;
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::load_tileset;
-use splat2tiles::validate::{ValidateOptions, validate_tileset};
+use splat2tiles_build::convert::{ConvertOptions, LapisReport, SchemeChoice, import_lapisgs};
+use splat2tiles_tiles::layers::blend::{DrawnLayer, effective_opacities};
+use splat2tiles_tiles::layers::glb::{LayerInfo, read_layer};
+use splat2tiles_tiles::layers::view::ancestor_deltas;
+use splat2tiles_core::camera::auto_views_with;
+use splat2tiles_tiles::geometry::finite_bounds;
+use splat2tiles_render::metrics::ssim;
+use splat2tiles_render::raster::{RenderOptions, render};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::load::load_tileset;
+use splat2tiles_validate::{ValidateOptions, validate_tileset};
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
@@ -181,7 +181,7 @@ fn import_validates_and_draws_every_level_exactly() {
     );
     let sparse = common::files_under(&out, "glb").iter().any(|p| {
         let b = std::fs::read(p).unwrap();
-        let c = splat2tiles::encode::glb::read_glb(&b).unwrap();
+        let c = splat2tiles_tiles::encode::glb::read_glb(&b).unwrap();
         String::from_utf8_lossy(c.json).contains("\"sparse\"")
     });
     assert!(sparse, "no sparse delta accessor written");
@@ -193,7 +193,7 @@ fn import_validates_and_draws_every_level_exactly() {
         s.opacities = ops;
         drawn.push(s);
     }
-    let scene = splat2tiles::io::read_path(&files[2]).unwrap().splats;
+    let scene = splat2tiles_io::read_path(&files[2]).unwrap().splats;
     let (lo, hi) = finite_bounds(&scene).unwrap();
     let id = glam::DMat4::IDENTITY;
     for cam in auto_views_with(lo, hi, glam::DVec3::NEG_Y, 160, 120, 50.0) {
@@ -365,7 +365,7 @@ fn blending_in_a_level_changes_frames_continuously() {
 fn quadtree_and_georeferenced_imports_validate_and_draw_the_last_level() {
     let dir = tempfile::tempdir().unwrap();
     let (lv, files) = dense(dir.path());
-    let origin = splat2tiles::frame::geo::Geodetic::parse("2.2945,48.8584,35").unwrap();
+    let origin = splat2tiles_core::frame::geo::Geodetic::parse("2.2945,48.8584,35").unwrap();
     for (name, o) in [
         (
             "quad",

@@ -4,20 +4,20 @@
 
 mod common;
 
-use splat2tiles::convert::{ConvertOptions, SchemeChoice, convert};
-use splat2tiles::encode::read_tile_glb;
-use splat2tiles::layers::blend::{DrawnLayer, drawn_layers};
-use splat2tiles::layers::glb::read_layer;
-use splat2tiles::layers::view::{is_layered, layered_instances};
-use splat2tiles::render::camera::auto_views_with;
-use splat2tiles::render::cli::{content_model, select_tiles, tileset_bounds, tileset_up};
-use splat2tiles::render::image::Image;
-use splat2tiles::render::metrics::ssim;
-use splat2tiles::render::raster::{RenderOptions, render};
-use splat2tiles::splat::Splats;
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
-use splat2tiles::validate::{ValidateOptions, validate_tileset};
+use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert};
+use splat2tiles_tiles::encode::read_tile_glb;
+use splat2tiles_tiles::layers::blend::{DrawnLayer, drawn_layers};
+use splat2tiles_tiles::layers::glb::read_layer;
+use splat2tiles_tiles::layers::view::{is_layered, layered_instances};
+use splat2tiles_core::camera::auto_views_with;
+use splat2tiles_tiles::geometry::{content_model, select_tiles, tileset_bounds, tileset_up};
+use splat2tiles_render::image::Image;
+use splat2tiles_render::metrics::ssim;
+use splat2tiles_render::raster::{RenderOptions, render};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
+use splat2tiles_validate::{ValidateOptions, validate_tileset};
 use std::path::Path;
 
 /// Most SSIM one frame of a level change may lose against the previous one.
@@ -106,7 +106,7 @@ fn layered_output_validates_and_its_layers_reproduce_the_finer_level() {
     assert_eq!(drawn[0].len(), 0, "base splats left");
     for (d, (s, _)) in drawn[1..].iter().zip(&kids) {
         let kept: Vec<usize> = (0..s.len())
-            .filter(|&i| s.opacities[i] >= splat2tiles::layers::OCCUPANCY_THRESHOLD)
+            .filter(|&i| s.opacities[i] >= splat2tiles_tiles::layers::OCCUPANCY_THRESHOLD)
             .collect();
         assert_eq!(*d, s.select(&kept));
     }
@@ -114,7 +114,7 @@ fn layered_output_validates_and_its_layers_reproduce_the_finer_level() {
     for l in &mut layers[1..] {
         l.blend = 0.5;
     }
-    let half = splat2tiles::layers::blend::effective_opacities(&layers).unwrap();
+    let half = splat2tiles_tiles::layers::blend::effective_opacities(&layers).unwrap();
     for (i, &o) in root.splats.opacities.iter().enumerate().take(50) {
         assert!((half[0][i] - 0.5 * o).abs() < 1e-5, "{} vs {o}", half[0][i]);
     }
@@ -131,9 +131,9 @@ fn layered_output_validates_and_its_layers_reproduce_the_finer_level() {
 }
 
 /// Screen-space error of the root as `render::cli::select_tiles` computes it.
-fn root_sse(ts: &LoadedTileset, cam: &splat2tiles::render::camera::Camera) -> f64 {
+fn root_sse(ts: &LoadedTileset, cam: &splat2tiles_core::camera::Camera) -> f64 {
     let t = ts.tiles.iter().find(|t| t.key == TileKey::ROOT).unwrap();
-    let (c, r) = splat2tiles::stream::select::box_sphere(
+    let (c, r) = splat2tiles_tiles::select::box_sphere(
         t.bounding_box.as_ref().unwrap(),
         &ts.root_transform,
     );
@@ -142,7 +142,7 @@ fn root_sse(ts: &LoadedTileset, cam: &splat2tiles::render::camera::Camera) -> f6
 
 fn replace_frame(
     ts: &LoadedTileset,
-    cam: &splat2tiles::render::camera::Camera,
+    cam: &splat2tiles_core::camera::Camera,
     max_sse: f64,
 ) -> Image {
     let inst: Vec<(Splats, glam::DMat4)> = select_tiles(ts, cam, max_sse)

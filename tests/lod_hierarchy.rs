@@ -5,11 +5,11 @@
 mod common;
 
 use common::*;
-use splat2tiles::convert::{ConvertOptions, convert};
-use splat2tiles::lod::eval::{EvalOptions, evaluate};
-use splat2tiles::splat::importance::{importance_scores, reference_volume};
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::load_tileset;
+use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_build::lod::eval::{EvalOptions, evaluate};
+use splat2tiles_core::splat::importance::{importance_scores, reference_volume};
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::load::load_tileset;
 use std::collections::{HashMap, HashSet};
 
 const BUDGET: usize = 16_384;
@@ -114,8 +114,8 @@ fn shared_scenes_hierarchy_and_quality() {
             .sum();
         // It may hold fewer than its aim (its radius is at least 1.25x its children's, so errors
         // grow upwards), never more than the cap, and more than a token handful.
-        let aim = splat2tiles::lod::target_count(input, BUDGET);
-        let cap = splat2tiles::lod::count_cap(input, BUDGET);
+        let aim = splat2tiles_build::lod::target_count(input, BUDGET);
+        let cap = splat2tiles_build::lod::count_cap(input, BUDGET);
         assert!(
             (1000..=cap).contains(&kept),
             "{name}: the coarsest content holds {kept} splats of {input} input (aim {aim}, cap {cap})"
@@ -123,7 +123,7 @@ fn shared_scenes_hierarchy_and_quality() {
         // A root directly over the leaves holds up to a quarter of the input (its cap; the donut
         // measured 23.76%; it was under 20% while the root aimed at 0.8 of the cap).
         assert!(
-            root <= splat2tiles::lod::MAX_KEEP + 1.0 / report.splats_in as f64,
+            root <= splat2tiles_build::lod::MAX_KEEP + 1.0 / report.splats_in as f64,
             "{name}: the coarsest content holds {:.2}% of the input",
             100.0 * root
         );

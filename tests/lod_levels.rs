@@ -4,16 +4,16 @@
 
 mod common;
 
-use splat2tiles::convert::{ConvertOptions, convert_scene};
-use splat2tiles::frame::UpAxis;
-use splat2tiles::lod::eval::level_table;
-use splat2tiles::lod::{
+use splat2tiles_build::convert::{ConvertOptions, convert_scene};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_build::lod::eval::level_table;
+use splat2tiles_build::lod::{
     ChildContent, MergeRule, ParentParams, ParentTile, build_parent, target_count,
 };
-use splat2tiles::splat::city::{CityLayout, city_scene, generate_city, shared_sources};
-use splat2tiles::splat::{Splat, Splats};
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::load_tileset;
+use splat2tiles_lab::city::{CityLayout, city_scene, generate_city, shared_sources};
+use splat2tiles_core::splat::{Splat, Splats};
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::load::load_tileset;
 
 fn params(budget: usize) -> ParentParams {
     ParentParams {
@@ -105,7 +105,7 @@ fn build_parent_hits_its_target_and_is_deterministic_across_thread_counts() {
     let a = parent_of(&children, budget);
     let target = target_count(24_000, budget);
     assert_eq!(target, 2048);
-    assert_eq!(splat2tiles::lod::count_cap(24_000, budget), 4096);
+    assert_eq!(splat2tiles_build::lod::count_cap(24_000, budget), 4096);
     let n = a.splats.len();
     // One radius from the occupancy estimate (corrected once): near the target, within budget.
     assert!(
@@ -145,7 +145,7 @@ fn the_root_aims_at_its_cap() {
         })
         .collect();
     let budget = 4096;
-    let cap = splat2tiles::lod::count_cap(24_000, budget);
+    let cap = splat2tiles_build::lod::count_cap(24_000, budget);
     let root = build_parent(TileKey::ROOT, 0, &kids, &params(budget));
     let inner = build_parent(INNER, 0, &kids, &params(budget));
     let (r, i) = (root.splats.len(), inner.splats.len());

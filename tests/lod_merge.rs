@@ -2,9 +2,9 @@
 //! antipodal quaternions, mixed huge/tiny scales, coincident centres) and known analytic answers.
 
 use glam::{DMat3, DQuat, DVec3};
-use splat2tiles::lod::math::{covariance, markley_average};
-use splat2tiles::lod::{MergeRule, cluster, cluster_to_budget, merge_all, merge_drawn};
-use splat2tiles::splat::{Splat, Splats};
+use splat2tiles_build::lod::math::{covariance, markley_average};
+use splat2tiles_build::lod::{MergeRule, cluster, cluster_to_budget, merge_all, merge_drawn};
+use splat2tiles_core::splat::{Splat, Splats};
 
 const RULES: [MergeRule; 2] = [MergeRule::Moment, MergeRule::Axis];
 
@@ -92,7 +92,7 @@ fn single_splat_cluster_is_an_exact_copy() {
 
 #[test]
 fn antipodal_quaternions_average_to_the_rotation() {
-    let q = splat2tiles::splat::normalize_quat([0.2, -0.4, 0.1, 0.8]);
+    let q = splat2tiles_core::splat::normalize_quat([0.2, -0.4, 0.1, 0.8]);
     let neg = q.map(|v| -v);
     let avg = markley_average(&[q.map(|v| v as f64), neg.map(|v| v as f64)], &[0.5, 0.5]);
     let dot: f64 = avg.iter().zip(q).map(|(a, b)| a * b as f64).sum();
@@ -151,7 +151,7 @@ fn markley_weighted_average_about_one_axis() {
 
 #[test]
 fn moment_matching_reproduces_one_gaussian_and_two_side_by_side() {
-    let q = splat2tiles::splat::normalize_quat([0.3, 0.1, -0.5, 0.7]);
+    let q = splat2tiles_core::splat::normalize_quat([0.3, 0.1, -0.5, 0.7]);
     // Two identical copies at the same place: the same Gaussian.
     let g = splat([1.0, 2.0, 3.0], [0.5, 0.2, 0.05], q, 0.8, 0.3);
     let s = set(2, &[g, g]);
@@ -321,8 +321,8 @@ fn a_tiled_surface_keeps_its_coverage() {
 }
 
 /// Sum over the image of the red channel (light on a black background).
-fn light(s: &Splats, cam: &splat2tiles::render::Camera) -> f64 {
-    let img = splat2tiles::render::render_splats(s, cam, &Default::default());
+fn light(s: &Splats, cam: &splat2tiles_core::camera::Camera) -> f64 {
+    let img = splat2tiles_render::render_splats(s, cam, &Default::default());
     let mut sum = 0.0;
     for y in 0..img.height {
         for x in 0..img.width {
@@ -349,15 +349,15 @@ fn a_merged_splat_draws_as_much_light_as_its_sub_pixel_members_at_its_switching_
                 quat_z(0.0),
                 0.5,
                 // colour 1 in every channel: sh0 = 0.5 / SH_C0
-                0.5 / splat2tiles::splat::sh::SH_C0,
+                0.5 / splat2tiles_core::splat::sh::SH_C0,
             )
         })
         .collect();
     let s = set(0, &items);
     let (w, fov) = (96u32, 50.0f64);
-    let focal = splat2tiles::render::camera::fov_to_focal(fov, w);
+    let focal = splat2tiles_core::camera::fov_to_focal(fov, w);
     let centre = DVec3::new(0.45, 0.45, 0.0);
-    let cam = splat2tiles::render::Camera::look_at(
+    let cam = splat2tiles_core::camera::Camera::look_at(
         w,
         w,
         fov,
@@ -374,7 +374,7 @@ fn a_merged_splat_draws_as_much_light_as_its_sub_pixel_members_at_its_switching_
         light(&out, &cam)
     };
     let plain = merged(0.0);
-    let drawn = merged(splat2tiles::render::raster::LOW_PASS * pixel * pixel);
+    let drawn = merged(splat2tiles_render::raster::LOW_PASS * pixel * pixel);
     println!(
         "light: members {leaves:.1}, merged {drawn:.1}, merged ignoring the low-pass {plain:.1}"
     );

@@ -7,19 +7,19 @@
 
 mod common;
 
-use splat2tiles::client::ClientConfig;
-use splat2tiles::convert::{ConvertOptions, convert_scene};
-use splat2tiles::frame::UpAxis;
-use splat2tiles::frame::geo::Geodetic;
-use splat2tiles::partition::plan::PartitionRequest;
-use splat2tiles::render::Camera;
-use splat2tiles::sim::score::Truth;
-use splat2tiles::sim::stream_city::{
+use splat2tiles_stream::client::ClientConfig;
+use splat2tiles_build::convert::{ConvertOptions, convert_scene};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_build::partition::plan::PartitionRequest;
+use splat2tiles_core::camera::Camera;
+use splat2tiles_lab::sim::score::Truth;
+use splat2tiles_lab::sim::stream_city::{
     CitySpec, DEFAULT_ORIGIN, StreetGrid, city_sources, evaluation_set, tuning_set,
 };
-use splat2tiles::sim::{NetModel, SessionOptions, run_session};
-use splat2tiles::splat::city::{city_scene, generate_city};
-use splat2tiles::stream::select::{CutTree, select_cut};
+use splat2tiles_lab::sim::{NetModel, SessionOptions, run_session};
+use splat2tiles_lab::city::{city_scene, generate_city};
+use splat2tiles_tiles::select::{CutTree, select_cut};
 use std::cell::Cell;
 use std::path::{Path, PathBuf};
 
@@ -54,7 +54,7 @@ impl Drop for Cleanup {
 }
 
 fn content_tiles(dir: &Path) -> (usize, u64) {
-    let ts = splat2tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap();
+    let ts = splat2tiles_tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap();
     let c: Vec<_> = ts.tiles.iter().filter_map(|t| t.content.as_ref()).collect();
     let bytes = c.iter().map(|p| std::fs::metadata(p).unwrap().len()).sum();
     (c.len(), bytes)

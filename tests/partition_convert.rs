@@ -4,9 +4,9 @@
 mod common;
 
 use glam::DVec3;
-use splat2tiles::sim::trace::Trace;
-use splat2tiles::stream::geom::ViewPose;
-use splat2tiles::tiling::load::load_tileset;
+use splat2tiles_stream::trace::Trace;
+use splat2tiles_stream::geom::ViewPose;
+use splat2tiles_tiles::tiling::load::load_tileset;
 use std::path::Path;
 use std::process::Command;
 

@@ -5,8 +5,8 @@
 #[path = "partition/ilp.rs"]
 mod ilp;
 
-use splat2tiles::partition::{CostModel, Grid, View, optimise};
-use splat2tiles::tiling::partition::Scheme;
+use splat2tiles_build::partition::{CostModel, Grid, View, optimise};
+use splat2tiles_tiles::tiling::partition::Scheme;
 
 #[test]
 fn the_ilp_finds_the_exhaustive_optimum_on_tiny_grids() {

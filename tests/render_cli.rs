@@ -7,11 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use glam::DVec3;
-use splat2tiles::render::cli::{
-    CompareArgs, RenderArgs, compare_files, default_up_axis, format_compare, resolve_camera,
-    run_compare, run_render,
-};
-use splat2tiles::render::{Image, auto_views_with};
+use splat2tiles::cli::render::{CompareArgs, RenderArgs, compare_files, default_up_axis, format_compare, resolve_camera, run_compare, run_render};
+use splat2tiles_render::{Image, auto_views_with};
 
 fn args(out: PathBuf) -> RenderArgs {
     RenderArgs {
@@ -97,7 +94,7 @@ fn render_then_compare() {
     let out = dir.path().join("o.png");
     let scene = common::scenes::random_cloud(500, 1, DVec3::ZERO, 4);
     let ply = dir.path().join("cloud.ply");
-    splat2tiles::io::write_ply(&scene, std::fs::File::create(&ply).unwrap()).unwrap();
+    splat2tiles_io::write_ply(&scene, std::fs::File::create(&ply).unwrap()).unwrap();
     let mut a = args(out.clone());
     a.input = ply;
     run_render(&a).unwrap();

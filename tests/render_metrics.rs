@@ -2,7 +2,7 @@
 //! written by `tools/gen_metric_vectors.py`); the test itself needs no Python.
 
 use serde::Deserialize;
-use splat2tiles::render::{Image, psnr, ssim};
+use splat2tiles_render::{Image, psnr, ssim};
 
 #[derive(Deserialize)]
 struct Vectors {

@@ -5,10 +5,10 @@ mod common;
 
 use common::scenes::{Lcg, axis_camera, random_cloud, set, splat};
 use glam::{DMat3, DMat4, DQuat, DVec3};
-use splat2tiles::render::{
+use splat2tiles_render::{
     Camera, Image, RenderOptions, render, render_splats, render_with_stats, ssim,
 };
-use splat2tiles::splat::{Splat, Splats, sh};
+use splat2tiles_core::splat::{Splat, Splats, sh};
 
 fn opts() -> RenderOptions {
     RenderOptions::default()

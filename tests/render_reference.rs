@@ -5,7 +5,7 @@
 
 mod common;
 
-use splat2tiles::render::{Image, ssim};
+use splat2tiles_render::{Image, ssim};
 use std::path::Path;
 use std::process::Command;
 

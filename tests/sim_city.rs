@@ -5,15 +5,15 @@
 
 mod common;
 
-use splat2tiles::client::{ClientConfig, PredictorKind};
-use splat2tiles::sim::misses::{MissBreakdown, breakdown, breakdown_with};
-use splat2tiles::sim::score::{Ratio, Truth, WarmUp, cache_hits, cache_hits_with, held_tiles};
-use splat2tiles::sim::score::{link_warm_up, tick_views};
-use splat2tiles::sim::session::{SessionOptions, run_session};
-use splat2tiles::sim::stream_city::{CitySpec, StreetGrid, build_city, street_walk};
-use splat2tiles::sim::transport::NetModel;
-use splat2tiles::stream::predict::Oracle;
-use splat2tiles::tiling::TileKey;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind};
+use splat2tiles_lab::sim::misses::{MissBreakdown, breakdown, breakdown_with};
+use splat2tiles_lab::sim::score::{Ratio, Truth, WarmUp, cache_hits, cache_hits_with, held_tiles};
+use splat2tiles_lab::sim::score::{link_warm_up, tick_views};
+use splat2tiles_lab::sim::session::{SessionOptions, run_session};
+use splat2tiles_lab::sim::stream_city::{CitySpec, StreetGrid, build_city, street_walk};
+use splat2tiles_lab::sim::transport::NetModel;
+use splat2tiles_stream::predict::Oracle;
+use splat2tiles_tiles::tiling::TileKey;
 
 fn chr(
     truth: &Truth,
@@ -30,7 +30,7 @@ fn chr(
             predictor: oracle.then(|| {
                 Box::new(Oracle {
                     trace: trace.poses.clone(),
-                }) as Box<dyn splat2tiles::stream::predict::Predictor + Send>
+                }) as Box<dyn splat2tiles_stream::predict::Predictor + Send>
             }),
             ..SessionOptions::default()
         };
@@ -119,16 +119,16 @@ fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
 #[test]
 #[ignore = "needs STREAM_CITY_DIR (a 241 MiB generated city); a measurement, no assertion"]
 fn oracle_misses_on_the_full_city() {
-    use splat2tiles::sim::stream_city::{flight, street_walk};
+    use splat2tiles_lab::sim::stream_city::{flight, street_walk};
     let dir = std::env::var("STREAM_CITY_DIR").expect("STREAM_CITY_DIR");
     let dir = std::path::PathBuf::from(dir);
     let scenes = common::scenes();
     let spec = CitySpec::default();
-    let sources = splat2tiles::sim::stream_city::city_sources(&scenes, spec.stride).unwrap();
+    let sources = splat2tiles_lab::sim::stream_city::city_sources(&scenes, spec.stride).unwrap();
     let grid = StreetGrid::of(&sources, &spec.layout());
     let truth = Truth::load(&dir.join("tileset.json")).unwrap();
-    let ts = splat2tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap();
-    let meta = splat2tiles::variants::content_variant_metadata(&ts);
+    let ts = splat2tiles_tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap();
+    let meta = splat2tiles_tiles::variants::content_variant_metadata(&ts);
     for budget in [32u64 << 20, 1 << 30] {
         let cfg = ClientConfig {
             max_concurrent: 4,
@@ -193,7 +193,7 @@ fn oracle_misses_on_the_full_city() {
                 if let (Some(k), Some(l)) = (r.key, r.level) {
                     let e = per.entry((k, l)).or_default();
                     e.0 += 1;
-                    e.1 += (r.outcome == splat2tiles::sim::transport::Outcome::Done) as u32;
+                    e.1 += (r.outcome == splat2tiles_lab::sim::transport::Outcome::Done) as u32;
                     e.2 += r.bytes;
                 }
             }
@@ -239,7 +239,7 @@ fn oracle_misses_on_the_full_city() {
     );
     let full: u64 = meta.values().map(|(_, b, _)| b[0] as u64).sum();
     for seed in 1..=3u64 {
-        let tr = splat2tiles::sim::trace::dolly("stream-city", lo, hi, seed, "test");
+        let tr = splat2tiles_stream::trace::dolly("stream-city", lo, hi, seed, "test");
         let cfg = ClientConfig {
             max_concurrent: 4,
             predictor: PredictorKind::Reactive,
@@ -257,7 +257,7 @@ fn oracle_misses_on_the_full_city() {
         let done: std::collections::HashSet<_> = log
             .requests
             .iter()
-            .filter(|r| r.outcome == splat2tiles::sim::transport::Outcome::Done)
+            .filter(|r| r.outcome == splat2tiles_lab::sim::transport::Outcome::Done)
             .filter_map(|r| Some((r.key?, r.level?)))
             .collect();
         let tiles: std::collections::HashSet<_> = done.iter().map(|d| d.0).collect();
@@ -281,9 +281,9 @@ fn oracle_misses_on_the_full_city() {
 #[ignore = "needs STREAM_CITY_DIR (a 241 MiB generated city); a measurement, no assertion"]
 fn oracle_miss_causes_on_the_city_traces() {
     use splat2tiles::cli::simulate_city::{BUDGET, label, session, table4_traces};
-    use splat2tiles::sim::misses::Cause;
-    use splat2tiles::stream::plan::Planner;
-    use splat2tiles::stream::predict::sample_trace;
+    use splat2tiles_lab::sim::misses::Cause;
+    use splat2tiles_stream::plan::Planner;
+    use splat2tiles_stream::predict::sample_trace;
     use std::collections::HashMap;
     let dir = std::path::PathBuf::from(std::env::var("STREAM_CITY_DIR").expect("STREAM_CITY_DIR"));
     let budget = std::env::var("BUDGET_MIB")
@@ -291,14 +291,14 @@ fn oracle_miss_causes_on_the_city_traces() {
         .map_or(BUDGET, |m| m.parse::<u64>().expect("BUDGET_MIB") << 20);
     let scenes = common::scenes();
     let spec = CitySpec::default();
-    let sources = splat2tiles::sim::stream_city::city_sources(&scenes, spec.stride).unwrap();
+    let sources = splat2tiles_lab::sim::stream_city::city_sources(&scenes, spec.stride).unwrap();
     let grid = StreetGrid::of(&sources, &spec.layout());
     let truth = Truth::load(&dir.join("tileset.json")).unwrap();
-    let nav = std::path::Path::new(splat2tiles::sim::stream_city::NAVIGATION_DIR);
-    let eval = splat2tiles::sim::stream_city::evaluation_set(&grid, nav).unwrap();
+    let nav = std::path::Path::new(splat2tiles_lab::sim::stream_city::NAVIGATION_DIR);
+    let eval = splat2tiles_lab::sim::stream_city::evaluation_set(&grid, nav).unwrap();
     // `SPLIT=val` (or `train`) runs the same choice of traces from that split instead of the
     // evaluation's test split: a rule designed while reading this breakdown is checked there.
-    use splat2tiles::sim::split::Split;
+    use splat2tiles_stream::split::Split;
     let split = match std::env::var("SPLIT").as_deref() {
         Ok("val") => Some(Split::Val),
         Ok("train") => Some(Split::Train),
@@ -306,7 +306,7 @@ fn oracle_miss_causes_on_the_city_traces() {
     };
     let traces = match split {
         Some(split) => splat2tiles::cli::simulate_city::pick_traces(
-            &splat2tiles::sim::stream_city::trace_set(&grid, nav, split).unwrap(),
+            &splat2tiles_lab::sim::stream_city::trace_set(&grid, nav, split).unwrap(),
         ),
         None => table4_traces(&eval),
     };
@@ -329,8 +329,8 @@ fn oracle_miss_causes_on_the_city_traces() {
     let (mut oracle_all, mut reactive_all) = (Ratio::default(), Ratio::default());
     // The oracle's CHR over every first-time entry (the warm-up included).
     let mut oracle_first = Ratio::default();
-    let lw_meta = splat2tiles::variants::content_variant_metadata(
-        &splat2tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap(),
+    let lw_meta = splat2tiles_tiles::variants::content_variant_metadata(
+        &splat2tiles_tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap(),
     );
     for tr in traces {
         // `ONLY=<part of a trace label>` runs that trace alone.
@@ -338,7 +338,7 @@ fn oracle_miss_causes_on_the_city_traces() {
             continue;
         }
         let needed: Vec<Vec<TileKey>> = tr.poses.iter().map(|p| truth.needed_at(&cfg, p)).collect();
-        let warm = |log: &splat2tiles::sim::session::SessionLog| {
+        let warm = |log: &splat2tiles_lab::sim::session::SessionLog| {
             let resident = held_tiles(log);
             let views = tick_views(log, needed.iter().map(Vec::as_slice), &resident);
             // Warm from the time the link needs for the first cut at Low (`sim::score`).
@@ -410,7 +410,7 @@ fn oracle_miss_causes_on_the_city_traces() {
                     Box::new(Oracle {
                         trace: tr.poses.clone(),
                     })
-                        as Box<dyn splat2tiles::stream::predict::Predictor + Send>
+                        as Box<dyn splat2tiles_stream::predict::Predictor + Send>
                 }),
                 ..SessionOptions::default()
             };
@@ -580,8 +580,8 @@ fn oracle_miss_causes_on_the_city_traces() {
             eprintln!("  DETAIL first-time entries / warm misses per 5 s: {bins:?}");
             // Earliest-deadline-first at Low over a 10 Mbit/s link with perfect foresight from
             // the first tick: the first cut due at t0, every first-time entry at its tick.
-            let ts = splat2tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap();
-            let meta = splat2tiles::variants::content_variant_metadata(&ts);
+            let ts = splat2tiles_tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap();
+            let meta = splat2tiles_tiles::variants::content_variant_metadata(&ts);
             for lvl in [3usize, 0] {
                 let mut jobs: Vec<(f64, u64)> = vec![];
                 let mut ever = std::collections::HashSet::new();
@@ -724,7 +724,7 @@ fn oracle_miss_causes_on_the_city_traces() {
                         .iter()
                         .filter(|r| r.key.is_some() && r.end_s.is_some_and(|e| e >= a && e < b))
                     {
-                        if r.outcome == splat2tiles::sim::transport::Outcome::Done {
+                        if r.outcome == splat2tiles_lab::sim::transport::Outcome::Done {
                             kb += r.bytes / 1000;
                             n_done += 1;
                         } else {
@@ -736,7 +736,7 @@ fn oracle_miss_causes_on_the_city_traces() {
                         kb / n_done.max(1)
                     );
                     for r in oracle.requests.iter().filter(|r| {
-                        r.outcome == splat2tiles::sim::transport::Outcome::Done
+                        r.outcome == splat2tiles_lab::sim::transport::Outcome::Done
                             && r.end_s.is_some_and(|e| e >= a && e < b)
                     }) {
                         let Some(k) = r.key else { continue };
@@ -804,7 +804,7 @@ fn oracle_miss_causes_on_the_city_traces() {
                 let mut new_b = [0u64; 4];
                 let mut up_b = 0u64;
                 for r in oracle.requests.iter().filter(|r| {
-                    r.outcome == splat2tiles::sim::transport::Outcome::Done
+                    r.outcome == splat2tiles_lab::sim::transport::Outcome::Done
                         && r.end_s.is_some_and(|e| e >= a && e < b)
                 }) {
                     let (Some(k), Some(l)) = (r.key, r.level) else {

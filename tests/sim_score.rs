@@ -6,11 +6,11 @@ mod common;
 
 use common::*;
 use glam::DVec3;
-use splat2tiles::render::Camera;
-use splat2tiles::render::camera::look_at_pose;
-use splat2tiles::sim::score::Truth;
-use splat2tiles::stream::catalog::Level;
-use splat2tiles::tiling::TileKey;
+use splat2tiles_core::camera::Camera;
+use splat2tiles_core::camera::look_at_pose;
+use splat2tiles_lab::sim::score::Truth;
+use splat2tiles_stream::catalog::Level;
+use splat2tiles_tiles::tiling::TileKey;
 use std::process::Command;
 
 #[test]
@@ -37,7 +37,7 @@ fn quality_is_one_for_the_cut_at_best_and_drops_with_damage() {
 
     // The plant's autoView 0 camera at 1280x720.
     let (lo, hi) = truth.bounds().unwrap();
-    let view = splat2tiles::render::camera::auto_views_with(lo, hi, DVec3::Z, 1280, 720, 50.0)[0];
+    let view = splat2tiles_core::camera::auto_views_with(lo, hi, DVec3::Z, 1280, 720, 50.0)[0];
     // Closer than the overview, so the plant fills the frame and the cut refines.
     let (centre, eye) = ((lo + hi) / 2.0, view.center());
     let near = Camera::from_pose(

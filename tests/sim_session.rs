@@ -7,17 +7,17 @@ mod common;
 
 use common::scene;
 use glam::DVec3;
-use splat2tiles::client::{ClientConfig, PredictorKind, StreamClient, timeline};
-use splat2tiles::convert::{ConvertOptions, convert};
-use splat2tiles::sim::session::{SessionLog, SessionOptions, run_session};
-use splat2tiles::sim::summary::summarize;
-use splat2tiles::sim::trace::{self, Trace};
-use splat2tiles::sim::transport::{NetModel, Outcome};
-use splat2tiles::stream::Level;
-use splat2tiles::stream::catalog::TileCatalog;
-use splat2tiles::stream::predict::{Oracle, Predictor};
-use splat2tiles::tiling::load::load_tileset;
-use splat2tiles::variants::{Variant, VariantOptions};
+use splat2tiles_stream::client::{ClientConfig, PredictorKind, StreamClient, timeline};
+use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_lab::sim::session::{SessionLog, SessionOptions, run_session};
+use splat2tiles_lab::sim::summary::summarize;
+use splat2tiles_stream::trace::{self, Trace};
+use splat2tiles_lab::sim::transport::{NetModel, Outcome};
+use splat2tiles_stream::Level;
+use splat2tiles_stream::catalog::TileCatalog;
+use splat2tiles_stream::predict::{Oracle, Predictor};
+use splat2tiles_tiles::tiling::load::load_tileset;
+use splat2tiles_tiles::variants::{Variant, VariantOptions};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -269,7 +269,7 @@ fn a_speed_change_replans() {
         } else {
             0.0
         };
-        poses.push(splat2tiles::stream::geom::ViewPose {
+        poses.push(splat2tiles_stream::geom::ViewPose {
             t,
             pos: still.pos + DVec3::new(0.0, 0.0, step),
             ..still

@@ -5,7 +5,7 @@
 mod common;
 
 use serde_json::{Value, json};
-use splat2tiles::validate::{ValidateOptions, validate_tileset};
+use splat2tiles_validate::{ValidateOptions, validate_tileset};
 use std::path::Path;
 use std::process::Command;
 
@@ -153,8 +153,8 @@ fn explicit_trees_deeper_than_serde_default_parse() {
 /// overflows. Wrongly typed members are a JSON_PARSE_ERROR, also without a panic.
 #[test]
 fn plain_gltf_with_absurd_numbers_is_reported_not_fatal() {
-    use splat2tiles::encode::glb::write_glb;
-    use splat2tiles::validate::validate_glb_bytes;
+    use splat2tiles_tiles::encode::glb::write_glb;
+    use splat2tiles_validate::validate_glb_bytes;
     let json = json!({
         "asset": {"version": "2.0"},
         "buffers": [{"byteLength": 16}],

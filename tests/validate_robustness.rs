@@ -2,7 +2,7 @@
 //! fuzz seed and every prefix of it must give a report or an error, never a panic. Crash inputs
 //! found by fuzzing (RELIABILITY.md) are added to `fuzz/seeds/<target>/` and replayed here.
 
-use splat2tiles::validate::{
+use splat2tiles_validate::{
     ValidateOptions, validate_glb_bytes, validate_subtree_bytes, validate_tileset_bytes,
 };
 use std::path::Path;
@@ -42,7 +42,7 @@ fn glb_seeds_and_prefixes_never_panic() {
         let r = validate_glb_bytes(&bytes, &opts);
         assert_eq!(r.num_errors, 0, "{name}: {}", r.to_text(&name));
         for n in cuts(bytes.len()) {
-            let _ = splat2tiles::encode::read_tile_glb(&bytes[..n]);
+            let _ = splat2tiles_tiles::encode::read_tile_glb(&bytes[..n]);
             let r = validate_glb_bytes(&bytes[..n], &opts);
             assert!(r.num_errors > 0, "{name}: prefix {n} accepted");
         }
@@ -54,7 +54,7 @@ fn subtree_seeds_and_prefixes_never_panic() {
     let opts = ValidateOptions::default();
     for (_, bytes) in seeds("subtree") {
         for n in cuts(bytes.len()).into_iter().chain([bytes.len()]) {
-            let _ = splat2tiles::tiling::subtree::read_subtree(&bytes[..n]);
+            let _ = splat2tiles_tiles::tiling::subtree::read_subtree(&bytes[..n]);
             for octree in [false, true] {
                 for levels in 1..=4 {
                     let _ = validate_subtree_bytes(&bytes[..n], octree, levels, &opts);
@@ -96,7 +96,7 @@ fn scene_seeds_and_prefixes_never_panic() {
     for (target, ext) in [("ply", "ply"), ("spz", "spz"), ("splat", "splat")] {
         for (_, bytes) in seeds(target) {
             for n in cuts(bytes.len()).into_iter().chain([bytes.len()]) {
-                let _ = splat2tiles::io::read_bytes(&format!("seed.{ext}"), &bytes[..n]);
+                let _ = splat2tiles_io::read_bytes(&format!("seed.{ext}"), &bytes[..n]);
             }
         }
     }
@@ -119,11 +119,11 @@ fn fuzz_crash_regressions_replay_cleanly() {
             n += 1;
             match target {
                 "glb" => {
-                    let _ = splat2tiles::encode::read_tile_glb(&bytes);
+                    let _ = splat2tiles_tiles::encode::read_tile_glb(&bytes);
                     let _ = validate_glb_bytes(&bytes, &opts);
                 }
                 "subtree" => {
-                    let _ = splat2tiles::tiling::subtree::read_subtree(&bytes);
+                    let _ = splat2tiles_tiles::tiling::subtree::read_subtree(&bytes);
                     let _ = validate_subtree_bytes(
                         &bytes,
                         bytes.first().is_some_and(|b| b & 1 == 1),
@@ -133,7 +133,7 @@ fn fuzz_crash_regressions_replay_cleanly() {
                 }
                 "tileset" => replay_tileset(scratch.path(), &bytes, &opts),
                 ext => {
-                    let _ = splat2tiles::io::read_bytes(&format!("crash.{ext}"), &bytes);
+                    let _ = splat2tiles_io::read_bytes(&format!("crash.{ext}"), &bytes);
                 }
             }
         }

@@ -2,8 +2,8 @@
 //! `tiling::tileset::schema()` emits, and `spec/validation.md` in sync with the issue catalogue.
 
 use serde_json::Value;
-use splat2tiles::tiling::tileset::schema;
-use splat2tiles::validate::CATALOGUE;
+use splat2tiles_tiles::tiling::tileset::schema;
+use splat2tiles_validate::CATALOGUE;
 use std::path::Path;
 
 /// Checks `v` against the subset of JSON Schema keywords the document uses; returns the errors.

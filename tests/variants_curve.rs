@@ -6,13 +6,13 @@
 mod common;
 
 use common::*;
-use splat2tiles::convert::{ConvertOptions, convert_scene};
-use splat2tiles::encode::storage_order::aligned_to_best;
-use splat2tiles::splat::Splats;
-use splat2tiles::tiling::load::load_tileset;
-use splat2tiles::variants::estimate::estimated_utilities;
-use splat2tiles::variants::utility::ViewSetup;
-use splat2tiles::variants::{
+use splat2tiles_build::convert::{ConvertOptions, convert_scene};
+use splat2tiles_tiles::encode::storage_order::aligned_to_best;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::tiling::load::load_tileset;
+use splat2tiles_build::variants::estimate::estimated_utilities;
+use splat2tiles_build::variants::utility::ViewSetup;
+use splat2tiles_tiles::variants::{
     ALL, VariantOptions, content_uri, content_variant_metadata, decode_variant, up_in_source,
 };
 
@@ -20,7 +20,7 @@ use splat2tiles::variants::{
 /// from the files read back at the tile's switching distance).
 fn stored_and_read_back(
     name: &str,
-    sc: splat2tiles::io::Scene,
+    sc: splat2tiles_io::Scene,
     max_splats: usize,
 ) -> Vec<(f64, f64)> {
     let tmp = tempfile::tempdir().unwrap();
@@ -68,7 +68,7 @@ fn stored_and_read_back(
         let cands: Vec<&Splats> = aligned.iter().collect();
         let read_back = estimated_utilities(best, &cands, &setup);
         let stored = meta[&t.key].2;
-        let x = setup.eye_distance() / splat2tiles::render::camera::box_radius(setup.lo, setup.hi);
+        let x = setup.eye_distance() / splat2tiles_core::camera::box_radius(setup.lo, setup.hi);
         for (i, r) in read_back.iter().enumerate() {
             if std::env::var_os("CURVE_DEBUG").is_some() {
                 eprintln!(
@@ -89,15 +89,15 @@ fn stored_utilities_match_the_read_back_estimate() {
     let inputs = [
         (
             "plant.splat",
-            splat2tiles::io::read_path(&scene("plant.splat")).unwrap(),
+            splat2tiles_io::read_path(&scene("plant.splat")).unwrap(),
         ),
         (
             "donut_fused_sh0.ply",
-            splat2tiles::io::read_path(&scene("donut_fused_sh0.ply")).unwrap(),
+            splat2tiles_io::read_path(&scene("donut_fused_sh0.ply")).unwrap(),
         ),
         (
             "biker.spz",
-            splat2tiles::io::read_path(&scene("biker.spz")).unwrap(),
+            splat2tiles_io::read_path(&scene("biker.spz")).unwrap(),
         ),
         ("plant + SH1-3 (generated)", plant_sh3()),
     ];

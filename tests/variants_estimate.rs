@@ -5,13 +5,13 @@
 mod common;
 
 use common::*;
-use splat2tiles::convert::{ConvertOptions, convert_scene};
-use splat2tiles::encode::storage_order::aligned_to_best;
-use splat2tiles::splat::Splats;
-use splat2tiles::tiling::load::load_tileset;
-use splat2tiles::variants::estimate::{FEATURE_NAMES, WEIGHTS, features, predicted_loss};
-use splat2tiles::variants::utility::{Score, ViewSetup, scores, utility_of};
-use splat2tiles::variants::{ALL, VariantOptions, content_uri, decode_variant, up_in_source};
+use splat2tiles_build::convert::{ConvertOptions, convert_scene};
+use splat2tiles_tiles::encode::storage_order::aligned_to_best;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::tiling::load::load_tileset;
+use splat2tiles_build::variants::estimate::{FEATURE_NAMES, WEIGHTS, features, predicted_loss};
+use splat2tiles_build::variants::utility::{Score, ViewSetup, scores, utility_of};
+use splat2tiles_tiles::variants::{ALL, VariantOptions, content_uri, decode_variant, up_in_source};
 
 /// One (tile, variant) pair: the estimate's features and the rendered utility.
 #[derive(Debug, Clone)]
@@ -26,7 +26,7 @@ struct Row {
 }
 
 /// Every content tile of `sc` converted with all variants at `max_splats` per tile: the rows.
-fn rows(name: &str, sc: splat2tiles::io::Scene, max_splats: usize) -> Vec<Row> {
+fn rows(name: &str, sc: splat2tiles_io::Scene, max_splats: usize) -> Vec<Row> {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("ts");
     let opts = ConvertOptions {
@@ -171,7 +171,7 @@ fn design(rows: &[&Row]) -> (Vec<[f64; 5]>, Vec<f64>) {
 
 /// Estimated utility of a row under `w`.
 fn estimate(r: &Row, w: &[f64; 5]) -> f64 {
-    let f = splat2tiles::variants::estimate::Features {
+    let f = splat2tiles_build::variants::estimate::Features {
         colour: r.features[0],
         opacity: r.features[1],
         position: r.features[2],
@@ -209,7 +209,7 @@ fn all_rows(max_splats: usize) -> Vec<Row> {
     for name in ["plant.splat", "donut_fused_sh0.ply", "biker.spz"] {
         out.extend(rows(
             name,
-            splat2tiles::io::read_path(&scene(name)).unwrap(),
+            splat2tiles_io::read_path(&scene(name)).unwrap(),
             max_splats,
         ));
     }
@@ -311,7 +311,7 @@ fn estimate_follows_the_renders_on_the_donut() {
     let name = "donut_fused_sh0.ply";
     let rows = rows(
         name,
-        splat2tiles::io::read_path(&scene(name)).unwrap(),
+        splat2tiles_io::read_path(&scene(name)).unwrap(),
         16384,
     );
     let refs: Vec<&Row> = rows.iter().collect();
@@ -356,7 +356,7 @@ fn variants_and_estimates_are_the_same_out_of_core() {
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| splat2tiles::convert::convert(&input, out, &opts))
+        pool.install(|| splat2tiles_build::convert::convert(&input, out, &opts))
             .unwrap()
     };
     let (mem, ooc) = (tmp.path().join("mem"), tmp.path().join("ooc"));
@@ -370,6 +370,6 @@ fn variants_and_estimates_are_the_same_out_of_core() {
         assert!(v == &fb[k], "{} differs", k.display());
     }
     let ts = load_tileset(&mem.join("tileset.json")).unwrap();
-    let meta = splat2tiles::variants::content_variant_metadata(&ts);
+    let meta = splat2tiles_tiles::variants::content_variant_metadata(&ts);
     assert!(meta.values().all(|(_, _, u)| u[1] > 0.0 && u[1] < 1.0));
 }

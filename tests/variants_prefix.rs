@@ -4,10 +4,10 @@
 mod common;
 
 use common::*;
-use splat2tiles::encode::read_tile_glb;
-use splat2tiles::encode::tile::{TileLayout, try_write_tile_glb};
-use splat2tiles::encode::{decode_prefix, prefix::prefix_layout};
-use splat2tiles::splat::Splats;
+use splat2tiles_tiles::encode::read_tile_glb;
+use splat2tiles_tiles::encode::tile::{TileLayout, try_write_tile_glb};
+use splat2tiles_tiles::encode::{decode_prefix, prefix::prefix_layout};
+use splat2tiles_core::splat::Splats;
 
 fn assert_prefix_matches(full: &Splats, part: &Splats, k: usize) {
     assert_eq!(part.len(), k);
@@ -55,7 +55,7 @@ fn check_tile(splats: &Splats, centre: [f64; 3]) {
     assert_eq!(decoded, n);
 }
 
-const IDENTITY_M: [f64; 16] = splat2tiles::encode::tile::IDENTITY;
+const IDENTITY_M: [f64; 16] = splat2tiles_tiles::encode::tile::IDENTITY;
 
 #[test]
 fn prefixes_hold_the_leading_splats_sh3() {

@@ -6,19 +6,19 @@
 mod common;
 
 use common::*;
-use splat2tiles::convert::{ConvertOptions, convert_scene};
-use splat2tiles::encode::spz2::{SpzOptions, encode_spz_v2, encode_spz_v2_raw};
-use splat2tiles::io::Scene;
-use splat2tiles::splat::Splats;
-use splat2tiles::tiling::load::load_tileset;
-use splat2tiles::variants::{
+use splat2tiles_build::convert::{ConvertOptions, convert_scene};
+use splat2tiles_tiles::encode::spz2::{SpzOptions, encode_spz_v2, encode_spz_v2_raw};
+use splat2tiles_io::Scene;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::tiling::load::load_tileset;
+use splat2tiles_tiles::variants::{
     ALL, LOW_SPZ, Profile, Variant, VariantOptions, content_uri, content_variant_metadata,
     decode_variant, variant_table,
 };
 
 /// The plant scene's reader result with its splats replaced (keeps format and up axis).
 fn scene_of(splats: Splats) -> Scene {
-    let mut sc = splat2tiles::io::read_path(&scene("plant.splat")).unwrap();
+    let mut sc = splat2tiles_io::read_path(&scene("plant.splat")).unwrap();
     sc.splats = splats;
     sc
 }
@@ -102,7 +102,7 @@ fn check(name: &str, scene: Scene) -> [(f64, f64); 4] {
 fn plant_variants() {
     check(
         "plant",
-        splat2tiles::io::read_path(&scene("plant.splat")).unwrap(),
+        splat2tiles_io::read_path(&scene("plant.splat")).unwrap(),
     );
 }
 
@@ -110,13 +110,13 @@ fn plant_variants() {
 fn donut_variants() {
     check(
         "donut",
-        splat2tiles::io::read_path(&scene("donut_fused_sh0.ply")).unwrap(),
+        splat2tiles_io::read_path(&scene("donut_fused_sh0.ply")).unwrap(),
     );
 }
 
 #[test]
 fn biker_variants() {
-    let s = splat2tiles::io::read_path(&scene("biker.spz")).unwrap();
+    let s = splat2tiles_io::read_path(&scene("biker.spz")).unwrap();
     check("biker", s);
 }
 
@@ -180,8 +180,8 @@ fn cesium_profile_points_at_spz_tiles() {
     let ts = load_tileset(&out.join("tileset.json")).unwrap();
     for t in ts.tiles.iter().filter(|t| t.content.is_some()) {
         let glb = std::fs::read(t.content.as_ref().unwrap()).unwrap();
-        let chunks = splat2tiles::encode::glb::read_glb(&glb).unwrap();
-        let doc = splat2tiles::encode::glb::parse_json(&chunks).unwrap();
+        let chunks = splat2tiles_tiles::encode::glb::read_glb(&glb).unwrap();
+        let doc = splat2tiles_tiles::encode::glb::parse_json(&chunks).unwrap();
         let attrs = &doc.meshes[0].primitives[0].attributes;
         assert!(attrs.contains_key("COLOR_0"));
         let sh = attrs.keys().filter(|k| k.contains("SH_DEGREE_")).count();

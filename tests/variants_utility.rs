@@ -6,17 +6,17 @@ mod common;
 
 use common::*;
 use glam::DVec3;
-use splat2tiles::convert::{ConvertOptions, convert_scene};
-use splat2tiles::encode::storage_order::aligned_to_best;
-use splat2tiles::render::metrics::ssim_plane;
-use splat2tiles::render::{Camera, Image, render_splats, ssim};
-use splat2tiles::splat::Splats;
-use splat2tiles::splat::sh::SH_C0;
-use splat2tiles::tiling::load::load_tileset;
-use splat2tiles::variants::curve::loss_curve;
-use splat2tiles::variants::estimate::{estimated_utilities, features};
-use splat2tiles::variants::utility::{BACKGROUND, ViewSetup, render_options, scores};
-use splat2tiles::variants::{Variant, VariantOptions, content_uri, decode_variant, up_in_source};
+use splat2tiles_build::convert::{ConvertOptions, convert_scene};
+use splat2tiles_tiles::encode::storage_order::aligned_to_best;
+use splat2tiles_render::metrics::ssim_plane;
+use splat2tiles_render::{Camera, Image, render_splats, ssim};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_core::splat::sh::SH_C0;
+use splat2tiles_tiles::tiling::load::load_tileset;
+use splat2tiles_build::variants::curve::loss_curve;
+use splat2tiles_build::variants::estimate::{estimated_utilities, features};
+use splat2tiles_build::variants::utility::{BACKGROUND, ViewSetup, render_options, scores};
+use splat2tiles_tiles::variants::{Variant, VariantOptions, content_uri, decode_variant, up_in_source};
 
 /// The largest leaf tile of a shared scene converted at the default tile size: tile-relative
 /// Best splats and the up direction of the utility views.
@@ -30,7 +30,7 @@ fn largest_tile(name: &str) -> (Splats, DVec3) {
         },
         ..Default::default()
     };
-    let sc = splat2tiles::io::read_path(&scene(name)).unwrap();
+    let sc = splat2tiles_io::read_path(&scene(name)).unwrap();
     convert_scene(sc, name, &out, &opts).unwrap();
     let ts = load_tileset(&out.join("tileset.json")).unwrap();
     let t = ts
@@ -82,7 +82,7 @@ fn check_damage(name: &str) {
     cands.extend(damaged.iter());
     let (lo, hi) = tile.bounds().unwrap();
     let setup = ViewSetup::estimated(DVec3::from_array(lo), DVec3::from_array(hi), up);
-    let u = splat2tiles::variants::utilities(&tile, &cands, &setup);
+    let u = splat2tiles_build::variants::utilities(&tile, &cands, &setup);
     let sc = scores(&tile, &cands, &setup.windows());
     eprintln!("{name}: window {} px, scores {sc:?}", setup.window_side());
     eprintln!(
@@ -214,20 +214,20 @@ fn padded_ssim_is_the_full_frame_ssim() {
 #[test]
 #[ignore = "slow (full-frame renders of every tile); produces the BENCHMARKS.md table"]
 fn correlation_table() {
-    use splat2tiles::variants::{ALL, content_variant_metadata};
+    use splat2tiles_tiles::variants::{ALL, content_variant_metadata};
     use std::fmt::Write as _;
     let inputs = [
         (
             "plant.splat",
-            splat2tiles::io::read_path(&scene("plant.splat")).unwrap(),
+            splat2tiles_io::read_path(&scene("plant.splat")).unwrap(),
         ),
         (
             "donut_fused_sh0.ply",
-            splat2tiles::io::read_path(&scene("donut_fused_sh0.ply")).unwrap(),
+            splat2tiles_io::read_path(&scene("donut_fused_sh0.ply")).unwrap(),
         ),
         (
             "biker.spz",
-            splat2tiles::io::read_path(&scene("biker.spz")).unwrap(),
+            splat2tiles_io::read_path(&scene("biker.spz")).unwrap(),
         ),
         ("plant + SH1-3 (generated)", plant_sh3()),
     ];

@@ -8,8 +8,8 @@ mod common;
 
 use common::*;
 use serde_json::Value;
-use splat2tiles::render::image::Image;
-use splat2tiles::render::metrics::ssim;
+use splat2tiles_render::image::Image;
+use splat2tiles_render::metrics::ssim;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -384,7 +384,7 @@ fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
 /// converted into `dir/name`, z up, georeferenced at `origin` when given, at most 16,384 splats
 /// per tile.
 fn city(dir: &Path, name: &str, n: usize, origin: Option<&str>) -> PathBuf {
-    use splat2tiles::splat::city::{CityLayout, city_scene, generate_city, shared_sources};
+    use splat2tiles_lab::city::{CityLayout, city_scene, generate_city, shared_sources};
     // Every 8th splat of each scene: more, lighter copies (SwiftShader draws every frame).
     let sources: Vec<_> = shared_sources(&scenes())
         .expect("shared scenes")
@@ -396,15 +396,15 @@ fn city(dir: &Path, name: &str, n: usize, origin: Option<&str>) -> PathBuf {
         ..CityLayout::default()
     };
     let out = dir.join(name);
-    let opts = splat2tiles::convert::ConvertOptions {
-        up_axis: Some(splat2tiles::frame::UpAxis::PosZ),
-        origin: origin.map(|o| splat2tiles::frame::geo::Geodetic::parse(o).unwrap()),
+    let opts = splat2tiles_build::convert::ConvertOptions {
+        up_axis: Some(splat2tiles_core::frame::UpAxis::PosZ),
+        origin: origin.map(|o| splat2tiles_core::frame::geo::Geodetic::parse(o).unwrap()),
         // Tiles of at most one renderer page: a root drawn alone fits one (the case that drew
         // a single grey dot in WebGL2 before the layer-count fix).
         max_splats_per_tile: 16_384,
-        ..splat2tiles::convert::ConvertOptions::default()
+        ..splat2tiles_build::convert::ConvertOptions::default()
     };
-    splat2tiles::convert::convert_scene(
+    splat2tiles_build::convert::convert_scene(
         city_scene(generate_city(&sources, &layout)),
         name,
         &out,
@@ -500,22 +500,22 @@ fn web_vs_reference(
 /// 12,775, `cargo test --test web_viewer draws_generated_cities` before 'settled' was fixed).
 #[test]
 fn web_viewer_draws_generated_cities_like_the_reference() {
-    use splat2tiles::render::view_spec::ViewSpec;
+    use splat2tiles_core::view_spec::ViewSpec;
     require_harness();
     let tmp = tempfile::tempdir().unwrap();
     let origin = "2.2945,48.8584,35";
     let local = city(tmp.path(), "local", 60_000, None);
     let geo = city(tmp.path(), "geo", 60_000, Some(origin));
     // Street level: 1.7 m above the ground (z = 0), at the south edge, looking north.
-    let ts = splat2tiles::tiling::load::load_tileset(&local.join("tileset.json")).unwrap();
-    let (lo, hi) = splat2tiles::render::cli::tileset_bounds(&ts).unwrap();
+    let ts = splat2tiles_tiles::tiling::load::load_tileset(&local.join("tileset.json")).unwrap();
+    let (lo, hi) = splat2tiles_tiles::geometry::tileset_bounds(&ts).unwrap();
     let (x, y) = (0.5 * (lo.x + hi.x), lo.y - 2.0);
     let street = format!("look-at:{x},{y},1.7:{x},{},1.7:0,0,1", y + 10.0);
-    let g = splat2tiles::frame::geo::Geodetic::parse(origin).unwrap();
+    let g = splat2tiles_core::frame::geo::Geodetic::parse(origin).unwrap();
     let eye = g
         .enu_to_ecef()
         .transform_point3(glam::DVec3::new(x, y, 1.7));
-    let e = splat2tiles::frame::geo::Geodetic::from_ecef(eye);
+    let e = splat2tiles_core::frame::geo::Geodetic::from_ecef(eye);
     let geo_street = format!("geo:{},{},{}:0,0", e.lon, e.lat, e.height);
     let cases: [(&Path, [&str; 2], f64, &str, u32); 6] = [
         (&local, ["--auto-view", "0"], 16.0, "local-overview", 0),
@@ -725,12 +725,12 @@ fn web_viewer_runs_the_tcn_predictor() {
 /// reference's layered render.
 #[test]
 fn web_viewer_blends_a_layered_level_change_pose_by_pose() {
-    use splat2tiles::layers::view::layered_instances;
-    use splat2tiles::render::camera::{Camera, auto_views_with};
-    use splat2tiles::render::cli::{tileset_bounds, tileset_up};
-    use splat2tiles::render::raster::{RenderOptions, render};
-    use splat2tiles::tiling::TileKey;
-    use splat2tiles::tiling::load::load_tileset;
+    use splat2tiles_tiles::layers::view::layered_instances;
+    use splat2tiles_core::camera::{Camera, auto_views_with};
+    use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
+    use splat2tiles_render::raster::{RenderOptions, render};
+    use splat2tiles_tiles::tiling::TileKey;
+    use splat2tiles_tiles::tiling::load::load_tileset;
     const STEP: f64 = 0.02;
     const POSES: usize = 40;
     const MAX_SSE: f64 = 16.0;
@@ -740,21 +740,21 @@ fn web_viewer_blends_a_layered_level_change_pose_by_pose() {
     let ply = tmp.path().join("cloud.ply");
     write_ply_file(&ply, &random_splats(6000, 1, 10.0, 7));
     let dir = tmp.path().join("layered");
-    let opts = splat2tiles::convert::ConvertOptions {
+    let opts = splat2tiles_build::convert::ConvertOptions {
         max_splats_per_tile: 400,
-        scheme: splat2tiles::convert::SchemeChoice::Octree,
+        scheme: splat2tiles_build::convert::SchemeChoice::Octree,
         subtree_levels: Some(2),
         layers: true,
         progress: false,
-        ..splat2tiles::convert::ConvertOptions::default()
+        ..splat2tiles_build::convert::ConvertOptions::default()
     };
-    splat2tiles::convert::convert(&ply, &dir, &opts).expect("convert --layers");
+    splat2tiles_build::convert::convert(&ply, &dir, &opts).expect("convert --layers");
     let ts = load_tileset(&dir.join("tileset.json")).unwrap();
     let (lo, hi) = tileset_bounds(&ts).unwrap();
     let up = tileset_up(&ts);
     let auto = auto_views_with(lo, hi, up, w, h, fov).remove(1);
     let root = ts.tiles.iter().find(|t| t.key == TileKey::ROOT).unwrap();
-    let (c, r) = splat2tiles::stream::select::box_sphere(
+    let (c, r) = splat2tiles_tiles::select::box_sphere(
         root.bounding_box.as_ref().unwrap(),
         &ts.root_transform,
     );
@@ -848,7 +848,7 @@ fn web_viewer_blends_a_layered_level_change_pose_by_pose() {
     );
     let (_, cam) = &cams[POSES];
     let inst = layered_instances(&ts, cam, MAX_SSE).unwrap();
-    let refs: Vec<(&splat2tiles::splat::Splats, glam::DMat4)> =
+    let refs: Vec<(&splat2tiles_core::splat::Splats, glam::DMat4)> =
         inst.iter().map(|(s, m)| (s, *m)).collect();
     let cpu = render(&refs, cam, &RenderOptions::default()).quantized();
     let s = ssim(&cpu, &blended[POSES]).unwrap();
@@ -881,8 +881,8 @@ fn web_viewer_draws_every_object_of_a_flat_city_at_its_default_max_sse() {
     };
     let local = convert("local", &[]);
     let geo = convert("geo", &["--origin", "8.5417,47.3769,400"]);
-    let ts = splat2tiles::tiling::load::load_tileset(&local.join("tileset.json")).unwrap();
-    let (lo, hi) = splat2tiles::render::cli::tileset_bounds(&ts).unwrap();
+    let ts = splat2tiles_tiles::tiling::load::load_tileset(&local.join("tileset.json")).unwrap();
+    let (lo, hi) = splat2tiles_tiles::geometry::tileset_bounds(&ts).unwrap();
     let c = (lo + hi) * 0.5;
     let low = format!(
         "look-at:{},{},{}:{},{},0:0,0,1",

@@ -4,10 +4,10 @@
 #![cfg_attr(fuzzing, no_main)]
 
 fn run(data: &[u8]) {
-    let _ = splat2tiles::encode::read_tile_glb(data);
-    let _ = splat2tiles::layers::glb::read_layer(data);
-    let opts = splat2tiles::validate::ValidateOptions::default();
-    let _ = splat2tiles::validate::validate_glb_bytes(data, &opts);
+    let _ = splat2tiles_tiles::encode::read_tile_glb(data);
+    let _ = splat2tiles_tiles::layers::glb::read_layer(data);
+    let opts = splat2tiles_validate::ValidateOptions::default();
+    let _ = splat2tiles_validate::validate_glb_bytes(data, &opts);
 }
 
 #[cfg(fuzzing)]

@@ -7,7 +7,7 @@ fn run(data: &[u8]) {
     let mut r = std::io::BufReader::with_capacity(7, data);
     // Several heads one after another, as on a keep-alive connection.
     for _ in 0..8 {
-        match splat2tiles::serve::http::read_head(&mut r) {
+        match splat2tiles_serve::http::read_head(&mut r) {
             Ok(h) => {
                 let _ = (h.keep_alive(), h.has_body(), h.header("Range"));
             }

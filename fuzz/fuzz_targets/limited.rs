@@ -12,14 +12,14 @@ fn run(data: &[u8]) {
     // 4 KiB .. 128 MiB.
     let limit = 4096u64 << (*lim % 16);
     if pick & 0x80 == 0 {
-        let _ = splat2tiles::io::read_bytes_limited(name, body, limit);
+        let _ = splat2tiles_io::read_bytes_limited(name, body, limit);
         return;
     }
     let dir = std::env::temp_dir().join(format!("s2t-fuzz-limited-{}", std::process::id()));
     let _ = std::fs::create_dir_all(&dir);
     let path = dir.join(name);
     if std::fs::write(&path, body).is_ok() {
-        let _ = splat2tiles::io::read_path_limited(&path, limit);
+        let _ = splat2tiles_io::read_path_limited(&path, limit);
     }
 }
 

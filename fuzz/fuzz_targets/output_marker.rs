@@ -8,8 +8,8 @@ fn run(data: &[u8]) {
     let out = dir.join("out");
     let _ = std::fs::create_dir_all(&out);
     let _ = std::fs::write(out.join("tileset.json"), b"{}");
-    if std::fs::write(out.join(splat2tiles::output::marker::MARKER), data).is_ok() {
-        let _ = splat2tiles::output::guard::check_target(&out);
+    if std::fs::write(out.join(splat2tiles_build::output::marker::MARKER), data).is_ok() {
+        let _ = splat2tiles_build::output::guard::check_target(&out);
     }
 }
 

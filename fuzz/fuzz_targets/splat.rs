@@ -3,7 +3,7 @@
 #![cfg_attr(fuzzing, no_main)]
 
 fn run(data: &[u8]) {
-    let _ = splat2tiles::io::read_bytes("fuzz.splat", data);
+    let _ = splat2tiles_io::read_bytes("fuzz.splat", data);
 }
 
 #[cfg(fuzzing)]

@@ -3,11 +3,11 @@
 #![cfg_attr(fuzzing, no_main)]
 
 fn run(data: &[u8]) {
-    let _ = splat2tiles::tiling::subtree::read_subtree(data);
-    let opts = splat2tiles::validate::ValidateOptions::default();
+    let _ = splat2tiles_tiles::tiling::subtree::read_subtree(data);
+    let opts = splat2tiles_validate::ValidateOptions::default();
     let octree = data.first().is_some_and(|b| b & 1 == 1);
     let levels = 1 + u32::from(data.get(1).copied().unwrap_or(0) % 4);
-    let _ = splat2tiles::validate::validate_subtree_bytes(data, octree, levels, &opts);
+    let _ = splat2tiles_validate::validate_subtree_bytes(data, octree, levels, &opts);
 }
 
 #[cfg(fuzzing)]

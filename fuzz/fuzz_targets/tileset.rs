@@ -26,11 +26,11 @@ fn run(data: &[u8]) {
     // The seeds name these files: `e.json` (external tileset) and `c.bin` (any content).
     let _ = std::fs::write(dir.join("e.json"), external);
     let _ = std::fs::write(dir.join("c.bin"), content);
-    let opts = splat2tiles::validate::ValidateOptions {
+    let opts = splat2tiles_validate::ValidateOptions {
         max_decompressed_bytes: 16 << 20,
         ..Default::default()
     };
-    let _ = splat2tiles::validate::validate_tileset_bytes(main, dir, &opts);
+    let _ = splat2tiles_validate::validate_tileset_bytes(main, dir, &opts);
 }
 
 #[cfg(fuzzing)]

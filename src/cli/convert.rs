@@ -1,12 +1,12 @@
 //! `splat2tiles convert`: arguments, their checks, and the human or JSON summary printed at the
 //! end of a conversion.
 
-use crate::convert::{ConvertOptions, NonFinitePolicy, SchemeChoice, convert};
-use crate::frame::UpAxis;
-use crate::frame::geo::Geodetic;
-use crate::limits::MemoryLimit;
-use crate::lod::{LodOptions, MergeRule};
-use crate::variants::{ALL, Profile, Variant, VariantOptions};
+use splat2tiles_build::convert::{ConvertOptions, NonFinitePolicy, SchemeChoice, convert};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_io::limits::MemoryLimit;
+use splat2tiles_build::lod::{LodOptions, MergeRule};
+use splat2tiles_tiles::variants::{ALL, Profile, Variant, VariantOptions};
 use clap::Args;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -189,9 +189,9 @@ pub fn run(args: ConvertArgs) -> i32 {
     }
     let mut opts = options(&args);
     if let Some(dir) = &args.partition {
-        match crate::partition::plan::load_trace_dir(dir) {
+        match splat2tiles_build::partition::plan::load_trace_dir(dir) {
             Ok(views) => {
-                opts.partition = Some(crate::partition::plan::PartitionRequest {
+                opts.partition = Some(splat2tiles_build::partition::plan::PartitionRequest {
                     views,
                     depth: args.partition_depth,
                     range_m: args.partition_range,
@@ -211,7 +211,7 @@ pub fn run(args: ConvertArgs) -> i32 {
         eprintln!("splat2tiles: --output is required");
         return super::EXIT_FAILURE;
     };
-    crate::output::install_interrupt_handler();
+    splat2tiles_build::output::install_interrupt_handler();
     match convert(&args.input, output, &opts) {
         Ok(r) => {
             for note in &r.notes {
@@ -317,7 +317,7 @@ pub fn run(args: ConvertArgs) -> i32 {
 }
 
 /// Per variant: tiles, bytes, bytes per splat, mean and worst utility over the written tiles.
-fn variant_summary(r: &crate::convert::ConvertReport) -> serde_json::Value {
+fn variant_summary(r: &splat2tiles_build::convert::ConvertReport) -> serde_json::Value {
     let mut out = serde_json::Map::new();
     for v in ALL {
         let i = v.index();

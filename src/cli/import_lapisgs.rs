@@ -2,7 +2,7 @@
 //! tileset (format v2, `spec/layered-content.md`), with a summary of what was carried or dropped.
 
 use super::convert::FrameArgs;
-use crate::convert::{ConvertOptions, import_lapisgs};
+use splat2tiles_build::convert::{ConvertOptions, import_lapisgs};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -45,7 +45,7 @@ pub fn run(args: ImportLapisArgs) -> i32 {
         layers: true,
         ..ConvertOptions::default()
     });
-    crate::output::install_interrupt_handler();
+    splat2tiles_build::output::install_interrupt_handler();
     match import_lapisgs(&args.levels, &args.output, &opts) {
         Ok(r) => {
             if args.json {

@@ -4,10 +4,8 @@
 pub mod convert;
 pub mod import_lapisgs;
 pub mod serve;
+pub mod render;
 pub mod shard;
-pub mod simulate;
-pub mod simulate_city;
-mod simulate_layers;
 pub mod stats;
 pub mod validate;
 

@@ -1,7 +1,7 @@
 //! `splat2tiles serve` and `splat2tiles view`: serve a tileset folder over HTTP (and, for `view`,
 //! the web viewer at `/viewer/`), print the URL, and run until Ctrl-C.
 
-use crate::serve::{Mount, ServeError, ServeOptions, Server};
+use splat2tiles_serve::{Mount, ServeError, ServeOptions, Server};
 use anyhow::{Context, bail};
 use clap::Args;
 use std::io::Write;

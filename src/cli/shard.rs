@@ -2,10 +2,10 @@
 //! PLAN --part I [--phase samples] -o PART_I` (a part) and `merge PLAN PART... -o OUT`.
 
 use super::convert::{ConvertArgs, peak_rss_mib};
-use crate::convert::{
+use splat2tiles_build::convert::{
     ConvertError, ConvertOptions, MAX_PARTS, PartPhase, convert_part, make_plan, merge_parts,
 };
-use crate::limits::MemoryLimit;
+use splat2tiles_io::limits::MemoryLimit;
 use clap::Args;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -82,7 +82,7 @@ fn notes(notes: &[String]) {
 
 /// Runs `convert --plan`: the plan, or one part of it.
 pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
-    crate::output::install_interrupt_handler();
+    splat2tiles_build::output::install_interrupt_handler();
     let s = &args.shard;
     let Some(part) = s.part else {
         let Some(parts) = s.parts else {
@@ -161,7 +161,7 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
 
 /// Runs `merge`; returns the process exit code.
 pub fn run_merge(args: MergeArgs) -> i32 {
-    crate::output::install_interrupt_handler();
+    splat2tiles_build::output::install_interrupt_handler();
     let limit = args
         .memory_limit
         .unwrap_or_else(MemoryLimit::machine_default)

@@ -1,8 +1,8 @@
 //! `splat2tiles stats`: the per-level table of a tileset (tiles, splats, bytes, geometric error),
 //! read from `tileset.json`, its subtrees and the content files' sizes only.
 
-use crate::lod::eval::level_table;
-use crate::tiling::load::load_tileset;
+use splat2tiles_build::lod::eval::level_table;
+use splat2tiles_tiles::tiling::load::load_tileset;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -40,7 +40,7 @@ pub fn table(args: &StatsArgs) -> anyhow::Result<String> {
     };
     let ts = load_tileset(&path)?;
     let rows = level_table(&ts)?;
-    let vrows: Vec<_> = crate::variants::variant_table(&ts)
+    let vrows: Vec<_> = splat2tiles_tiles::variants::variant_table(&ts)
         .into_iter()
         .filter(|r| r.tiles > 0)
         .collect();

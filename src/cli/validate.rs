@@ -1,7 +1,7 @@
 //! `splat2tiles validate`: arguments, the run, and the report printed as text or JSON (exit 0 when
 //! no ERROR, 1 when errors were found, 2 when the tileset cannot be read at all).
 
-use crate::validate::{ValidateOptions, validate_tileset};
+use splat2tiles_validate::{ValidateOptions, validate_tileset};
 use clap::Args;
 use std::path::PathBuf;
 

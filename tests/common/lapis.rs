@@ -1,7 +1,7 @@
 //! Generated LapisGS-like level files (`import-lapisgs` tests): each level keeps the previous
 //! level's splats in order, changes some of their opacities, and appends its own.
 
-use splat2tiles::splat::Splats;
+use splat2tiles_core::splat::Splats;
 use std::path::{Path, PathBuf};
 
 /// LapisGS-like levels over `all` (each level = the first `sizes[k]` splats): level `k` keeps

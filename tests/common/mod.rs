@@ -9,10 +9,10 @@ pub mod scenes;
 pub mod splat_file;
 
 use glam::{DMat3, DMat4, DVec3};
-use splat2tiles::encode::read_tile_glb;
-use splat2tiles::splat::{Splat, Splats, sh_rest_count};
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::load_tileset;
+use splat2tiles_tiles::encode::read_tile_glb;
+use splat2tiles_core::splat::{Splat, Splats, sh_rest_count};
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::load::load_tileset;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -114,7 +114,7 @@ pub fn random_splats(n: usize, deg: u8, size: f64, seed: u64) -> Splats {
             r.range(-1.0, 1.0) as f32,
             r.range(-1.0, 1.0) as f32,
         ];
-        let rot = splat2tiles::splat::normalize_quat(q);
+        let rot = splat2tiles_core::splat::normalize_quat(q);
         let splat = Splat {
             position: [
                 r.range(0.0, size),
@@ -151,7 +151,7 @@ pub fn random_splats(n: usize, deg: u8, size: f64, seed: u64) -> Splats {
 /// Writes `splats` as a trainer PLY file.
 pub fn write_ply_file(path: &Path, splats: &Splats) {
     let f = std::fs::File::create(path).expect("create ply");
-    splat2tiles::io::write_ply(splats, std::io::BufWriter::new(f)).expect("write ply");
+    splat2tiles_io::write_ply(splats, std::io::BufWriter::new(f)).expect("write ply");
 }
 
 /// A decoded content tile: splats with positions back in the source frame.
@@ -237,8 +237,8 @@ pub fn require_chromium() {
 }
 
 /// The plant with small random SH degree 1-3 coefficients (|c| <= 0.08): the generated SH3 scene.
-pub fn plant_sh3() -> splat2tiles::io::Scene {
-    let mut sc = splat2tiles::io::read_path(&scene("plant.splat")).unwrap();
+pub fn plant_sh3() -> splat2tiles_io::Scene {
+    let mut sc = splat2tiles_io::read_path(&scene("plant.splat")).unwrap();
     let mut r = Rng(99);
     sc.splats.sh_degree = 3;
     sc.splats.sh_rest = (0..sc.splats.len() * 15)
@@ -281,10 +281,10 @@ pub fn spearman(a: &[f64], b: &[f64]) -> f64 {
 /// pass-through, below the root with a single child and its parent's bounding box and geometric
 /// error, so a REPLACE traversal never stops at it; errors never grow downwards. Returns the
 /// number of pass-throughs.
-pub fn assert_levels_complete(ts: &splat2tiles::tiling::load::LoadedTileset) -> usize {
-    let by_key: HashMap<TileKey, &splat2tiles::tiling::load::LoadedTile> =
+pub fn assert_levels_complete(ts: &splat2tiles_tiles::tiling::load::LoadedTileset) -> usize {
+    let by_key: HashMap<TileKey, &splat2tiles_tiles::tiling::load::LoadedTile> =
         ts.tiles.iter().map(|t| (t.key, t)).collect();
-    let children = splat2tiles::tiling::levels::child_counts(ts.tiles.iter().map(|t| &t.key));
+    let children = splat2tiles_tiles::tiling::levels::child_counts(ts.tiles.iter().map(|t| &t.key));
     let mut passes = 0;
     for t in &ts.tiles {
         if let Some(p) = t.key.parent().map(|p| by_key[&p]) {
@@ -326,10 +326,10 @@ pub fn assert_levels_complete(ts: &splat2tiles::tiling::load::LoadedTileset) -> 
 /// normalised for generated cities (z up, ground at 0, horizontal size 1).
 pub fn plant_sample(step: usize) -> Splats {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/plant.splat");
-    let scene = splat2tiles::io::read_path(&path).unwrap();
+    let scene = splat2tiles_io::read_path(&path).unwrap();
     let order: Vec<usize> = (0..scene.splats.len()).step_by(step).collect();
-    splat2tiles::splat::city::normalise_source(
+    splat2tiles_lab::city::normalise_source(
         &scene.splats.select(&order),
-        splat2tiles::frame::UpAxis::NegY,
+        splat2tiles_core::frame::UpAxis::NegY,
     )
 }

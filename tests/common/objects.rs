@@ -1,7 +1,7 @@
 //! Objects in a screenshot: connected foreground components and the colour inside a box, for
 //! the tests that check a cut draws every object a full-detail view shows.
 
-use splat2tiles::render::image::Image;
+use splat2tiles_render::image::Image;
 use std::path::Path;
 
 /// A pixel box (x0, y0, x1, y1), inclusive.
@@ -87,7 +87,7 @@ pub fn missing_objects(
 /// splat, 7-16 m wide) on a 200 m grid, z up. Distant objects of such a city are the ones
 /// a cut once dropped.
 pub fn write_flat_city(path: &Path) {
-    use splat2tiles::splat::city::{CityLayout, generate_city};
+    use splat2tiles_lab::city::{CityLayout, generate_city};
     let source = super::plant_sample(16);
     let layout = CityLayout {
         splats: source.len() * 16,
@@ -98,5 +98,5 @@ pub fn write_flat_city(path: &Path) {
     };
     let city = generate_city(&[source], &layout);
     let f = std::fs::File::create(path).unwrap();
-    splat2tiles::io::write_ply(&city, std::io::BufWriter::new(f)).unwrap();
+    splat2tiles_io::write_ply(&city, std::io::BufWriter::new(f)).unwrap();
 }

@@ -2,8 +2,8 @@
 //! a camera at the origin looking down +z.
 
 use glam::{DMat4, DVec3};
-use splat2tiles::render::Camera;
-use splat2tiles::splat::{Splat, Splats, sh};
+use splat2tiles_core::camera::Camera;
+use splat2tiles_core::splat::{Splat, Splats, sh};
 
 /// One splat with identity rotation and a colour given directly in [0, 1].
 pub fn splat(pos: [f64; 3], scale: [f32; 3], opacity: f32, rgb: [f32; 3]) -> Splat {
@@ -79,7 +79,7 @@ pub fn random_cloud(n: usize, deg: u8, centre: DVec3, seed: u64) -> Splats {
                 0.01 + 0.05 * r.next(),
             ]
             .map(|v| v as f32),
-            rotation: splat2tiles::splat::normalize_quat(q),
+            rotation: splat2tiles_core::splat::normalize_quat(q),
             opacity: (0.2 + 0.8 * r.next()) as f32,
             sh0: [r.next(), r.next(), r.next()].map(|v| ((v - 0.5) * 3.0) as f32),
         };

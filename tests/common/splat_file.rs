@@ -1,7 +1,7 @@
 //! The shared scenes for the render tests and benches, read through the production reader
-//! (`splat2tiles::io`); paths are relative to the crate so CI's checkout finds them.
+//! (`splat2tiles_io`); paths are relative to the crate so CI's checkout finds them.
 
-use splat2tiles::splat::Splats;
+use splat2tiles_core::splat::Splats;
 use std::path::PathBuf;
 
 /// File name of the shared plant scene (113,648 splats).
@@ -16,7 +16,7 @@ pub fn shared_scene(name: &str) -> PathBuf {
 
 /// Reads a shared scene by file name, panicking with the reader's message on failure.
 pub fn read_splat(name: &str) -> Splats {
-    splat2tiles::io::read_path(&shared_scene(name))
+    splat2tiles_io::read_path(&shared_scene(name))
         .unwrap_or_else(|e| panic!("{e}"))
         .splats
 }

@@ -33,10 +33,10 @@ fn limited_seeds_and_prefixes_never_panic() {
             };
             let name = ["fuzz.ply", "fuzz.splat", "fuzz.spz", "fuzz.bin"][(*pick & 3) as usize];
             let limit = 4096u64 << (*lim % 16);
-            let _ = splat2tiles::io::read_bytes_limited(name, body, limit);
+            let _ = splat2tiles_io::read_bytes_limited(name, body, limit);
             let path = tmp.path().join(name);
             std::fs::write(&path, body).unwrap();
-            let _ = splat2tiles::io::read_path_limited(&path, limit);
+            let _ = splat2tiles_io::read_path_limited(&path, limit);
         }
     }
 }
@@ -46,7 +46,7 @@ fn http_head_seeds_and_prefixes_never_panic() {
     for seed in seeds("http_head") {
         for n in cuts(seed.len()) {
             let mut r = std::io::BufReader::with_capacity(7, &seed[..n]);
-            while let Ok(h) = splat2tiles::serve::http::read_head(&mut r) {
+            while let Ok(h) = splat2tiles_serve::http::read_head(&mut r) {
                 let _ = (h.keep_alive(), h.has_body());
             }
         }
@@ -61,8 +61,8 @@ fn marker_seeds_and_prefixes_decide_without_panicking() {
     std::fs::write(out.join("tileset.json"), "{}").unwrap();
     for seed in seeds("output_marker") {
         for n in cuts(seed.len()) {
-            std::fs::write(out.join(splat2tiles::output::marker::MARKER), &seed[..n]).unwrap();
-            let ok = splat2tiles::output::guard::check_target(&out).is_ok();
+            std::fs::write(out.join(splat2tiles_build::output::marker::MARKER), &seed[..n]).unwrap();
+            let ok = splat2tiles_build::output::guard::check_target(&out).is_ok();
             // Only a complete marker listing both entries lets the folder be replaced.
             if ok {
                 assert!(serde_json::from_slice::<serde_json::Value>(&seed[..n]).is_ok());

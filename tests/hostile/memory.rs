@@ -229,7 +229,7 @@ fn header_with_tens_of_thousands_of_properties_is_parsed_quickly() {
     let mut bytes = h.into_bytes();
     bytes.extend(std::iter::repeat_n(0u8, 14 * 4 + 44_000));
     let t = Instant::now();
-    let scene = splat2tiles::io::read_bytes("wide.ply", &bytes).expect("a valid wide PLY");
+    let scene = splat2tiles_io::read_bytes("wide.ply", &bytes).expect("a valid wide PLY");
     assert_eq!(scene.splats.len(), 1);
     // Quadratic took 6.5 s in release (and far longer here); linear takes milliseconds.
     assert!(t.elapsed() < Duration::from_secs(30), "{:?}", t.elapsed());
@@ -237,6 +237,6 @@ fn header_with_tens_of_thousands_of_properties_is_parsed_quickly() {
     let dup = String::from_utf8_lossy(&bytes)
         .replacen("property uchar e43999\n", "property uchar e7\n", 1)
         .into_bytes();
-    let e = splat2tiles::io::read_bytes("wide.ply", &dup).unwrap_err();
+    let e = splat2tiles_io::read_bytes("wide.ply", &dup).unwrap_err();
     assert!(e.to_string().contains("duplicate property 'e7'"), "{e}");
 }

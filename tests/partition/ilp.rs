@@ -5,10 +5,10 @@
 #![allow(dead_code)]
 
 use good_lp::{Expression, Solution, SolverModel, microlp, variable, variables};
-use splat2tiles::partition::tree::node_cuboid;
-use splat2tiles::partition::{CostModel, Cuboid, Grid, View};
-use splat2tiles::stream::rng::SplitMix64;
-use splat2tiles::tiling::partition::{Scheme, TileKey};
+use splat2tiles_build::partition::tree::node_cuboid;
+use splat2tiles_build::partition::{CostModel, Cuboid, Grid, View};
+use splat2tiles_core::rng::SplitMix64;
+use splat2tiles_tiles::tiling::partition::{Scheme, TileKey};
 
 /// The ILP's optimal cover and objective.
 pub fn solve_ilp(model: &CostModel) -> Result<(Vec<Cuboid>, f64), String> {

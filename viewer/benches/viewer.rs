@@ -7,8 +7,8 @@
 //! Run with `cargo bench -p splat2tiles-viewer`; prints a markdown table.
 
 use glam::{DMat4, DVec3};
-use splat2tiles::render::Camera;
-use splat2tiles::splat::{Splat, Splats, normalize_quat};
+use splat2tiles_core::camera::Camera;
+use splat2tiles_core::splat::{Splat, Splats, normalize_quat};
 use splat2tiles_viewer::gpu::{OFFSCREEN_FORMAT, Offscreen};
 use splat2tiles_viewer::sort::{RadixSorter, back_to_front_key};
 use splat2tiles_viewer::{RendererConfig, SplatRenderer};

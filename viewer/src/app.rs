@@ -6,17 +6,17 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use glam::DVec3;
-use splat2tiles::render::camera::Camera;
-use splat2tiles::stream::geom::ViewPose;
+use splat2tiles_core::camera::Camera;
+use splat2tiles_stream::geom::ViewPose;
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-use splat2tiles::client::native::Driver;
-use splat2tiles::render::cli::{RenderArgs, resolve_camera};
-use splat2tiles::render::view_spec::{ViewSpec, is_georeferenced};
+use splat2tiles_stream::client::native::Driver;
+use splat2tiles::cli::render::{RenderArgs, resolve_camera};
+use splat2tiles_core::view_spec::{ViewSpec, is_georeferenced};
 
 use crate::headless::ViewArgs;
 use crate::renderer::{RendererConfig, SplatRenderer};
@@ -93,7 +93,7 @@ struct Gfx {
 struct App {
     size: (u32, u32),
     driver: Driver,
-    pending: Vec<splat2tiles::client::SceneUpdate>,
+    pending: Vec<splat2tiles_stream::client::SceneUpdate>,
     /// Layers whose opacities the renderer holds (layered tilesets).
     scene: crate::layered::SceneSync,
     fly: FlyCamera,
@@ -317,7 +317,7 @@ pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
         crate::stream::bootstrap(&mut driver, url, crate::clock::now_ms() / 1e3, 30.0)?;
     let (bounds, up_default) = crate::stream::world_bounds(&driver);
     let up = match &v.up_axis {
-        Some(s) => splat2tiles::render::camera::parse_axis(s)
+        Some(s) => splat2tiles_core::camera::parse_axis(s)
             .with_context(|| format!("--up-axis '{s}': expected one of +x,-x,+y,-y,+z,-z"))?,
         None => up_default,
     };

@@ -29,7 +29,7 @@ pub struct Cli {
     #[arg(long)]
     pub height: Option<u32>,
     /// Vertical field of view in degrees.
-    #[arg(long, default_value_t = splat2tiles::render::camera::DEFAULT_FOV_Y_DEG)]
+    #[arg(long, default_value_t = splat2tiles_core::camera::DEFAULT_FOV_Y_DEG)]
     pub fov: f64,
     /// Up axis override: +x,-x,+y,-y,+z,-z [default: the tileset's +z].
     #[arg(long, allow_hyphen_values = true)]

@@ -2,7 +2,7 @@
 //! reference's [`Image`] (linear RGB, `Rgba8Unorm` target: no sRGB encoding on either side).
 
 use anyhow::{Context, bail};
-use splat2tiles::render::Image;
+use splat2tiles_render::Image;
 
 /// The format of offscreen frames: plain 8-bit, like the reference's PNGs.
 pub const OFFSCREEN_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;

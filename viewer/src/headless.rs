@@ -5,13 +5,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use glam::DMat4;
-use splat2tiles::render::Image;
-use splat2tiles::render::camera::{self, Camera};
-use splat2tiles::render::cli::{
-    RenderArgs, content_model, parse_vec3, resolve_camera, select_tiles, tileset_bounds, tileset_up,
-};
-use splat2tiles::splat::Splats;
-use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
+use splat2tiles_render::Image;
+use splat2tiles_core::camera::{self, Camera};
+use splat2tiles_tiles::geometry::{content_model, select_tiles, tileset_bounds, tileset_up};
+use splat2tiles::cli::render::{RenderArgs, parse_vec3, resolve_camera};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 
 use crate::gpu::{Headless, OFFSCREEN_FORMAT, Offscreen};
 use crate::renderer::{FrameStats, RendererConfig, SplatRenderer};
@@ -106,7 +105,7 @@ pub fn load_instances(
         .map(|p| {
             let bytes =
                 std::fs::read(p).with_context(|| format!("{}: cannot read", p.display()))?;
-            let (splats, node) = splat2tiles::variants::decode_variant(&bytes)
+            let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
                 .with_context(|| format!("{}: cannot decode the tile", p.display()))?;
             Ok((splats, content_model(ts, &node)))
         })
@@ -223,7 +222,7 @@ pub fn run_trace(
 ) -> anyhow::Result<TraceSummary> {
     let text = std::fs::read_to_string(trace_path)
         .with_context(|| format!("{}: cannot read", trace_path.display()))?;
-    let trace = splat2tiles::sim::trace::Trace::from_csv(&text)
+    let trace = splat2tiles_stream::trace::Trace::from_csv(&text)
         .map_err(|e| anyhow::anyhow!("{}: {e}", trace_path.display()))?;
     if trace.poses.is_empty() {
         anyhow::bail!("{}: the trace has no pose", trace_path.display());

@@ -3,11 +3,11 @@
 //!
 //! Layered tilesets (`spec/layered-content.md`, "Viewers"): inserted layers are drawn without
 //! the renderer's insert fade; each drawn layer's blend factor (`StreamClient::layers`) is scaled
-//! by `splat2tiles::layers::ramp` of the time since the viewer first drew it, and the resulting
+//! by `splat2tiles_tiles::layers::ramp` of the time since the viewer first drew it, and the resulting
 //! effective opacities (`StreamClient::layer_opacities_of`) are written into the renderer.
 
-use splat2tiles::client::{LayerDraw, SceneUpdate, StreamClient};
-use splat2tiles::layers::ramp::LayerRamp;
+use splat2tiles_stream::client::{LayerDraw, SceneUpdate, StreamClient};
+use splat2tiles_tiles::layers::ramp::LayerRamp;
 
 use crate::renderer::SplatRenderer;
 

@@ -1,4 +1,4 @@
-//! The native viewer on a generated city (`splat2tiles::splat::city`, copies of every 8th splat
+//! The native viewer on a generated city (`splat2tiles_lab::city`, copies of every 8th splat
 //! of the shared scenes, `../shared/scenes/README.md`), local and georeferenced: overview (also at
 //! maxSse 64: coarse root splats only) and street view, headless from the tile selection of
 //! `splat2tiles render` and from what the streaming client fetched, vs the CPU reference.
@@ -8,12 +8,12 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
-use splat2tiles::convert::{ConvertOptions, convert_scene};
-use splat2tiles::frame::UpAxis;
-use splat2tiles::frame::geo::Geodetic;
-use splat2tiles::render::metrics::ssim;
-use splat2tiles::render::{Camera, Image};
-use splat2tiles::splat::city::{CityLayout, city_scene, generate_city, shared_sources};
+use splat2tiles_build::convert::{ConvertOptions, convert_scene};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_render::metrics::ssim;
+use splat2tiles_render::{Camera, Image};
+use splat2tiles_lab::city::{CityLayout, city_scene, generate_city, shared_sources};
 use splat2tiles_viewer::gpu::{Headless, OFFSCREEN_FORMAT, Offscreen};
 use splat2tiles_viewer::headless::{ViewArgs, open_tileset, tileset_camera};
 use splat2tiles_viewer::renderer::{RendererConfig, SplatRenderer};
@@ -89,7 +89,7 @@ fn city_overview_and_street_match_the_reference_from_selection_and_stream() {
     let geo = city(tmp.path(), "geo", true);
     // Street level: 1.7 m above the ground, south edge of the city, looking north.
     let ts = open_tileset(&local).unwrap();
-    let (lo, hi) = splat2tiles::render::cli::tileset_bounds(&ts).unwrap();
+    let (lo, hi) = splat2tiles_tiles::geometry::tileset_bounds(&ts).unwrap();
     let (x, y) = (0.5 * (lo.x + hi.x), lo.y - 2.0);
     let street = format!("look-at:{x},{y},1.7:{x},{},1.7:0,0,1", y + 10.0);
     let eye = Geodetic::parse(ORIGIN)

@@ -7,11 +7,11 @@ use std::process::Command;
 
 use common::*;
 use glam::DVec3;
-use splat2tiles::convert::ConvertOptions;
-use splat2tiles::render::cli::tileset_bounds;
-use splat2tiles::render::{Camera, Image, metrics};
-use splat2tiles::sim::trace::Trace;
-use splat2tiles::stream::geom::ViewPose;
+use splat2tiles_build::convert::ConvertOptions;
+use splat2tiles_tiles::geometry::tileset_bounds;
+use splat2tiles_render::{Camera, Image, metrics};
+use splat2tiles_stream::trace::Trace;
+use splat2tiles_stream::geom::ViewPose;
 use splat2tiles_viewer::headless::{ViewArgs, open_tileset};
 
 fn bin() -> Command {
@@ -118,7 +118,7 @@ fn headless_static_and_trace_frames() {
         50.0,
         loaded.root_transform * last.world_from_camera(),
     );
-    let picked = splat2tiles::render::cli::select_tiles(&loaded, &cam, 16.0);
+    let picked = splat2tiles_tiles::geometry::select_tiles(&loaded, &cam, 16.0);
     let inst = splat2tiles_viewer::headless::load_instances(&loaded, &picked).unwrap();
     let cpu = reference(&inst, &cam, &Default::default());
     let s = metrics::ssim(&cpu, &frames[4]).unwrap();
@@ -134,10 +134,10 @@ fn trace_streams_over_http() {
         dir.path(),
         &ConvertOptions::default(),
     );
-    let mount = splat2tiles::serve::Mount::new("/", ts.parent().unwrap()).unwrap();
-    let server = splat2tiles::serve::Server::bind(
+    let mount = splat2tiles_serve::Mount::new("/", ts.parent().unwrap()).unwrap();
+    let server = splat2tiles_serve::Server::bind(
         vec![mount],
-        splat2tiles::serve::ServeOptions {
+        splat2tiles_serve::ServeOptions {
             bind: std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST),
             port: 0,
             quiet: true,

@@ -1,12 +1,12 @@
-//! GPU renderer vs the CPU reference (`splat2tiles::render::raster`) on converted shared scenes:
+//! GPU renderer vs the CPU reference (`splat2tiles_render::raster`) on converted shared scenes:
 //! same tile selection and camera, SSIM >= 0.98 (SH0 plant, SH3 biker subset, georeferenced).
 
 mod common;
 
 use common::*;
 use glam::{DMat4, DVec3};
-use splat2tiles::convert::ConvertOptions;
-use splat2tiles::render::Camera;
+use splat2tiles_build::convert::ConvertOptions;
+use splat2tiles_core::camera::Camera;
 use splat2tiles_viewer::headless::ViewArgs;
 
 fn view(k: usize) -> ViewArgs {
@@ -37,7 +37,7 @@ fn plant_sh0_matches_reference() {
 #[test]
 fn biker_sh3_subset_matches_reference() {
     let dir = tempfile::tempdir().unwrap();
-    let mut sc = splat2tiles::io::read_path(&scene("biker.spz")).unwrap();
+    let mut sc = splat2tiles_io::read_path(&scene("biker.spz")).unwrap();
     // Every third splat keeps the test fast. The shared scenes carry no higher SH, so the
     // subset gets deterministic degree-3 coefficients (|c| <= 0.15) written into a trainer PLY.
     let idx: Vec<usize> = (0..sc.splats.len()).step_by(3).collect();
@@ -57,7 +57,7 @@ fn biker_sh3_subset_matches_reference() {
     sc.splats.check_lengths();
     let ply = dir.path().join("biker_third.ply");
     let f = std::fs::File::create(&ply).unwrap();
-    splat2tiles::io::write_ply(&sc.splats, std::io::BufWriter::new(f)).unwrap();
+    splat2tiles_io::write_ply(&sc.splats, std::io::BufWriter::new(f)).unwrap();
     let opts = ConvertOptions {
         up_axis: Some("+y".parse().unwrap()),
         ..ConvertOptions::default()
@@ -79,8 +79,8 @@ fn biker_sh3_subset_matches_reference() {
         },
     );
     let full = reference(&inst, &cam, &Default::default());
-    let s0 = splat2tiles::render::metrics::psnr(&full, &dc).unwrap();
-    let s3 = splat2tiles::render::metrics::psnr(
+    let s0 = splat2tiles_render::metrics::psnr(&full, &dc).unwrap();
+    let s3 = splat2tiles_render::metrics::psnr(
         &full,
         &gpu_frame(&g, &inst, &cam, Default::default()).0,
     )
@@ -119,7 +119,7 @@ fn georeferenced_tile_keeps_precision() {
 }
 
 /// A deterministic random SH1 cloud around the origin (z up), 3,000 splats.
-pub fn common_cloud() -> splat2tiles::splat::Splats {
+pub fn common_cloud() -> splat2tiles_core::splat::Splats {
     let mut r = 12345u64;
     let mut next = move || {
         r = r
@@ -127,17 +127,17 @@ pub fn common_cloud() -> splat2tiles::splat::Splats {
             .wrapping_add(1442695040888963407);
         (r >> 11) as f64 / (1u64 << 53) as f64
     };
-    let mut s = splat2tiles::splat::Splats::with_capacity(1, 3000);
+    let mut s = splat2tiles_core::splat::Splats::with_capacity(1, 3000);
     for _ in 0..3000 {
         let q = [next(), next(), next(), next()].map(|v| (v - 0.5) as f32);
-        let item = splat2tiles::splat::Splat {
+        let item = splat2tiles_core::splat::Splat {
             position: [2.0 * next() - 1.0, 2.0 * next() - 1.0, next()],
             scale: [
                 (0.01 + 0.05 * next()) as f32,
                 (0.01 + 0.05 * next()) as f32,
                 (0.005 + 0.02 * next()) as f32,
             ],
-            rotation: splat2tiles::splat::normalize_quat(q),
+            rotation: splat2tiles_core::splat::normalize_quat(q),
             opacity: (0.1 + 0.85 * next()) as f32,
             sh0: [next(), next(), next()].map(|v| (3.0 * v - 1.5) as f32),
         };

@@ -7,16 +7,16 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use splat2tiles::convert::{ConvertOptions, SchemeChoice, convert};
-use splat2tiles::layers::view::{is_layered, layered_instances};
-use splat2tiles::render::camera::auto_views_with;
-use splat2tiles::render::cli::{tileset_bounds, tileset_up};
-use splat2tiles::render::metrics::ssim;
-use splat2tiles::render::raster::{RenderOptions, render};
-use splat2tiles::render::{Camera, Image};
-use splat2tiles::splat::{Splat, Splats};
-use splat2tiles::tiling::TileKey;
-use splat2tiles::tiling::load::{LoadedTileset, load_tileset};
+use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert};
+use splat2tiles_tiles::layers::view::{is_layered, layered_instances};
+use splat2tiles_core::camera::auto_views_with;
+use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
+use splat2tiles_render::metrics::ssim;
+use splat2tiles_render::raster::{RenderOptions, render};
+use splat2tiles_render::{Camera, Image};
+use splat2tiles_core::splat::{Splat, Splats};
+use splat2tiles_tiles::tiling::TileKey;
+use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 use splat2tiles_viewer::gpu::{Headless, OFFSCREEN_FORMAT, Offscreen};
 use splat2tiles_viewer::layered::{BlendMode, SceneSync};
 use splat2tiles_viewer::renderer::{RendererConfig, SplatRenderer};
@@ -61,7 +61,7 @@ fn layered_tileset(dir: &Path) -> PathBuf {
         let item = Splat {
             position: [next(0.0, 10.0), next(0.0, 10.0), next(0.0, 6.0)],
             scale: [0; 3].map(|_| next(0.01, 0.5) as f32),
-            rotation: splat2tiles::splat::normalize_quat(q),
+            rotation: splat2tiles_core::splat::normalize_quat(q),
             opacity: next(0.02, 0.99) as f32,
             sh0: [0; 3].map(|_| next(-1.5, 1.5) as f32),
         };
@@ -72,7 +72,7 @@ fn layered_tileset(dir: &Path) -> PathBuf {
     }
     let ply = dir.join("cloud.ply");
     let f = std::fs::File::create(&ply).unwrap();
-    splat2tiles::io::write_ply(&s, std::io::BufWriter::new(f)).unwrap();
+    splat2tiles_io::write_ply(&s, std::io::BufWriter::new(f)).unwrap();
     let out = dir.join("layered");
     let opts = ConvertOptions {
         max_splats_per_tile: 400,
@@ -94,7 +94,7 @@ fn dolly(ts: &LoadedTileset) -> Vec<Camera> {
     let up = tileset_up(ts);
     let view = auto_views_with(lo, hi, up, W, H, FOV).remove(1);
     let root = ts.tiles.iter().find(|t| t.key == TileKey::ROOT).unwrap();
-    let (c, r) = splat2tiles::stream::select::box_sphere(
+    let (c, r) = splat2tiles_tiles::select::box_sphere(
         root.bounding_box.as_ref().unwrap(),
         &ts.root_transform,
     );
@@ -247,15 +247,15 @@ fn a_streamed_level_change_blends_frame_by_frame_where_a_hard_swap_jumps() {
     }
 }
 
-/// Late layers (`splat2tiles::layers::ramp`): with the camera already deep in the blend band and
+/// Late layers (`splat2tiles_tiles::layers::ramp`): with the camera already deep in the blend band and
 /// a slow link, child layers arrive while their blend factor is well above 0; the viewer draws
 /// each from 0 at its first frame up to the client's factor `LAYER_RAMP_S` later, never stepping
 /// more per frame than the ramp's slope allows, where the client's factor alone pops.
 #[test]
 fn late_layers_ramp_in_over_time_instead_of_popping() {
-    use splat2tiles::client::{Action, ClientConfig, StreamClient};
-    use splat2tiles::layers::ramp::LAYER_RAMP_S;
-    use splat2tiles::sim::transport::{NetModel, SimTransport};
+    use splat2tiles_stream::client::{Action, ClientConfig, StreamClient};
+    use splat2tiles_tiles::layers::ramp::LAYER_RAMP_S;
+    use splat2tiles_lab::sim::transport::{NetModel, SimTransport};
     use std::collections::HashMap;
 
     let dir = tempfile::tempdir().unwrap();

@@ -6,9 +6,9 @@ mod common;
 
 use common::*;
 use glam::{DMat4, DVec3};
-use splat2tiles::render::Camera;
-use splat2tiles::render::metrics::ssim;
-use splat2tiles::splat::{Splat, Splats};
+use splat2tiles_core::camera::Camera;
+use splat2tiles_render::metrics::ssim;
+use splat2tiles_core::splat::{Splat, Splats};
 use splat2tiles_viewer::gpu::{OFFSCREEN_FORMAT, Offscreen};
 use splat2tiles_viewer::{RendererConfig, SplatRenderer};
 
@@ -123,7 +123,7 @@ fn hostile_splats_render_cleanly() {
 }
 
 /// Renders one frame of `r` at `now` and reads it back.
-fn frame(g: &Headless, r: &mut SplatRenderer, now: f64) -> splat2tiles::render::Image {
+fn frame(g: &Headless, r: &mut SplatRenderer, now: f64) -> splat2tiles_render::Image {
     let cam = cam();
     let t = Offscreen::new(&g.device, cam.width, cam.height).unwrap();
     r.render(&g.device, &g.queue, &t.view, &cam, now);

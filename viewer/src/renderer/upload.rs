@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use splat2tiles::splat::{Splats, normalize_quat};
+use splat2tiles_core::splat::{Splats, normalize_quat};
 
 use super::{PAGE_ROW, PAGE_SPLATS, SplatRenderer, Tile, gl_array_layers, sh_texels};
 use crate::alloc::page_pieces;

@@ -5,10 +5,10 @@
 use std::path::{Path, PathBuf};
 
 use glam::DMat4;
-use splat2tiles::convert::{ConvertOptions, convert};
-use splat2tiles::render::raster::{RenderOptions, render};
-use splat2tiles::render::{Camera, Image, metrics};
-use splat2tiles::splat::Splats;
+use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_render::raster::{RenderOptions, render};
+use splat2tiles_render::{Camera, Image, metrics};
+use splat2tiles_core::splat::Splats;
 use splat2tiles_viewer::gpu::Headless;
 use splat2tiles_viewer::headless::{
     ViewArgs, load_instances, open_tileset, render_instances, tileset_camera,
@@ -41,7 +41,7 @@ pub fn convert_to(input: &Path, dir: &Path, opts: &ConvertOptions) -> PathBuf {
 pub fn tileset_view(tileset: &Path, v: &ViewArgs) -> (Vec<(Splats, DMat4)>, Camera) {
     let ts = open_tileset(tileset).unwrap();
     let cam = tileset_camera(&ts, tileset, v).unwrap();
-    let picked = splat2tiles::render::cli::select_tiles(&ts, &cam, v.max_sse);
+    let picked = splat2tiles_tiles::geometry::select_tiles(&ts, &cam, v.max_sse);
     assert!(!picked.is_empty(), "no tile selected");
     (load_instances(&ts, &picked).unwrap(), cam)
 }

@@ -2,7 +2,7 @@
 //! to the height above the content) and yaw/pitch looking around the scene's up axis.
 
 use glam::DVec3;
-use splat2tiles::render::camera::Camera;
+use splat2tiles_core::camera::Camera;
 use std::collections::HashSet;
 
 /// Pitch stays this far from straight up/down so the view basis never degenerates.

@@ -6,8 +6,8 @@ use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
 
 use js_sys::{Reflect, Uint8Array};
-use splat2tiles::client::{Action, FetchRequest, RequestId, StreamClient};
-use splat2tiles::render::camera::Camera;
+use splat2tiles_stream::client::{Action, FetchRequest, RequestId, StreamClient};
+use splat2tiles_core::camera::Camera;
 use wasm_bindgen::{JsCast, JsValue};
 use wasm_bindgen_futures::JsFuture;
 use web_sys::{
@@ -161,7 +161,7 @@ async fn transfer(
     let (mut start, mut total) = (None, None);
     if status == 206 {
         if let Some(cr) = h.get("Content-Range").ok().flatten() {
-            (start, total) = splat2tiles::client::url::parse_content_range(&cr);
+            (start, total) = splat2tiles_stream::client::url::parse_content_range(&cr);
         }
     } else {
         total = h

@@ -1,5 +1,5 @@
 //! splat2tiles web viewer: the `splat2tiles-viewer` wgpu renderer (WebGL2 backend) and the sans-IO
-//! `splat2tiles::client` streaming core, driven by the browser's Fetch API and requestAnimationFrame.
+//! `splat2tiles_stream::client` streaming core, driven by the browser's Fetch API and requestAnimationFrame.
 
 pub mod controls;
 

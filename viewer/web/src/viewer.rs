@@ -6,10 +6,10 @@ use std::rc::Rc;
 
 use glam::DVec3;
 use serde_json::json;
-use splat2tiles::client::{ClientConfig, PredictorKind, StreamClient};
-use splat2tiles::render::camera::{self, Camera};
-use splat2tiles::render::view_spec::{ViewSpec, is_georeferenced};
-use splat2tiles::stream::Level;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind, StreamClient};
+use splat2tiles_core::camera::{self, Camera};
+use splat2tiles_core::view_spec::{ViewSpec, is_georeferenced};
+use splat2tiles_stream::Level;
 use splat2tiles_viewer::layered::{BlendMode, SceneSync};
 use splat2tiles_viewer::{RendererConfig, SplatRenderer};
 use wasm_bindgen::prelude::*;
@@ -576,8 +576,8 @@ impl WebViewer {
     /// along +x and answers JSON: the page's predictor, ms per 30 s prediction (mean and min, the
     /// browser's clock) and the predicted advance along x and sideways drift at 5 s (metres).
     pub fn tcn_check(&self, runs: usize) -> Result<String, JsValue> {
-        use splat2tiles::stream::learned::{TcnPredictor, window::straight_walk};
-        use splat2tiles::stream::predict::Predictor;
+        use splat2tiles_stream::learned::{TcnPredictor, window::straight_walk};
+        use splat2tiles_stream::predict::Predictor;
         let clock = || {
             web_sys::window()
                 .and_then(|w| w.performance())

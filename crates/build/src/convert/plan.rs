@@ -1,0 +1,605 @@
+//! Plan of a sharded conversion (`convert IN --plan PLAN.json --parts N`): one cheap pass for
+//! the frame (bounds, root, layout) and one for a histogram of cells, which split the tree into
+//! units (disjoint subtrees) given to N parts balanced by splat count.
+//!
+//! The plan file is versioned JSON holding everything a part or the merge needs that depends on
+//! the whole scene; floats are exact (`shard::F`). A bad plan is refused with its byte offset.
+
+use super::frame::Layout;
+use super::shard::{F, arr_key, bad, digest, f3, key_arr, parse, read_bounded, v3, write_atomic};
+use super::source::Input;
+use super::spill::{count_cells, histogram_levels, prefix_sums};
+use super::spill_records::SpillFormat;
+use super::{
+    ConvertError, ConvertOptions, check_counts, check_interrupt, frame_and_budget, frame_pass,
+};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::frame::mercator::MercatorKey;
+use splat2tiles_io::{self as io, ChunkedInput};
+use crate::lod::{LodOptions, MergeRule};
+use splat2tiles_tiles::tiling::tileset::BoundingVolume;
+use splat2tiles_tiles::tiling::{Scheme, TileKey};
+use crate::variants::{Profile, Variant, VariantOptions};
+use clap::ValueEnum;
+use glam::{DMat3, DMat4};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Version of the plan file format.
+pub const PLAN_VERSION: u32 = 1;
+
+/// Most parts a plan may have.
+pub const MAX_PARTS: usize = 1 << 16;
+
+/// Largest plan file read (a plan lists at most a few units per part).
+const MAX_PLAN_BYTES: u64 = 256 << 20;
+
+/// Units per part aimed at: more units balance the parts better.
+const UNITS_PER_PART: u64 = 4;
+
+/// The plan file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub(super) struct PlanFile {
+    pub(super) splat2tiles_plan: u32,
+    pub(super) input: PlanInput,
+    pub(super) options: PlanOptions,
+    pub(super) layout: LayoutRec,
+    pub(super) parts: usize,
+    pub(super) units: Vec<UnitRec>,
+    /// `[cell, splats]` of every occupied cell of the first routing histogram (Morton order),
+    /// so parts route without counting again.
+    pub(super) histogram: Vec<[u64; 2]>,
+}
+
+/// What the plan knows of its input (a part refuses another file).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub(super) struct PlanInput {
+    /// File name (the tileset's `extras`).
+    pub(super) name: String,
+    pub(super) bytes: u64,
+    pub(super) splats: u64,
+    pub(super) finite: u64,
+    pub(super) dropped: u64,
+    pub(super) sh_degree: u8,
+}
+
+/// The conversion options every part and the merge use.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub(super) struct PlanOptions {
+    pub(super) max_splats: usize,
+    pub(super) subtree_levels: Option<u32>,
+    pub(super) up_axis: String,
+    pub(super) lod: bool,
+    pub(super) lod_merge: String,
+    pub(super) lod_radius: Option<F>,
+    pub(super) profile: String,
+    pub(super) variants: Vec<String>,
+    pub(super) measure_utility: bool,
+    pub(super) utility_renders: bool,
+}
+
+/// The layout (`frame::Layout`), exactly.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub(super) struct LayoutRec {
+    a: Vec<F>,
+    scheme: String,
+    max_depth: u32,
+    root_box: Option<Vec<F>>,
+    root_region: Option<Vec<F>>,
+    transform: Option<Vec<F>>,
+    mercator_root: Option<[u32; 3]>,
+    enu: Option<Vec<F>>,
+    min: [F; 3],
+    size: [F; 3],
+}
+
+/// One unit: a subtree built by one part.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub(super) struct UnitRec {
+    /// `[level, x, y, z]`.
+    pub(super) key: [u32; 4],
+    pub(super) splats: u64,
+    pub(super) part: usize,
+}
+
+/// What making a plan did.
+#[derive(Debug, Clone, Default)]
+pub struct PlanReport {
+    /// Finite splats in the input.
+    pub splats: u64,
+    /// Units (subtrees) the tree was split into.
+    pub units: usize,
+    /// Splats per part.
+    pub part_splats: Vec<u64>,
+    /// Splats dropped for NaN/Inf values.
+    pub dropped_non_finite: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// A plan read back and checked.
+#[derive(Debug, Clone)]
+pub(super) struct Plan {
+    pub(super) file: PlanFile,
+    /// Digest of the plan file's bytes (parts and merge check they share it).
+    pub(super) id: String,
+    pub(super) path: PathBuf,
+    pub(super) layout: Layout,
+    /// Units, keys parsed, in file (Morton) order.
+    pub(super) units: Vec<(TileKey, u64, usize)>,
+    /// Prefix sums of the histogram's cells.
+    pub(super) prefix: Vec<u64>,
+}
+
+/// Opens an input for a sharded step: chunked when it can be, else read whole under the limit.
+pub(super) fn open_input(path: &Path, memory_limit: u64) -> Result<Input, ConvertError> {
+    Ok(match ChunkedInput::open(path)? {
+        Some(c) => Input::Chunked(c),
+        None => Input::Memory(io::read_path_limited(path, memory_limit)?),
+    })
+}
+
+fn name_of<T: ValueEnum>(v: &T) -> String {
+    v.to_possible_value()
+        .map(|p| p.get_name().to_string())
+        .unwrap_or_default()
+}
+
+/// Writes the plan of converting `input` in `parts` parts with `opts` to the file `plan`.
+pub fn make_plan(
+    input_path: &Path,
+    plan: &Path,
+    parts: usize,
+    opts: &ConvertOptions,
+) -> Result<PlanReport, ConvertError> {
+    let start = Instant::now();
+    if parts == 0 || parts > MAX_PARTS {
+        return Err(bad(
+            plan,
+            None,
+            format!("{parts} parts: expected 1 to {MAX_PARTS}"),
+        ));
+    }
+    refuse_foreign(plan)?;
+    let name = input_path.display().to_string();
+    let bytes = std::fs::metadata(input_path)
+        .map_err(super::io_err(input_path, "reading"))?
+        .len();
+    let input = open_input(input_path, opts.memory_limit)?;
+    let (up, a, budget) = frame_and_budget(&input, opts);
+    let degree = input.sh_degree();
+    let (acc, counts, _) = frame_pass(&input, a, opts, budget.chunk, false)?;
+    let dropped = check_counts(&counts, &input, &name, opts)? as u64;
+    let layout = Layout::new(&acc, a, opts);
+
+    // Histogram of the cells the routing histogram of every part uses (`spill::route`).
+    let scheme = layout.scheme;
+    let dims = scheme.dims();
+    let depth = layout.depth();
+    let g = histogram_levels(dims, depth);
+    let cells = 1usize << (dims * g);
+    let mut hist = vec![0u64; cells];
+    let format = SpillFormat::for_input(&input);
+    let mut of: Vec<u32> = Vec::new();
+    input.for_each_batch(budget.chunk, format.is_raw(), counts.dropped == 0, |b| {
+        check_interrupt()?;
+        count_cells(&mut hist, &mut of, b.positions, |p| {
+            (layout.code(p) >> (dims * (depth - g))) as usize
+        });
+        Ok(())
+    })?;
+    let prefix = prefix_sums(&hist);
+    let histogram: Vec<[u64; 2]> = hist
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| **c > 0)
+        .map(|(i, c)| [i as u64, *c])
+        .collect();
+    drop(hist);
+    // Units top-down: a subtree that fits the unit cap (its parent does not, and the cap is at
+    // least a leaf's budget, so the whole-scene partition reaches it), or a histogram cell.
+    let cap = counts
+        .finite
+        .div_ceil(parts as u64 * UNITS_PER_PART)
+        .max(opts.max_splats_per_tile as u64);
+    let mut units: Vec<(TileKey, u64)> = Vec::new();
+    let mut stack = vec![(0u32, 0usize, cells)];
+    while let Some((l, a, n)) = stack.pop() {
+        let count = prefix[a + n] - prefix[a];
+        if count == 0 {
+            continue;
+        }
+        if count <= cap || l == g {
+            let (x, y, z) = scheme.decode((a >> (dims * (g - l))) as u64);
+            units.push((TileKey { level: l, x, y, z }, count));
+            continue;
+        }
+        let step = n >> dims;
+        for c in (0..scheme.arity() as usize).rev() {
+            stack.push((l + 1, a + c * step, step));
+        }
+    }
+    // Consecutive units per part, each part about `finite / parts` splats.
+    let total = counts.finite;
+    let mut before = 0u64;
+    let mut part_splats = vec![0u64; parts];
+    let unit_recs: Vec<UnitRec> = units
+        .iter()
+        .map(|&(key, count)| {
+            let mid = before as u128 * 2 + count as u128;
+            let part =
+                ((mid * parts as u128) / (2 * total as u128)).min(parts as u128 - 1) as usize;
+            before += count;
+            part_splats[part] += count;
+            UnitRec {
+                key: key_arr(key),
+                splats: count,
+                part,
+            }
+        })
+        .collect();
+    let file = PlanFile {
+        splat2tiles_plan: PLAN_VERSION,
+        input: PlanInput {
+            name: input_path
+                .file_name()
+                .map(|f| f.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            bytes,
+            splats: input.len(),
+            finite: counts.finite,
+            dropped,
+            sh_degree: degree,
+        },
+        options: PlanOptions {
+            max_splats: opts.max_splats_per_tile,
+            subtree_levels: opts.subtree_levels,
+            up_axis: up.to_string(),
+            lod: opts.lod.enabled,
+            lod_merge: name_of(&opts.lod.merge),
+            lod_radius: opts.lod.radius.map(F),
+            profile: name_of(&opts.variants.profile),
+            variants: opts.variants.variants.iter().map(name_of).collect(),
+            measure_utility: opts.variants.measure_utility,
+            utility_renders: opts.variants.utility_renders,
+        },
+        layout: layout_rec(&layout),
+        parts,
+        units: unit_recs,
+        histogram,
+    };
+    let json = serde_json::to_vec_pretty(&file).expect("plan serialises");
+    write_atomic(plan, &json)?;
+    Ok(PlanReport {
+        splats: counts.finite,
+        units: units.len(),
+        part_splats,
+        dropped_non_finite: dropped,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Refuses to replace a file at `plan` that is not a plan (nothing of the user's is replaced).
+fn refuse_foreign(plan: &Path) -> Result<(), ConvertError> {
+    match std::fs::symlink_metadata(plan) {
+        Err(_) => Ok(()),
+        Ok(m) if !m.is_file() => Err(bad(plan, None, "exists and is not a file")),
+        Ok(m) if m.len() > MAX_PLAN_BYTES => Err(bad(
+            plan,
+            None,
+            "exists and is not a splat2tiles plan; not replaced",
+        )),
+        Ok(_) => {
+            let bytes = std::fs::read(plan).map_err(super::io_err(plan, "reading"))?;
+            let v: Option<serde_json::Value> = serde_json::from_slice(&bytes).ok();
+            if v.as_ref().and_then(|v| v.get("splat2tilesPlan")).is_some() {
+                Ok(())
+            } else {
+                Err(bad(
+                    plan,
+                    None,
+                    "exists and is not a splat2tiles plan; not replaced",
+                ))
+            }
+        }
+    }
+}
+
+fn layout_rec(l: &Layout) -> LayoutRec {
+    let fs = |v: &[f64]| v.iter().map(|x| F(*x)).collect::<Vec<F>>();
+    LayoutRec {
+        a: fs(&l.a.to_cols_array()),
+        scheme: l.scheme.as_str().to_string(),
+        max_depth: l.max_depth,
+        root_box: l.root_volume.box_.as_deref().map(fs),
+        root_region: l.root_volume.region.as_deref().map(fs),
+        transform: l.transform.as_ref().map(|t| fs(t)),
+        mercator_root: l.mercator_root.map(|m| [m.zoom, m.x, m.y]),
+        enu: l.enu.map(|e| fs(&e.to_cols_array())),
+        min: f3(l.min),
+        size: f3(l.size),
+    }
+}
+
+/// Exactly `n` finite floats.
+fn floats<const N: usize>(v: &[F], what: &str) -> Result<[f64; N], String> {
+    if v.len() != N || v.iter().any(|x| !x.0.is_finite()) {
+        return Err(format!("layout.{what}: expected {N} finite numbers"));
+    }
+    Ok(std::array::from_fn(|i| v[i].0))
+}
+
+fn layout_of(r: &LayoutRec) -> Result<Layout, String> {
+    let scheme = match r.scheme.as_str() {
+        "QUADTREE" => Scheme::Quadtree,
+        "OCTREE" => Scheme::Octree,
+        s => return Err(format!("layout.scheme: '{s}' (QUADTREE or OCTREE)")),
+    };
+    if r.max_depth > scheme.max_depth() {
+        return Err(format!(
+            "layout.maxDepth: {} (at most {})",
+            r.max_depth,
+            scheme.max_depth()
+        ));
+    }
+    let a = DMat3::from_cols_array(&floats::<9>(&r.a, "a")?);
+    let min = v3(&r.min);
+    let size = v3(&r.size);
+    if !min.is_finite() || !size.is_finite() || size.min_element() <= 0.0 {
+        return Err("layout.min/size: expected finite numbers, sizes above 0".into());
+    }
+    let root_volume = BoundingVolume {
+        box_: match &r.root_box {
+            Some(b) => Some(floats::<12>(b, "rootBox")?.to_vec()),
+            None => None,
+        },
+        region: match &r.root_region {
+            Some(b) => Some(floats::<6>(b, "rootRegion")?.to_vec()),
+            None => None,
+        },
+        sphere: None,
+    };
+    if root_volume.box_.is_some() == root_volume.region.is_some() {
+        return Err("layout: expected one of rootBox and rootRegion".into());
+    }
+    let transform = match &r.transform {
+        Some(t) => Some(floats::<16>(t, "transform")?),
+        None => None,
+    };
+    let enu = match &r.enu {
+        Some(t) => Some(DMat4::from_cols_array(&floats::<16>(t, "enu")?)),
+        None => None,
+    };
+    let mercator_root = r
+        .mercator_root
+        .map(|[zoom, x, y]| MercatorKey { zoom, x, y });
+    if enu.is_some() != mercator_root.is_some() || (enu.is_some() && scheme != Scheme::Quadtree) {
+        return Err("layout: a georeferenced layout has enu and mercatorRoot, quadtree".into());
+    }
+    if let Some(m) = mercator_root
+        && (m.zoom > 30 || m.x as u64 >= 1 << m.zoom || m.y as u64 >= 1 << m.zoom)
+    {
+        return Err(format!(
+            "layout.mercatorRoot: {:?} is no Web-Mercator tile",
+            [m.zoom, m.x, m.y]
+        ));
+    }
+    Ok(Layout {
+        a,
+        scheme,
+        max_depth: r.max_depth,
+        root_volume,
+        transform,
+        mercator_root,
+        enu,
+        min,
+        size,
+    })
+}
+
+fn enum_of<T: ValueEnum>(s: &str, what: &str) -> Result<T, String> {
+    T::from_str(s, true).map_err(|_| format!("options.{what}: unknown value '{s}'"))
+}
+
+impl Plan {
+    /// Reads and checks the plan at `path`.
+    pub(super) fn load(path: &Path) -> Result<Plan, ConvertError> {
+        let bytes = read_bounded(path, MAX_PLAN_BYTES)?;
+        let probe: serde_json::Value = parse(path, &bytes)?;
+        match probe.get("splat2tilesPlan").and_then(|v| v.as_u64()) {
+            Some(v) if v == PLAN_VERSION as u64 => {}
+            Some(v) => {
+                return Err(bad(
+                    path,
+                    None,
+                    format!("plan version {v}; this splat2tiles reads version {PLAN_VERSION}"),
+                ));
+            }
+            None => {
+                return Err(bad(
+                    path,
+                    None,
+                    "not a splat2tiles plan (no splat2tilesPlan)",
+                ));
+            }
+        }
+        let file: PlanFile = parse(path, &bytes)?;
+        let invalid = |why: String| bad(path, None, format!("invalid plan: {why}"));
+        let layout = layout_of(&file.layout).map_err(invalid)?;
+        let o = &file.options;
+        enum_of::<MergeRule>(&o.lod_merge, "lodMerge").map_err(invalid)?;
+        enum_of::<Profile>(&o.profile, "profile").map_err(invalid)?;
+        for v in &o.variants {
+            enum_of::<Variant>(v, "variants").map_err(invalid)?;
+        }
+        o.up_axis
+            .parse::<UpAxis>()
+            .map_err(|e| invalid(format!("options.upAxis: {e}")))?;
+        if o.max_splats == 0 || o.max_splats > 16_777_216 {
+            return Err(invalid(format!("options.maxSplats: {}", o.max_splats)));
+        }
+        if o.subtree_levels.is_some_and(|l| !(1..=16).contains(&l)) {
+            return Err(invalid("options.subtreeLevels: expected 1 to 16".into()));
+        }
+        if o.lod_radius
+            .is_some_and(|r| !(r.0.is_finite() && r.0 > 0.0))
+        {
+            return Err(invalid(
+                "options.lodRadius: expected a positive number".into(),
+            ));
+        }
+        if file.input.sh_degree > 3 {
+            return Err(invalid(format!("input.shDegree: {}", file.input.sh_degree)));
+        }
+        if file.parts == 0 || file.parts > MAX_PARTS {
+            return Err(invalid(format!("parts: {} (1 to {MAX_PARTS})", file.parts)));
+        }
+        // Units: valid keys within the routing histogram's levels, disjoint, in Morton order,
+        // parts non-decreasing, splats adding up to the input's.
+        let scheme = layout.scheme;
+        let dims = scheme.dims();
+        let g = histogram_levels(dims, layout.depth());
+        let cells = 1usize << (dims * g);
+        let mut hist = vec![0u64; cells];
+        let mut last_cell = None;
+        for (i, &[cell, count]) in file.histogram.iter().enumerate() {
+            if cell >= cells as u64 || last_cell.is_some_and(|l| l >= cell) || count == 0 {
+                return Err(invalid(format!(
+                    "histogram[{i}]: cells must be below {cells}, increasing, with splats"
+                )));
+            }
+            last_cell = Some(cell);
+            hist[cell as usize] = count;
+        }
+        let mut prefix = vec![0u64; cells + 1];
+        for i in 0..cells {
+            prefix[i + 1] = prefix[i].saturating_add(hist[i]);
+        }
+        drop(hist);
+        if prefix[cells] != file.input.finite {
+            return Err(invalid(format!(
+                "the histogram holds {} splats, the input {}",
+                prefix[cells], file.input.finite
+            )));
+        }
+        let mut units = Vec::with_capacity(file.units.len());
+        let mut end = 0u64;
+        let mut last_part = 0usize;
+        let mut total = 0u64;
+        for (i, u) in file.units.iter().enumerate() {
+            let key = arr_key(u.key, g, scheme == Scheme::Octree).ok_or_else(|| {
+                invalid(format!(
+                    "units[{i}].key {:?}: not a tile within {g} levels",
+                    u.key
+                ))
+            })?;
+            let shift = dims * (g - key.level);
+            let first = scheme.encode(key.x, key.y, key.z) << shift;
+            if first < end {
+                return Err(invalid(format!(
+                    "units[{i}]: overlaps or precedes the unit before it"
+                )));
+            }
+            end = first + (1u64 << shift);
+            if prefix[end as usize] - prefix[first as usize] != u.splats {
+                return Err(invalid(format!(
+                    "units[{i}]: {} splats where the histogram has {}",
+                    u.splats,
+                    prefix[end as usize] - prefix[first as usize]
+                )));
+            }
+            if u.part >= file.parts || u.part < last_part {
+                return Err(invalid(format!(
+                    "units[{i}].part {}: parts must be below {} and non-decreasing",
+                    u.part, file.parts
+                )));
+            }
+            last_part = u.part;
+            total = total.saturating_add(u.splats);
+            units.push((key, u.splats, u.part));
+        }
+        if total != file.input.finite {
+            return Err(invalid(format!(
+                "units hold {total} splats, the input {}",
+                file.input.finite
+            )));
+        }
+        Ok(Plan {
+            file,
+            id: digest(&bytes),
+            path: path.to_path_buf(),
+            layout,
+            units,
+            prefix,
+        })
+    }
+
+    /// The conversion options of the plan, with this machine's memory limit.
+    pub(super) fn options(&self, memory_limit: u64, progress: bool) -> ConvertOptions {
+        let o = &self.file.options;
+        ConvertOptions {
+            max_splats_per_tile: o.max_splats,
+            max_depth: Some(self.layout.max_depth),
+            up_axis: o.up_axis.parse().ok(),
+            subtree_levels: o.subtree_levels,
+            progress,
+            lod: LodOptions {
+                enabled: o.lod,
+                merge: enum_of(&o.lod_merge, "").unwrap_or_default(),
+                radius: o.lod_radius.map(|r| r.0),
+            },
+            variants: VariantOptions {
+                profile: enum_of(&o.profile, "").unwrap_or_default(),
+                variants: o
+                    .variants
+                    .iter()
+                    .filter_map(|v| enum_of(v, "").ok())
+                    .collect(),
+                measure_utility: o.measure_utility,
+                utility_renders: o.utility_renders,
+            },
+            memory_limit,
+            ..Default::default()
+        }
+    }
+
+    /// The units of part `part`, in Morton order.
+    pub(super) fn units_of(&self, part: usize) -> Vec<TileKey> {
+        self.units
+            .iter()
+            .filter(|u| u.2 == part)
+            .map(|u| u.0)
+            .collect()
+    }
+
+    /// Refuses an input other than the one planned (size, splat count, SH degree).
+    pub(super) fn check_input(&self, path: &Path, input: &Input) -> Result<(), ConvertError> {
+        let bytes = std::fs::metadata(path)
+            .map_err(super::io_err(path, "reading"))?
+            .len();
+        let p = &self.file.input;
+        if bytes != p.bytes || input.len() != p.splats || input.sh_degree() != p.sh_degree {
+            return Err(bad(
+                path,
+                None,
+                format!(
+                    "not the input of plan {} ({} bytes, {} splats, SH degree {} planned; \
+                     {bytes} bytes, {} splats, SH degree {} here)",
+                    self.path.display(),
+                    p.bytes,
+                    p.splats,
+                    p.sh_degree,
+                    input.len(),
+                    input.sh_degree()
+                ),
+            ));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,629 @@
+//! `simulate --experiment city`: TileSplat Tables 4 and 5 and SGSS Table 3 on the streaming city
+//! (`sim::stream_city`), the shipped client over the simulated transport, scored by `sim::score`.
+//!
+//! Setup (every number goes into the table headers): the default city (1.5M splats, 716 tiles,
+//! 104.5 MiB of Best) georeferenced at `stream_city::DEFAULT_ORIGIN`; the client at 1280x720,
+//! 50 deg, SSE 16, 4 requests in flight, a [`BUDGET`] memory budget (smaller than the city and
+//! than what a 60 s trace downloads), 40 ms RTT. Traces: test split only
+//! (`stream_city::evaluation_set`), the first [`TRACE_S`] s of [`PER_KIND`] each of the human
+//! sessions (every [`HUMAN_EVERY`]-th), the street walks and the flights. Real networks: the first HSDPA and FCC logs
+//! (`sim::network`), each scaled to a mean of 10 Mbit/s and looped.
+
+use super::simulate::SimulateArgs;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind};
+use splat2tiles_render::{Image, ssim};
+use crate::sim::network::{Network, log_files, read_log};
+use crate::sim::score::{Chr, EventRule, Ratio, Truth, WarmUp, Waste, events};
+use crate::sim::score::{cache_hits_with, link_warm_up};
+use crate::sim::score::{drawn_is_needed_at_best, held_tiles, tick_views, time_to_quality, wasted};
+use crate::sim::session::{SessionLog, SessionOptions, run_session};
+use splat2tiles_stream::split::EvaluationSet;
+use crate::sim::stream_city::{BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set};
+use crate::sim::svg::{Series, write_time_plots};
+use splat2tiles_stream::trace::{self, Trace};
+use crate::sim::transport::{NetModel, Outcome};
+use splat2tiles_stream::catalog::Level;
+use splat2tiles_stream::geom::ViewPose;
+use splat2tiles_stream::plan::Planner;
+use splat2tiles_stream::predict::{Oracle, Predictor};
+use splat2tiles_tiles::tiling::TileKey;
+use anyhow::Context;
+use glam::DVec3;
+use std::collections::{HashMap, HashSet};
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+/// Client memory budget (bytes): below the city's 104.5 MiB of Best and below what one 60 s
+/// trace downloads at 10 Mbit/s (40-75 MB), so eviction acts (at 64 MiB it never did).
+pub const BUDGET: u64 = 32 << 20;
+/// Client memory budget of SGSS Table 3 (bytes): holds the whole city at Best, as the full
+/// download it is compared with does (with [`BUDGET`] the dolly's evictions re-download tiles).
+pub const TABLE3_BUDGET: u64 = 256 << 20;
+/// Seconds of each trace simulated.
+pub const TRACE_S: f64 = 60.0;
+/// Every this many human test sessions one is used.
+pub const HUMAN_EVERY: usize = 22;
+/// Traces of each kind (human, walk, flight) at most.
+pub const PER_KIND: usize = 2;
+/// Seconds of each trace in Table 5 (20 sessions per trace).
+const TABLE5_S: f64 = 30.0;
+/// Quality samples per second on the plot trace.
+const QUALITY_HZ: f64 = 1.0;
+/// Quality samples per second after an event (TGQ).
+const TGQ_HZ: f64 = 4.0;
+/// Seconds after an event within which TGQ is looked for (not reached: counted as this).
+const TGQ_WINDOW_S: f64 = 5.0;
+/// Quality render size (the client's 1280x720 view at half size).
+const QW: u32 = 640;
+const QH: u32 = 360;
+/// SSIM counted as good quality.
+const GOOD: f64 = 0.9;
+
+/// The Table 4 predictors; "tcn" is the committed learned model (issue 20); "oracle, mirrored"
+/// is the oracle of the trace turned 180 degrees about its start: a damaged predictor the setup
+/// must rank below the oracle.
+const PREDICTORS: [&str; 6] = [
+    "reactive",
+    "constant-velocity",
+    "linear",
+    "tcn",
+    "oracle",
+    "oracle, mirrored",
+];
+
+/// A trace mirrored about its first position (heading turned by 180 degrees).
+fn mirrored(poses: &[ViewPose]) -> Vec<ViewPose> {
+    let Some(o) = poses.first().map(|p| p.pos) else {
+        return vec![];
+    };
+    poses
+        .iter()
+        .map(|p| ViewPose {
+            pos: DVec3::new(2.0 * o.x - p.pos.x, 2.0 * o.y - p.pos.y, p.pos.z),
+            yaw: p.yaw + std::f64::consts::PI,
+            ..*p
+        })
+        .collect()
+}
+
+/// One session of `predictor` (a `PREDICTORS` name) planned by `planner`.
+pub fn session(
+    dir: &Path,
+    tr: &Trace,
+    predictor: &str,
+    planner: Planner,
+    net: &NetModel,
+    budget: u64,
+) -> SessionLog {
+    // The oracles run on a reactive config with their own predictor (below).
+    let kind = PredictorKind::from_name(predictor).unwrap_or(PredictorKind::Reactive);
+    let oracle: Option<Vec<ViewPose>> = match predictor {
+        "oracle" => Some(tr.poses.clone()),
+        "oracle, mirrored" => Some(mirrored(&tr.poses)),
+        _ => None,
+    };
+    let mut cfg = ClientConfig {
+        max_concurrent: 4,
+        predictor: kind,
+        memory_budget_bytes: budget,
+        ..ClientConfig::default()
+    };
+    cfg.plan.planner = planner;
+    let opts = SessionOptions {
+        predictor: oracle.map(|trace| Box::new(Oracle { trace }) as Box<dyn Predictor + Send>),
+        record_inputs: false,
+    };
+    run_session(dir, cfg, &tr.poses, net, opts)
+}
+
+/// A trace cut to its first `s` seconds.
+fn truncated(tr: &Trace, s: f64) -> Trace {
+    let t0 = tr.poses.first().map_or(0.0, |p| p.t);
+    Trace {
+        headers: tr.headers.clone(),
+        poses: tr
+            .poses
+            .iter()
+            .copied()
+            .filter(|p| p.t - t0 <= s + 1e-9)
+            .collect(),
+    }
+}
+
+/// The traces of Table 4 from the evaluation set: the first [`TRACE_S`] s of [`PER_KIND`] human
+/// sessions (every [`HUMAN_EVERY`]-th), street walks and flights, in that order.
+pub fn table4_traces(eval: &EvaluationSet) -> Vec<Trace> {
+    pick_traces(eval.traces())
+}
+
+/// [`table4_traces`]'s choice from any list of traces (e.g. a tuning split's, to check a rule
+/// on traces the evaluation does not use).
+pub fn pick_traces(traces: &[Trace]) -> Vec<Trace> {
+    let of = |kind: &'static str| {
+        traces
+            .iter()
+            .filter(move |t| t.header("kind") == Some(kind))
+    };
+    let mut traces: Vec<Trace> = of("eyenav")
+        .step_by(HUMAN_EVERY)
+        .take(PER_KIND)
+        .map(|t| truncated(t, TRACE_S))
+        .collect();
+    for kind in ["street_walk", "flight"] {
+        traces.extend(of(kind).take(PER_KIND).map(|t| truncated(t, TRACE_S)));
+    }
+    traces
+}
+
+/// A trace's short name for the tables.
+pub fn label(tr: &Trace) -> String {
+    let kind = tr.header("kind").unwrap_or("trace");
+    match (kind, tr.header("source"), tr.header("seed")) {
+        ("eyenav", Some(src), _) => src.split_once(' ').map_or(src, |p| p.1).to_string(),
+        (_, _, Some(seed)) => format!("{kind} {seed}"),
+        _ => kind.to_string(),
+    }
+}
+
+/// What the scorer keeps of one trace: the needed cut per tick (shared by every session on it).
+struct Scored {
+    trace: Trace,
+    needed: Vec<Vec<TileKey>>,
+    /// Reference renders (the needed cut at Best) by tick, shared across sessions.
+    refs: HashMap<usize, Image>,
+}
+
+fn needed_cuts(truth: &Truth, tr: &Trace) -> Vec<Vec<TileKey>> {
+    let c = ClientConfig::default();
+    tr.poses.iter().map(|p| truth.needed_at(&c, p)).collect()
+}
+
+/// Completed content downloads `(tile, bytes, end)`.
+fn downloads(log: &SessionLog) -> Vec<(TileKey, u64, f64)> {
+    log.requests
+        .iter()
+        .filter(|r| r.outcome == Outcome::Done)
+        .filter_map(|r| Some((r.key?, r.bytes, r.end_s?)))
+        .collect()
+}
+
+/// Utility held at first-time entries: the sum over entries of the utility of the level held
+/// (0 when missed), and the entries (Table 5's "utility" and "miss").
+fn entry_utility(
+    log: &SessionLog,
+    needed: &[Vec<TileKey>],
+    util: &HashMap<TileKey, [f32; 4]>,
+) -> (f64, Ratio) {
+    let mut ever: HashSet<TileKey> = HashSet::new();
+    let mut prev: HashSet<TileKey> = HashSet::new();
+    let (mut sum, mut r) = (0.0, Ratio::default());
+    let mut started = false;
+    for (t, n) in log.ticks.iter().zip(needed) {
+        let held: HashMap<TileKey, Level> = t.resident.iter().copied().collect();
+        let now: HashSet<TileKey> = n.iter().copied().collect();
+        for k in &now {
+            if !started || prev.contains(k) || ever.contains(k) {
+                continue;
+            }
+            r.n += 1;
+            if let Some(l) = held.get(k) {
+                r.hits += 1;
+                sum += util.get(k).map_or(0.0, |u| u[l.index()] as f64);
+            }
+        }
+        started |= !now.is_empty();
+        ever.extend(now.iter().copied());
+        prev = now;
+    }
+    (sum, r)
+}
+
+/// Quality at tick `k` of a session: SSIM at QWxQH of what it drew against the needed cut at
+/// Best (1 without rendering when it drew exactly that).
+fn quality(truth: &mut Truth, sc: &mut Scored, log: &SessionLog, k: usize) -> anyhow::Result<f64> {
+    let needed = &sc.needed[k];
+    let drawn: Vec<(TileKey, Level)> = log.ticks[k].drawn.iter().map(|d| (d.0, d.1)).collect();
+    if needed.is_empty() {
+        return Ok(1.0);
+    }
+    if drawn_is_needed_at_best(needed, &drawn) {
+        return Ok(1.0);
+    }
+    let c = ClientConfig::default();
+    let cam = splat2tiles_core::camera::Camera::from_pose(
+        c.width,
+        c.height,
+        c.fov_y_deg,
+        truth.root_transform() * log.ticks[k].pose.world_from_camera(),
+    )
+    .resized(QW, QH);
+    if let std::collections::hash_map::Entry::Vacant(e) = sc.refs.entry(k) {
+        let best: Vec<(TileKey, Level)> = needed.iter().map(|k| (*k, Level::Best)).collect();
+        e.insert(truth.render(&best, &cam)?);
+    }
+    let got = truth.render(&drawn, &cam)?;
+    Ok(ssim(&got, &sc.refs[&k])?)
+}
+
+/// TGQ of one session per event (`score::events`): quality sampled at [`TGQ_HZ`] from the event
+/// until it reaches [`GOOD`], the next event or [`TGQ_WINDOW_S`] (`None`: not reached). The
+/// first event (the cold start) comes back apart. Also returns the samples rendered.
+fn tgq(
+    truth: &mut Truth,
+    sc: &mut Scored,
+    log: &SessionLog,
+) -> anyhow::Result<(Option<f64>, Vec<Option<f64>>, usize)> {
+    let ev = {
+        let held = held_tiles(log);
+        let vs = tick_views(log, sc.needed.iter().map(Vec::as_slice), &held);
+        let yaw: Vec<f64> = log.ticks.iter().map(|t| t.pose.yaw.to_degrees()).collect();
+        events(&vs, &yaw, &EventRule::default())
+    };
+    let mut out = vec![];
+    let mut rendered = 0;
+    for (j, &e) in ev.iter().enumerate() {
+        let end = ev
+            .get(j + 1)
+            .copied()
+            .unwrap_or(f64::INFINITY)
+            .min(e + TGQ_WINDOW_S);
+        let mut samples = vec![];
+        let mut next = e;
+        for k in 0..log.ticks.len() {
+            let t = log.ticks[k].t;
+            if t + 1e-9 < next {
+                continue;
+            }
+            if t >= end {
+                break;
+            }
+            next = t + 1.0 / TGQ_HZ;
+            let q = quality(truth, sc, log, k)?;
+            rendered += 1;
+            samples.push((t, q));
+            if q >= GOOD {
+                break;
+            }
+        }
+        out.push(time_to_quality(&[e], &samples, GOOD)[0]);
+    }
+    let cold = if out.is_empty() { None } else { out.remove(0) };
+    Ok((cold, out, rendered))
+}
+
+/// Sums of one Table 4 row over traces.
+#[derive(Default)]
+struct Row4 {
+    chr: Chr,
+    waste: Waste,
+    tgq: Vec<Option<f64>>,
+    tgq_cold: Vec<Option<f64>>,
+    mb: f64,
+    evictions: u64,
+    sessions: usize,
+}
+
+fn add_ratio(a: &mut Ratio, b: Ratio) {
+    a.hits += b.hits;
+    a.n += b.n;
+}
+
+fn pct(r: Ratio) -> String {
+    match r.rate() {
+        Some(x) => format!("{:.1}% ({}/{})", 100.0 * x, r.hits, r.n),
+        None => "-".into(),
+    }
+}
+
+/// Mean TGQ with events not reaching the threshold within the window counted as the window.
+fn tgq_cell(v: &[Option<f64>]) -> String {
+    if v.is_empty() {
+        return "- (0 events)".into();
+    }
+    let sum: f64 = v.iter().map(|x| x.unwrap_or(TGQ_WINDOW_S)).sum();
+    let missed = v.iter().filter(|x| x.is_none()).count();
+    format!(
+        "{:.2} ({} events, {missed} > {TGQ_WINDOW_S} s)",
+        sum / v.len() as f64,
+        v.len()
+    )
+}
+
+/// The networks of Table 5: constant links and the scaled real logs (name, model, note).
+fn networks(args: &SimulateArgs, until: f64) -> anyhow::Result<Vec<(String, NetModel)>> {
+    let mut out: Vec<(String, NetModel)> = [100.0, 50.0, 10.0]
+        .iter()
+        .map(|&m| (format!("{m} Mbps"), NetModel::constant(m, 0.04)))
+        .collect();
+    for net in [Network::Hsdpa, Network::Fcc] {
+        let files = log_files(&args.networks, net).map_err(anyhow::Error::msg)?;
+        let f = files
+            .first()
+            .with_context(|| format!("no {} log in {}", net.dir(), args.networks.display()))?;
+        let raw = read_log(f, 1.0).map_err(anyhow::Error::msg)?;
+        let scale = 10e6 / 8.0 / raw.mean_bytes_per_s().max(1.0);
+        let tr = read_log(f, scale).map_err(anyhow::Error::msg)?;
+        let mut m = NetModel::constant(10.0, 0.04);
+        m.bandwidth = tr.looped(until + 1.0);
+        let name = f.file_name().and_then(|n| n.to_str()).unwrap_or("log");
+        out.push((
+            format!(
+                "{} `{name}` (mean {:.2} Mbps x {scale:.2})",
+                net.dir(),
+                raw.mean_bytes_per_s() * 8.0 / 1e6
+            ),
+            m,
+        ));
+    }
+    Ok(out)
+}
+
+/// Runs the city experiment; returns its markdown.
+pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
+    let start = Instant::now();
+    let dir = args.out.join("city");
+    let origin = splat2tiles_core::frame::geo::Geodetic::parse(DEFAULT_ORIGIN).map_err(anyhow::Error::msg)?;
+    let spec = CitySpec::default();
+    let city: BuiltCity = build_city(&args.scenes, &dir, &spec, Some(origin))?;
+    eprintln!("simulate: city {}", city.summary());
+    let mut truth = Truth::load(&dir.join("tileset.json"))?;
+    let ts = splat2tiles_tiles::tiling::load::load_tileset(&dir.join("tileset.json"))?;
+    let meta = splat2tiles_tiles::variants::content_variant_metadata(&ts);
+    let low_bytes: HashMap<TileKey, u64> = meta
+        .iter()
+        .map(|(k, (_, b, _))| (*k, b[Level::Low.index()] as u64))
+        .collect();
+    let util: HashMap<TileKey, [f32; 4]> = meta.into_iter().map(|(k, (_, _, u))| (k, u)).collect();
+    let eval = evaluation_set(&city.grid, &args.navigation).map_err(anyhow::Error::msg)?;
+    let humans = eval
+        .traces()
+        .iter()
+        .filter(|t| t.header("kind") == Some("eyenav"))
+        .count();
+    let traces = table4_traces(&eval);
+    let mut scored: Vec<Scored> = traces
+        .into_iter()
+        .map(|trace| Scored {
+            needed: needed_cuts(&truth, &trace),
+            trace,
+            refs: HashMap::new(),
+        })
+        .collect();
+    let names: Vec<String> = scored.iter().map(|s| label(&s.trace)).collect();
+    eprintln!(
+        "simulate: city traces ({} of {} test humans, every {HUMAN_EVERY}th): {}",
+        humans.div_ceil(HUMAN_EVERY),
+        humans,
+        names.join(", ")
+    );
+    let mut md = String::new();
+    let best_mib = city.variant_bytes[0] as f64 / (1u64 << 20) as f64;
+    let _ = writeln!(
+        md,
+        "## Streaming city (issue 19)\n\nCity: {} (`sim::stream_city`, seed {}, origin {DEFAULT_ORIGIN}). Client: 1280x720, 50 deg, SSE 16, 4 requests in flight, memory budget {} MiB (the city has {best_mib:.1} MiB of Best), 40 ms RTT, 400 B/request. Traces (test split only, first {TRACE_S} s each): {}.\n",
+        city.summary(),
+        spec.seed,
+        BUDGET >> 20,
+        names.join(", ")
+    );
+    // Table 4.
+    let net10 = NetModel::constant(10.0, 0.04);
+    let mut rows: Vec<Row4> = (0..PREDICTORS.len()).map(|_| Row4::default()).collect();
+    let mut plot_q: Vec<Series> = vec![];
+    let mut plot_b: Vec<Series> = vec![];
+    let plot_trace = scored
+        .iter()
+        .position(|s| s.trace.header("kind") == Some("street_walk"))
+        .unwrap_or(0);
+    // TGQ on the first street walk and the first flight (rendering costs about 1 s a sample).
+    let tgq_traces: Vec<usize> = ["street_walk", "flight"]
+        .iter()
+        .filter_map(|k| {
+            scored
+                .iter()
+                .position(|s| s.trace.header("kind") == Some(*k))
+        })
+        .collect();
+    let tgq_names: Vec<String> = tgq_traces.iter().map(|&i| names[i].clone()).collect();
+    let mut samples = 0usize;
+    let pname = names[plot_trace].clone();
+    for (ti, sc) in scored.iter_mut().enumerate() {
+        let t_trace = Instant::now();
+        for (pi, p) in PREDICTORS.iter().enumerate() {
+            let t_s = Instant::now();
+            let log = session(&dir, &sc.trace, p, Planner::Dp, &net10, BUDGET);
+            let session_s = t_s.elapsed().as_secs_f64();
+            let held = held_tiles(&log);
+            let vs = tick_views(&log, sc.needed.iter().map(Vec::as_slice), &held);
+            // Warm from the time the link needs for the first cut at Low (the same for every
+            // predictor and planner).
+            let warm_at = link_warm_up(
+                &vs,
+                |k| low_bytes.get(k).copied().unwrap_or(0),
+                net10.rate(0.0),
+                net10.rtt_s,
+            );
+            let c = cache_hits_with(&vs, WarmUp::At(warm_at));
+            let w = wasted(&downloads(&log), &vs);
+            drop(vs);
+            eprintln!(
+                "simulate: city {p} on {}: session {session_s:.1} s",
+                names[ti]
+            );
+            let r = &mut rows[pi];
+            add_ratio(&mut r.chr.initial, c.initial);
+            add_ratio(&mut r.chr.first, c.first);
+            add_ratio(&mut r.chr.reentry, c.reentry);
+            add_ratio(&mut r.chr.warm, c.warm);
+            r.waste.tiles += w.tiles;
+            r.waste.bytes += w.bytes;
+            r.waste.wasted_tiles += w.wasted_tiles;
+            r.waste.wasted_bytes += w.wasted_bytes;
+            r.mb += log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
+            r.evictions += log.evictions;
+            r.sessions += 1;
+            if ti == plot_trace && *p != "oracle, mirrored" {
+                let t0 = log.ticks.first().map_or(0.0, |t| t.t);
+                let mut q = vec![];
+                let mut next = t0;
+                let t_q = Instant::now();
+                for k in 0..log.ticks.len() {
+                    if log.ticks[k].t + 1e-9 >= next {
+                        next += 1.0 / QUALITY_HZ;
+                        q.push((log.ticks[k].t - t0, quality(&mut truth, sc, &log, k)?));
+                    }
+                }
+                eprintln!(
+                    "simulate: city {p}: {} quality samples in {:.1} s",
+                    q.len(),
+                    t_q.elapsed().as_secs_f64()
+                );
+                samples += q.len();
+                plot_q.push((p.to_string(), q));
+                plot_b.push((
+                    p.to_string(),
+                    log.ticks
+                        .iter()
+                        .map(|t| (t.t - t0, t.bytes_down as f64 / 1e6))
+                        .collect(),
+                ));
+            }
+            if tgq_traces.contains(&ti) {
+                let t_q = Instant::now();
+                let (cold, later, n) = tgq(&mut truth, sc, &log)?;
+                eprintln!(
+                    "simulate: city {p} TGQ on {}: cold {cold:?}, events {later:?} ({n} samples in {:.1} s)",
+                    names[ti],
+                    t_q.elapsed().as_secs_f64()
+                );
+                samples += n;
+                r.tgq_cold.push(cold);
+                r.tgq.extend(later);
+            }
+        }
+        sc.refs.clear();
+        eprintln!(
+            "simulate: city table 4 trace {ti} ({}) in {:.1} s",
+            names[ti],
+            t_trace.elapsed().as_secs_f64()
+        );
+    }
+    let _ = writeln!(
+        md,
+        "### TileSplat Table 4 on the city (10 Mbps, DC-DP)\n\nCHR over first-time entries into the needed cut (`sim::score`: the whole tileset's cut at the client's viewport), the cold start (entries of the first non-empty cut) and re-entries apart; after warm-up = the first-time entries after the time the link needs to carry the first cut at Low plus one round trip (`sim::score::link_warm_up`; until then the link still carries the first view, whatever the predictor; the same time for every predictor, where the earlier rule, the first tick whose whole needed cut was held, moved with a client that leaves holes in view unrepaired); TGQ per new-region event (>= 30% unseen tiles, or a 45 deg turn in 1 s; merged within 3 s) on {} (rendering costs about 1 s a sample here): seconds to SSIM >= {GOOD} at {QW}x{QH} against the needed cut at Best, sampled at {TGQ_HZ} Hz from the event until reached, the next event or {TGQ_WINDOW_S} s (not reached: counted as {TGQ_WINDOW_S} s); the cold start (the first tick's event) apart; WD = completed downloads of tiles in no needed cut from their end on. Sums over the {} traces.\n\n| predictor | CHR first-time | after warm-up | cold start | re-entries | TGQ (s) | TGQ cold start (s) | WD tiles | WD bytes | MB | evictions |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        tgq_names.join(" and "),
+        scored.len()
+    );
+    for (p, r) in PREDICTORS.iter().zip(&rows) {
+        let wd = |a: u64, b: u64| {
+            if b == 0 {
+                "-".to_string()
+            } else {
+                format!("{:.1}%", 100.0 * a as f64 / b as f64)
+            }
+        };
+        let _ = writeln!(
+            md,
+            "| {p} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {} |",
+            pct(r.chr.first),
+            pct(r.chr.warm),
+            pct(r.chr.initial),
+            pct(r.chr.reentry),
+            tgq_cell(&r.tgq),
+            tgq_cell(&r.tgq_cold),
+            wd(r.waste.wasted_tiles, r.waste.tiles),
+            wd(r.waste.wasted_bytes, r.waste.bytes),
+            r.mb,
+            r.evictions
+        );
+    }
+    write_time_plots(
+        &args.plots,
+        "city",
+        &format!("city, {pname}, 10 Mbps"),
+        "SSIM of the drawn cut vs the needed cut at Best",
+        &plot_q,
+        &plot_b,
+    )?;
+    let _ = writeln!(
+        md,
+        "\nPlots: `docs/city_quality.svg` (SSIM at {QUALITY_HZ} Hz), `docs/city_bytes.svg` ({pname}, 10 Mbps). Quality samples rendered: {samples}.\n"
+    );
+    // Table 5: the first trace of each kind, shorter.
+    let nets = networks(args, TABLE5_S)?;
+    let short: Vec<Scored> = [0, PER_KIND, 2 * PER_KIND]
+        .iter()
+        .filter_map(|&i| scored.get(i))
+        .map(|sc| {
+            let trace = truncated(&sc.trace, TABLE5_S);
+            Scored {
+                needed: sc.needed[..trace.poses.len()].to_vec(),
+                trace,
+                refs: HashMap::new(),
+            }
+        })
+        .collect();
+    let short_names: Vec<String> = short.iter().map(|s| label(&s.trace)).collect();
+    let _ = writeln!(
+        md,
+        "### TileSplat Table 5 on the city (planners in the client loop, linear predictor)\n\nUtility = sum over first-time entries of the utility (the tiles' measured SSIM utilities) of the level held at the entry, 0 when missed; Avg. quality = utility per entry; Miss = first-time entries not held; Util/MB = utility per MB received. Sums over {} (first {TABLE5_S} s each).\n\n| network | method | utility | avg. quality | miss | MB | util/MB |\n|---|---|---:|---:|---:|---:|---:|",
+        short_names.join(", ")
+    );
+    for (nname, net) in &nets {
+        for planner in Planner::ALL {
+            let (mut u, mut r, mut mb) = (0.0, Ratio::default(), 0.0);
+            for sc in &short {
+                let log = session(&dir, &sc.trace, "linear", planner, net, BUDGET);
+                let (su, sr) = entry_utility(&log, &sc.needed, &util);
+                u += su;
+                add_ratio(&mut r, sr);
+                mb += log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
+            }
+            let _ = writeln!(
+                md,
+                "| {nname} | {} | {u:.1} | {:.3} | {:.1}% | {mb:.1} | {:.2} |",
+                planner.name(),
+                u / r.n.max(1) as f64,
+                100.0 * (1.0 - r.rate().unwrap_or(0.0)),
+                u / mb.max(1e-9)
+            );
+        }
+        eprintln!("simulate: city table 5 {nname} done");
+    }
+    // SGSS Table 3.
+    let (lo2, hi2) = city.grid.extent();
+    let (lo, hi) = (
+        DVec3::new(lo2.x, lo2.y, 0.0),
+        DVec3::new(hi2.x, hi2.y, 20.0),
+    );
+    let full = city.variant_bytes[0] as f64 / 1e6;
+    let _ = writeln!(
+        md,
+        "\n### SGSS Table 3 on the city: bytes on 20 s dolly traces (200 Mbps)\n\nFull = every tile at Best ({full:.1} MB). Streamed = body bytes received in 20 s, memory budget {} MiB (holds the city; with {} MiB the oracle's evictions re-download tiles).\n\n| dolly seed | full download | reactive | linear | oracle |\n|---|---:|---:|---:|---:|",
+        TABLE3_BUDGET >> 20,
+        BUDGET >> 20
+    );
+    let net200 = NetModel::constant(200.0, 0.04);
+    for seed in 0..3u64 {
+        let tr = trace::dolly("stream-city", lo, hi, args.seed + seed, "test");
+        let mut cells = vec![];
+        for p in ["reactive", "linear", "oracle"] {
+            let log = session(&dir, &tr, p, Planner::Dp, &net200, TABLE3_BUDGET);
+            let mb = log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
+            cells.push(format!("{mb:.2} MB ({:.1}%)", 100.0 * mb / full));
+        }
+        let _ = writeln!(
+            md,
+            "| {} | {full:.1} MB | {} |",
+            args.seed + seed,
+            cells.join(" | ")
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nWall time of the whole experiment: {:.0} s.\n",
+        start.elapsed().as_secs_f64()
+    );
+    Ok(md)
+}

@@ -1,0 +1,105 @@
+//! Tileset geometry shared by the renderer, the viewers, the client and the evaluations: content
+//! matrices, the up direction and bounds of a tileset, box corners, screen-space error and the
+//! REPLACE selection of a camera.
+
+use std::path::PathBuf;
+
+use glam::DVec3;
+use splat2tiles_core::camera::Camera;
+use splat2tiles_core::splat::Splats;
+
+use crate::tiling::load::LoadedTileset;
+
+/// Bounds of the finite splat centres, `None` when there are none.
+pub fn finite_bounds(splats: &Splats) -> Option<(DVec3, DVec3)> {
+    let mut it = splats
+        .positions
+        .iter()
+        .map(|&p| DVec3::from(p))
+        .filter(|p| p.is_finite());
+    let first = it.next()?;
+    Some(it.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p))))
+}
+
+/// World matrix of a tile's content: root transform, then glTF y-up -> 3D Tiles z-up, then the
+/// glb node matrix.
+pub fn content_model(ts: &LoadedTileset, node: &[f64; 16]) -> glam::DMat4 {
+    let y_to_z = glam::DMat4::from_mat3(splat2tiles_core::frame::y_up_to_z_up());
+    ts.root_transform * y_to_z * glam::DMat4::from_cols_array(node)
+}
+
+/// The tileset's up direction in world coordinates (+z of the root frame).
+pub fn tileset_up(ts: &LoadedTileset) -> DVec3 {
+    ts.root_transform
+        .transform_vector3(DVec3::Z)
+        .try_normalize()
+        .unwrap_or(DVec3::Z)
+}
+
+/// World-space (after the root transform) axis-aligned bounds of the root's tight box.
+pub fn tileset_bounds(ts: &LoadedTileset) -> Option<(DVec3, DVec3)> {
+    let root = &ts.tiles[ts.root_index()?];
+    let corners = box_corners(root.bounding_box.as_ref()?);
+    let pts: Vec<DVec3> = corners
+        .iter()
+        .map(|c| ts.root_transform.transform_point3(*c))
+        .collect();
+    let lo = pts.iter().fold(DVec3::splat(f64::MAX), |a, p| a.min(*p));
+    let hi = pts.iter().fold(DVec3::splat(f64::MIN), |a, p| a.max(*p));
+    Some((lo, hi))
+}
+
+/// The 8 corners of a 3D Tiles box (centre + three half-axis vectors).
+pub fn box_corners(b: &[f64; 12]) -> [DVec3; 8] {
+    let c = DVec3::new(b[0], b[1], b[2]);
+    let axes = [
+        DVec3::new(b[3], b[4], b[5]),
+        DVec3::new(b[6], b[7], b[8]),
+        DVec3::new(b[9], b[10], b[11]),
+    ];
+    std::array::from_fn(|i| {
+        let s = |k: usize| if i >> k & 1 == 1 { 1.0 } else { -1.0 };
+        c + axes[0] * s(0) + axes[1] * s(1) + axes[2] * s(2)
+    })
+}
+
+/// Screen-space error (pixels) of tile `i` seen by `cam`: geometric error * focal / distance
+/// from the eye to its box's bounding sphere (1e-9 inside it or without a box).
+pub fn tile_sse(ts: &LoadedTileset, i: usize, cam: &Camera) -> f64 {
+    let t = &ts.tiles[i];
+    let distance = t
+        .bounding_box
+        .as_ref()
+        .map(|b| {
+            let (centre, radius) = crate::select::box_sphere(b, &ts.root_transform);
+            (centre.distance(cam.center()) - radius).max(1e-9)
+        })
+        .unwrap_or(1e-9);
+    t.geometric_error * cam.fy / distance
+}
+
+/// REPLACE-refinement selection: from the root, a tile is refined into its children while its
+/// screen-space error (geometric error * focal / distance to its box) exceeds `max_sse` pixels;
+/// the content of every tile reached and not refined is drawn.
+pub fn select_tiles(
+    ts: &LoadedTileset,
+    cam: &Camera,
+    max_sse: f64,
+) -> Vec<PathBuf> {
+    let children = ts.children();
+    let Some(root) = ts.root_index() else {
+        return vec![];
+    };
+    let mut out = vec![];
+    let mut stack = vec![root];
+    while let Some(i) = stack.pop() {
+        let t = &ts.tiles[i];
+        let sse = tile_sse(ts, i, cam);
+        match children.get(&t.key) {
+            Some(kids) if sse > max_sse => stack.extend(kids.iter().copied()),
+            _ => out.extend(t.content.clone()),
+        }
+    }
+    out.sort();
+    out
+}

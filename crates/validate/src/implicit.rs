@@ -1,0 +1,492 @@
+//! Implicit tiling (3D Tiles 1.1 "Implicit Tiling"): the implicitTiling object, template URIs,
+//! and a walk over every reachable subtree (each file checked by `subtree_file`) that validates
+//! each available tile's content against its volume.
+
+use super::context::Ctx;
+use super::cut::{CutTile, record};
+use super::issues::Issue;
+use super::metadata::Schema;
+use super::subtree_file::{availability, check_views, parse_subtree, table_column};
+use super::tileset::{Parent, content_file};
+use super::volume::{Volume, parse_box};
+use splat2tiles_tiles::tiling::load::expand_template;
+use splat2tiles_tiles::tiling::subtree::tile_count;
+use splat2tiles_tiles::tiling::{Scheme, TileKey};
+use serde_json::Value;
+use std::collections::{HashMap, HashSet};
+
+/// Most subtree files one validation walks.
+const MAX_SUBTREES: usize = 1 << 20;
+
+/// Largest number of child-subtree bits walked (N^subtreeLevels); beyond it the walk stops.
+const MAX_CHILD_BITS: u64 = 1 << 24;
+
+/// Checks the variables of a template URI against the scheme.
+fn template(ctx: &mut Ctx<'_>, uri: &str, path: &str, octree: bool) {
+    let allowed: &[&str] = if octree {
+        &["level", "x", "y", "z"]
+    } else {
+        &["level", "x", "y"]
+    };
+    let mut used = HashSet::new();
+    let mut rest = uri;
+    while let Some(open) = rest.find('{') {
+        let after = &rest[open + 1..];
+        let Some(close) = after.find('}') else { break };
+        let name = &after[..close];
+        if allowed.contains(&name) {
+            used.insert(name.to_string());
+        } else {
+            ctx.push(Issue::TEMPLATE_URI_INVALID_VARIABLE_NAME(
+                path,
+                format!(
+                    "'{{{name}}}' is not one of {allowed:?} ({} scheme)",
+                    if octree { "OCTREE" } else { "QUADTREE" }
+                ),
+            ));
+        }
+        rest = &after[close + 1..];
+    }
+    let missing: Vec<&str> = allowed
+        .iter()
+        .copied()
+        .filter(|a| !used.contains(*a))
+        .collect();
+    if !missing.is_empty() {
+        ctx.push(Issue::TEMPLATE_URI_MISSING_VARIABLE_NAME(
+            path,
+            format!("the template does not use {missing:?}, so different tiles share a URI"),
+        ));
+    }
+}
+
+/// Validates an implicit root tile and walks its subtrees; `at` holds the root tile's own
+/// geometric error, world transform and refinement, and its parent's place in the walk.
+pub(crate) fn validate(
+    ctx: &mut Ctx<'_>,
+    tile: &Value,
+    it: &Value,
+    path: &str,
+    volume: Option<Volume>,
+    at: Parent,
+    schema: &Schema,
+) {
+    let (world, root_error) = (at.world, at.error);
+    let ip = format!("{path}/implicitTiling");
+    // "children, metadata and content.boundingVolume MUST NOT be defined on an implicit root".
+    if tile.get("children").is_some() {
+        ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
+            format!("{path}/children"),
+            "an implicit root must not have children",
+        ));
+    }
+    if tile.get("metadata").is_some() {
+        ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
+            format!("{path}/metadata"),
+            "an implicit root must not have metadata",
+        ));
+    }
+    let mut templates = Vec::new();
+    let contents: Vec<(String, &Value)> = match (tile.get("content"), tile.get("contents")) {
+        (Some(c), _) => vec![(format!("{path}/content"), c)],
+        (None, Some(Value::Array(cs))) => cs
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (format!("{path}/contents/{i}"), c))
+            .collect(),
+        _ => vec![],
+    };
+    for (cp, c) in &contents {
+        if c.get("boundingVolume").is_some() {
+            ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
+                format!("{cp}/boundingVolume"),
+                "content of an implicit root must not have a boundingVolume",
+            ));
+        }
+        match c.get("uri").and_then(Value::as_str) {
+            Some(u) => templates.push((format!("{cp}/uri"), u.to_string())),
+            None => ctx.push(Issue::PROPERTY_MISSING(
+                cp.clone(),
+                "content 'uri' is required",
+            )),
+        }
+    }
+    if let Some(Volume::Sphere { .. }) = volume {
+        ctx.push(Issue::BOUNDING_VOLUME_INVALID(
+            format!("{path}/boundingVolume/sphere"),
+            "implicit tiling does not allow sphere bounding volumes",
+        ));
+    }
+    let Some(obj) = it.as_object() else {
+        ctx.push(Issue::TYPE_MISMATCH(ip, "implicitTiling must be an object"));
+        return;
+    };
+    let scheme = match obj.get("subdivisionScheme").and_then(Value::as_str) {
+        Some("QUADTREE") => Some(Scheme::Quadtree),
+        Some("OCTREE") => Some(Scheme::Octree),
+        Some(s) => {
+            ctx.push(Issue::VALUE_NOT_IN_LIST(
+                format!("{ip}/subdivisionScheme"),
+                format!("'{s}' is not QUADTREE or OCTREE"),
+            ));
+            None
+        }
+        None => {
+            ctx.push(Issue::PROPERTY_MISSING(
+                ip.clone(),
+                "'subdivisionScheme' is required",
+            ));
+            None
+        }
+    };
+    let mut levels = |key: &str| match obj.get(key) {
+        None => {
+            ctx.push(Issue::PROPERTY_MISSING(
+                ip.clone(),
+                format!("'{key}' is required"),
+            ));
+            None
+        }
+        Some(v) => match v.as_u64() {
+            Some(n) if n >= 1 => Some(n),
+            _ => {
+                ctx.push(Issue::VALUE_NOT_IN_RANGE(
+                    format!("{ip}/{key}"),
+                    format!("{key} must be an integer >= 1"),
+                ));
+                None
+            }
+        },
+    };
+    let subtree_levels = levels("subtreeLevels");
+    let available_levels = levels("availableLevels");
+    let subtrees_uri = match obj
+        .get("subtrees")
+        .map(|s| s.get("uri").and_then(Value::as_str))
+    {
+        Some(Some(u)) => Some(u.to_string()),
+        _ => {
+            ctx.push(Issue::PROPERTY_MISSING(
+                format!("{ip}/subtrees"),
+                "'subtrees.uri' is required",
+            ));
+            None
+        }
+    };
+    let Some(scheme) = scheme else { return };
+    let octree = scheme == Scheme::Octree;
+    if let Some(u) = &subtrees_uri {
+        template(ctx, u, &format!("{ip}/subtrees/uri"), octree);
+    }
+    for (p, u) in &templates {
+        template(ctx, u, p, octree);
+    }
+    let (Some(sl), Some(al), Some(subtrees_uri)) = (subtree_levels, available_levels, subtrees_uri)
+    else {
+        return;
+    };
+    let arity = scheme.arity();
+    let max_level = if octree { 21 } else { 31 };
+    if arity
+        .checked_pow(sl as u32)
+        .is_none_or(|n| n > MAX_CHILD_BITS)
+        || al > max_level
+    {
+        ctx.push(Issue::IMPLICIT_TILING_ERROR(
+            ip,
+            format!("subtreeLevels {sl} / availableLevels {al} are beyond what this validator walks (N^subtreeLevels <= 2^24, levels <= {max_level})"),
+        ));
+        return;
+    }
+    let (sl, al) = (sl as u32, al as u32);
+    let n_tiles = tile_count(arity, sl) as usize;
+    let n_children = arity.pow(sl) as usize;
+    let dims = scheme.dims();
+    let tile_class_box = "TILE_BOUNDING_BOX";
+    let tile_class_err = "TILE_GEOMETRIC_ERROR";
+
+    let mut errors: HashMap<TileKey, f64> = HashMap::new();
+    let mut walked: HashMap<TileKey, usize> = HashMap::new();
+    let mut queue = vec![(TileKey::ROOT, true)];
+    let mut seen = HashSet::new();
+    while let Some((root, is_root)) = queue.pop() {
+        if !seen.insert(root) {
+            continue;
+        }
+        if seen.len() > MAX_SUBTREES {
+            ctx.push(Issue::IMPLICIT_TILING_ERROR(
+                ip.clone(),
+                format!("more than {MAX_SUBTREES} subtrees are available; the walk stopped there"),
+            ));
+            break;
+        }
+        let uri = expand_template(&subtrees_uri, root);
+        let Some(file) = ctx.resolve(&uri, &format!("{path}/implicitTiling/subtrees/uri")) else {
+            continue;
+        };
+        if !ctx.exists(&file) {
+            if is_root {
+                ctx.push(Issue::IO_ERROR(uri, "the root subtree file is missing"));
+            } else {
+                ctx.push(Issue::SUBTREE_FILE_MISSING(
+                    uri,
+                    "its parent subtree marks this child subtree available, but there is no file",
+                ));
+            }
+            continue;
+        }
+        let Some(bytes) = ctx.read(&file, &uri) else {
+            continue;
+        };
+        let Some((j, bin)) = parse_subtree(ctx, &bytes, &uri) else {
+            continue;
+        };
+        let dir_rel = std::path::Path::new(&uri)
+            .parent()
+            .map(|p| p.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let views = check_views(ctx, &j, bin, &uri, &dir_rel);
+        let sp = format!("{uri}#");
+        let Some(tiles) = availability(
+            ctx,
+            &j.tile_availability,
+            n_tiles,
+            &views,
+            &format!("{sp}/tileAvailability"),
+        ) else {
+            continue;
+        };
+        let mut layers = Vec::new();
+        for (c, a) in j.content_availability.iter().enumerate() {
+            layers.push(availability(
+                ctx,
+                a,
+                n_tiles,
+                &views,
+                &format!("{sp}/contentAvailability/{c}"),
+            ));
+        }
+        if layers.len() != templates.len() && !(layers.is_empty() && templates.is_empty()) {
+            ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                format!("{sp}/contentAvailability"),
+                format!(
+                    "{} content availabilities for {} content templates",
+                    layers.len(),
+                    templates.len()
+                ),
+            ));
+        }
+        let children = availability(
+            ctx,
+            &j.child_subtree_availability,
+            n_children,
+            &views,
+            &format!("{sp}/childSubtreeAvailability"),
+        );
+
+        // Index helpers: level offset + Morton index.
+        let key_of = |idx: usize| {
+            let mut rl = 0u32;
+            while tile_count(arity, rl + 1) as usize <= idx {
+                rl += 1;
+            }
+            let m = (idx - tile_count(arity, rl) as usize) as u64;
+            (rl, m)
+        };
+        let abs = |rl: u32, m: u64| {
+            let (x, y, z) = scheme.decode(m);
+            TileKey {
+                level: root.level + rl,
+                x: (root.x << rl) + x,
+                y: (root.y << rl) + y,
+                z: (root.z << rl) + z,
+            }
+        };
+        // "If a tile is available, its parent tile MUST be available"; content => tile.
+        let mut bad_parent = Vec::new();
+        for (idx, _) in tiles.iter().enumerate().filter(|(_, b)| **b) {
+            let (rl, m) = key_of(idx);
+            if rl > 0 && !tiles[tile_count(arity, rl - 1) as usize + (m >> dims) as usize] {
+                bad_parent.push(idx);
+            }
+            if root.level + rl >= al {
+                ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                    format!("{sp}/tileAvailability"),
+                    format!(
+                        "tile {idx} (level {}) is available but availableLevels is {al}",
+                        root.level + rl
+                    ),
+                ));
+                break;
+            }
+        }
+        if let Some(&idx) = bad_parent.first() {
+            ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                format!("{sp}/tileAvailability"),
+                format!(
+                    "{} available tiles have an unavailable parent; first: tile index {idx}",
+                    bad_parent.len()
+                ),
+            ));
+        }
+        for (c, layer) in layers.iter().enumerate() {
+            let Some(layer) = layer else { continue };
+            let orphans = layer
+                .iter()
+                .zip(&tiles)
+                .filter(|(c, t)| **c && !**t)
+                .count();
+            if orphans > 0 {
+                ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                    format!("{sp}/contentAvailability/{c}"),
+                    format!("{orphans} contents are available on unavailable tiles"),
+                ));
+            }
+        }
+        if let Some(children) = &children {
+            let first_last = tile_count(arity, sl - 1) as usize;
+            for (m, &set) in children.iter().enumerate() {
+                let parent_ok = tiles[first_last + (m >> dims)];
+                let key = abs(sl, m as u64);
+                if set && !parent_ok {
+                    ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                        format!("{sp}/childSubtreeAvailability"),
+                        format!("child subtree {m} is available but its parent tile is not"),
+                    ));
+                } else if set && key.level >= al {
+                    ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                        format!("{sp}/childSubtreeAvailability"),
+                        format!(
+                            "child subtree {m} starts at level {} but availableLevels is {al}",
+                            key.level
+                        ),
+                    ));
+                } else if set {
+                    queue.push((key, false));
+                } else if parent_ok && key.level < al {
+                    let child_uri = expand_template(&subtrees_uri, key);
+                    if ctx.lookup(&child_uri).is_some_and(|f| f.is_file()) {
+                        ctx.push(Issue::SUBTREE_FILE_UNREFERENCED(
+                            child_uri,
+                            format!(
+                                "{uri} marks this child subtree unavailable, so it is never loaded"
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+
+        // Property tables.
+        let available: Vec<usize> = tiles
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| **b)
+            .map(|(i, _)| i)
+            .collect();
+        let mut boxes = None;
+        let mut tile_errors = None;
+        if let Some(t) = j.tile_metadata {
+            let cols = table_column(
+                ctx,
+                &j,
+                &views,
+                schema,
+                t,
+                available.len(),
+                &sp,
+                &[tile_class_box, tile_class_err],
+            );
+            // Columns of the wrong shape were reported by the schema checks; ignore them here.
+            boxes = cols[0].clone().filter(|b| b.len() == available.len() * 12);
+            tile_errors = cols[1].clone().filter(|e| e.len() == available.len());
+        }
+        for (c, t) in j.content_metadata.iter().flatten().enumerate() {
+            let rows = layers
+                .get(c)
+                .and_then(|l| l.as_ref())
+                .map_or(0, |l| l.iter().filter(|b| **b).count());
+            table_column(ctx, &j, &views, schema, *t, rows, &sp, &[]);
+        }
+
+        // Per available tile: error, volume, contents.
+        for (row, &idx) in available.iter().enumerate() {
+            let (rl, m) = key_of(idx);
+            let key = abs(rl, m);
+            let error = match &tile_errors {
+                Some(e) => {
+                    let v = e[row];
+                    if !(v >= 0.0 && v.is_finite()) {
+                        ctx.push(Issue::METADATA_VALUE_INVALID(
+                            format!("{sp}/propertyTables/{}", j.tile_metadata.unwrap_or(0)),
+                            format!("TILE_GEOMETRIC_ERROR of tile index {idx} is {v} (must be finite and >= 0)"),
+                        ));
+                    }
+                    Some(v)
+                }
+                None => root_error.map(|e| e / f64::powi(2.0, key.level as i32)),
+            };
+            if let (Some(e), Some(parent)) = (error, key.parent().and_then(|p| errors.get(&p)))
+                && e > *parent
+            {
+                ctx.push(Issue::TILE_GEOMETRIC_ERRORS_INCONSISTENT(
+                    format!("{sp}/tileMetadata"),
+                    format!("tile {}/{}/{}/{}: geometric error {e} is larger than its parent's {parent}", key.level, key.x, key.y, key.z),
+                ));
+            }
+            if let Some(e) = error {
+                errors.insert(key, e);
+            }
+            let tile_volume = match &boxes {
+                Some(b) => match parse_box(&b[row * 12..row * 12 + 12]) {
+                    Ok(v) => Some(v),
+                    Err(why) => {
+                        ctx.push(Issue::METADATA_VALUE_INVALID(
+                            format!("{sp}/propertyTables/{}", j.tile_metadata.unwrap_or(0)),
+                            format!("TILE_BOUNDING_BOX of tile index {idx}: {why}"),
+                        ));
+                        None
+                    }
+                },
+                None => volume.map(|v| v.subdivide(octree, key.level, key.x, key.y, key.z)),
+            };
+            let parent = match key.parent() {
+                None => at.cut,
+                Some(p) => walked.get(&p).copied(),
+            };
+            let cut = CutTile {
+                path: format!("{uri}#tile {}/{}/{}/{}", key.level, key.x, key.y, key.z),
+                parent,
+                content: layers.iter().any(|l| l.as_ref().is_some_and(|l| l[idx])),
+                volume: tile_volume,
+                world,
+                error,
+                replace: at.replace,
+            };
+            if let Some(i) = record(ctx, cut) {
+                walked.insert(key, i);
+            }
+            for (c, layer) in layers.iter().enumerate() {
+                if !layer.as_ref().is_some_and(|l| l[idx]) {
+                    continue;
+                }
+                let Some((tp, t)) = templates.get(c) else {
+                    continue;
+                };
+                let curi = expand_template(t, key);
+                content_file(ctx, &curi, tp, tile_volume, world);
+                // The tile's other quality variants, declared in the tileset metadata.
+                if c == 0 {
+                    for (name, vt) in ctx.variant_templates.clone() {
+                        if &vt != t {
+                            let vuri = expand_template(&vt, key);
+                            let vp =
+                                format!("tileset.json#/metadata/properties/variantUris ({name})");
+                            content_file(ctx, &vuri, &vp, tile_volume, world);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,199 @@
+//! The `render` and `compare` subcommands: argument structs (clap derive) and the functions that
+//! run them, so `main.rs` only parses and dispatches.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use glam::DVec3;
+
+use splat2tiles_core::camera;
+use splat2tiles_render::image::Image;
+use splat2tiles_render::metrics;
+use splat2tiles_render::raster::{RenderOptions, render_with_stats};
+use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
+use splat2tiles_tiles::geometry::{content_model, finite_bounds, select_tiles, tileset_bounds, tileset_up};
+use splat2tiles_core::splat::Splats;
+
+/// Arguments of `splat2tiles render`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RenderArgs {
+    /// Scene file (.ply, .splat, .spz) or a tileset (`tileset.json`).
+    pub input: PathBuf,
+    /// Camera: `PATH/cameras.json[#ID]` (trainer format; first entry without `#ID`) or
+    /// `look-at:EX,EY,EZ:TX,TY,TZ[:UX,UY,UZ]` (world coordinates; image up along UX,UY,UZ, else
+    /// --up-axis) or `geo:LON,LAT,HEIGHT:HEADING,PITCH` (degrees, metres; georeferenced tilesets,
+    /// heading clockwise from north, pitch above the horizontal): the viewers' stats report these.
+    #[arg(
+        long,
+        conflicts_with = "auto_view",
+        required_unless_present = "auto_view"
+    )]
+    pub camera: Option<String>,
+    /// One of the 8 automatic viewpoints around the scene's bounding box (0..=7).
+    #[arg(long)]
+    pub auto_view: Option<usize>,
+    /// Image width [default: 1280, or the cameras.json entry's].
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height [default: 720, or the cameras.json entry's].
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Vertical field of view in degrees (ignored with cameras.json).
+    #[arg(long, default_value_t = camera::DEFAULT_FOV_Y_DEG)]
+    pub fov: f64,
+    /// Up axis of the scene file: +x,-x,+y,-y,+z,-z [default: -y; +y for .spz].
+    #[arg(long, allow_hyphen_values = true)]
+    pub up_axis: Option<String>,
+    /// Highest SH degree to evaluate [default: all the scene has].
+    #[arg(long)]
+    pub sh_degree: Option<u8>,
+    /// Background colour R,G,B in [0, 1].
+    #[arg(long, default_value = "0,0,0")]
+    pub background: String,
+    /// Output PNG.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Tilesets: refine tiles while their screen-space error exceeds this many pixels.
+    #[arg(long, default_value_t = 16.0)]
+    pub max_sse: f64,
+}
+
+/// Arguments of `splat2tiles compare`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CompareArgs {
+    /// First image (PNG).
+    pub a: PathBuf,
+    /// Second image (PNG), same size.
+    pub b: PathBuf,
+    /// Print `{"ssim": .., "psnr": ..}` (psnr null when the images are identical).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The default up axis for a scene file: +y for SPZ (RUB), -y otherwise (COLMAP, y down).
+pub fn default_up_axis(path: &Path) -> DVec3 {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if ext.as_deref() == Some("spz") {
+        DVec3::Y
+    } else {
+        -DVec3::Y
+    }
+}
+
+/// The camera request of these arguments.
+impl RenderArgs {
+    pub fn camera_request(&self) -> CameraRequest {
+        CameraRequest {
+            camera: self.camera.clone(),
+            auto_view: self.auto_view,
+            width: self.width,
+            height: self.height,
+            fov: self.fov,
+        }
+    }
+}
+
+/// Runs `render`: reads a scene file or a tileset (tiles chosen by screen-space error for the
+/// camera), renders with the CPU reference renderer and writes the PNG.
+pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
+    let up_arg = match &args.up_axis {
+        Some(s) => Some(
+            camera::parse_axis(s)
+                .with_context(|| format!("--up-axis '{s}': expected one of +x,-x,+y,-y,+z,-z"))?,
+        ),
+        None => None,
+    };
+    let background = parse_vec3(&args.background).context("--background")?;
+    let opts = RenderOptions {
+        background: background.as_vec3().to_array(),
+        max_sh_degree: args.sh_degree.unwrap_or(3),
+        ..RenderOptions::default()
+    };
+    let is_tileset = args
+        .input
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let (instances, cam, note) = if is_tileset {
+        let ts = splat2tiles_tiles::tiling::load::load_tileset(&args.input)?;
+        let up = up_arg.unwrap_or_else(|| tileset_up(&ts));
+        let cam = resolve_camera(&args.camera_request(), up, tileset_bounds(&ts))?;
+        if splat2tiles_tiles::layers::view::is_layered(&ts) {
+            // Layered content: ancestors' layers + blended children (spec/layered-content.md).
+            let instances = splat2tiles_tiles::layers::view::layered_instances(&ts, &cam, args.max_sse)?;
+            let note = format!("{} layers of {} tiles, ", instances.len(), ts.tiles.len());
+            (instances, cam, note)
+        } else {
+            let picked = select_tiles(&ts, &cam, args.max_sse);
+            let mut instances = Vec::with_capacity(picked.len());
+            for path in &picked {
+                let bytes = std::fs::read(path)
+                    .with_context(|| format!("{}: cannot read", path.display()))?;
+                // Any variant: plain, EXT_meshopt_compression or SPZ_2 compressed.
+                let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
+                    .with_context(|| format!("{}", path.display()))?;
+                instances.push((splats, content_model(&ts, &node)));
+            }
+            let note = format!("{} of {} tiles, ", picked.len(), ts.tiles.len());
+            (instances, cam, note)
+        }
+    } else {
+        let scene = splat2tiles_io::read_path(&args.input)?;
+        let up = up_arg.unwrap_or_else(|| default_up_axis(&args.input));
+        let cam = resolve_camera(&args.camera_request(), up, finite_bounds(&scene.splats))?;
+        (
+            vec![(scene.splats, glam::DMat4::IDENTITY)],
+            cam,
+            String::new(),
+        )
+    };
+    let refs: Vec<(&Splats, glam::DMat4)> = instances.iter().map(|(s, m)| (s, *m)).collect();
+    let t0 = Instant::now();
+    let (img, stats) = render_with_stats(&refs, &cam, &opts);
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    img.save_png(&args.output)?;
+    eprintln!(
+        "splat2tiles: rendered {note}{} splats ({} visible, {} skipped non-finite) at {}x{} in {ms:.1} ms -> {}",
+        stats.splats,
+        stats.visible,
+        stats.non_finite,
+        cam.width,
+        cam.height,
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// SSIM and PSNR of two PNG files.
+pub fn compare_files(a: &Path, b: &Path) -> anyhow::Result<(f64, f64)> {
+    let ia = Image::load_png(a)?;
+    let ib = Image::load_png(b)?;
+    let s =
+        metrics::ssim(&ia, &ib).with_context(|| format!("{} vs {}", a.display(), b.display()))?;
+    let p = metrics::psnr(&ia, &ib)?;
+    Ok((s, p))
+}
+
+/// Runs `compare`: prints SSIM and PSNR (text or JSON) on stdout.
+pub fn run_compare(args: &CompareArgs) -> anyhow::Result<()> {
+    let (s, p) = compare_files(&args.a, &args.b)?;
+    println!("{}", format_compare(s, p, args.json));
+    Ok(())
+}
+
+/// The `compare` output line(s).
+pub fn format_compare(ssim: f64, psnr: f64, json: bool) -> String {
+    if json {
+        let p = if psnr.is_finite() {
+            serde_json::json!(psnr)
+        } else {
+            serde_json::Value::Null
+        };
+        serde_json::json!({"ssim": ssim, "psnr": p}).to_string()
+    } else {
+        format!("SSIM {ssim:.6}\nPSNR {psnr:.3} dB")
+    }
+}
