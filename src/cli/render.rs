@@ -197,3 +197,7 @@ pub fn format_compare(ssim: f64, psnr: f64, json: bool) -> String {
         format!("SSIM {ssim:.6}\nPSNR {psnr:.3} dB")
     }
 }
+
+#[cfg(test)]
+#[path = "render_tests.rs"]
+mod tests;

@@ -67,7 +67,7 @@ pub fn assert_valid_with_extents(out: &Path) {
 
 /// `../shared/scenes` beside the crate (present in CI).
 pub fn scenes() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes")
+    repo().join("../shared/scenes")
 }
 
 /// A shared scene by file name; panics with a clear message when the folder is missing.
@@ -81,9 +81,27 @@ pub fn scene(name: &str) -> PathBuf {
     p
 }
 
-/// The built `splat2tiles` binary.
+/// The repository's root (the `splat2tiles` package), from whichever package's tests run.
+pub fn repo() -> PathBuf {
+    let mut p = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    while !p.join("samples/plant.splat").is_file() && p.pop() {}
+    p
+}
+
+/// The built `splat2tiles` binary (beside this test executable's folder when another package's
+/// tests run: `cargo test --workspace` builds every binary).
 pub fn bin() -> PathBuf {
-    PathBuf::from(env!("CARGO_BIN_EXE_splat2tiles"))
+    match option_env!("CARGO_BIN_EXE_splat2tiles") {
+        Some(p) => PathBuf::from(p),
+        None => sibling_bin("splat2tiles"),
+    }
+}
+
+/// A workspace binary in the target folder of the running test executable (`target/P/deps/..`).
+pub fn sibling_bin(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("the test executable's path");
+    let dir = exe.parent().and_then(Path::parent).expect("target/PROFILE");
+    dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX))
 }
 
 /// A tiny deterministic generator (xorshift) for test scenes.
@@ -212,7 +230,7 @@ pub fn files_under(dir: &Path, ext: &str) -> Vec<PathBuf> {
 
 /// The node harness folder (`tests/js`: Khronos glTF-Validator, splat-transform).
 pub fn js_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/js")
+    repo().join("tests/js")
 }
 
 /// Fails (never skips) when the node harness is not installed.
@@ -325,7 +343,7 @@ pub fn assert_levels_complete(ts: &splat2tiles_tiles::tiling::load::LoadedTilese
 /// The repository's sample scene (`samples/plant.splat`, CC-BY-4.0), every `step`-th splat,
 /// normalised for generated cities (z up, ground at 0, horizontal size 1).
 pub fn plant_sample(step: usize) -> Splats {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/plant.splat");
+    let path = repo().join("samples/plant.splat");
     let scene = splat2tiles_io::read_path(&path).unwrap();
     let order: Vec<usize> = (0..scene.splats.len()).step_by(step).collect();
     splat2tiles_lab::city::normalise_source(

@@ -9,8 +9,12 @@ pub const PLANT: &str = "plant.splat";
 
 /// Path of a shared scene (`../shared/scenes/NAME` beside the crate).
 pub fn shared_scene(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/scenes")
+    {
+        let mut p = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        while !p.join("samples/plant.splat").is_file() && p.pop() {}
+        p
+    }
+    .join("../shared/scenes")
         .join(name)
 }
 

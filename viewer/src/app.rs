@@ -15,7 +15,7 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
 use splat2tiles_stream::client::native::Driver;
-use splat2tiles::cli::render::{RenderArgs, resolve_camera};
+use splat2tiles_render::view::{CameraRequest, resolve_camera};
 use splat2tiles_core::view_spec::{ViewSpec, is_georeferenced};
 
 use crate::headless::ViewArgs;
@@ -321,20 +321,14 @@ pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
             .with_context(|| format!("--up-axis '{s}': expected one of +x,-x,+y,-y,+z,-z"))?,
         None => up_default,
     };
-    let ra = RenderArgs {
-        input: url.into(),
+    let req = CameraRequest {
         camera: v.camera.clone(),
         auto_view: v.auto_view,
         width: Some(w),
         height: Some(h),
         fov: v.fov,
-        up_axis: None,
-        sh_degree: v.sh_degree,
-        background: v.background.clone(),
-        output: Default::default(),
-        max_sse: v.max_sse,
     };
-    let start = resolve_camera(&ra, up, bounds)?;
+    let start = resolve_camera(&req, up, bounds)?;
     let root = driver.client().root_transform();
     // Back to the tileset frame (z up) for the first-person pose.
     let local = root.inverse() * start.world_from_camera;

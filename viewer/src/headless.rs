@@ -8,7 +8,7 @@ use glam::DMat4;
 use splat2tiles_render::Image;
 use splat2tiles_core::camera::{self, Camera};
 use splat2tiles_tiles::geometry::{content_model, select_tiles, tileset_bounds, tileset_up};
-use splat2tiles::cli::render::{RenderArgs, parse_vec3, resolve_camera};
+use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
 use splat2tiles_core::splat::Splats;
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 
@@ -55,19 +55,13 @@ impl Default for ViewArgs {
 }
 
 impl ViewArgs {
-    fn as_render_args(&self, input: &Path) -> RenderArgs {
-        RenderArgs {
-            input: input.to_path_buf(),
+    fn camera_request(&self) -> CameraRequest {
+        CameraRequest {
             camera: self.camera.clone(),
             auto_view: self.auto_view,
             width: self.width,
             height: self.height,
             fov: self.fov,
-            up_axis: self.up_axis.clone(),
-            sh_degree: self.sh_degree,
-            background: self.background.clone(),
-            output: PathBuf::new(),
-            max_sse: self.max_sse,
         }
     }
 
@@ -86,13 +80,13 @@ pub fn open_tileset(path: &Path) -> anyhow::Result<LoadedTileset> {
 }
 
 /// The camera `splat2tiles render` would use for this tileset and these arguments.
-pub fn tileset_camera(ts: &LoadedTileset, input: &Path, v: &ViewArgs) -> anyhow::Result<Camera> {
+pub fn tileset_camera(ts: &LoadedTileset, v: &ViewArgs) -> anyhow::Result<Camera> {
     let up = match &v.up_axis {
         Some(s) => camera::parse_axis(s)
             .with_context(|| format!("--up-axis '{s}': expected one of +x,-x,+y,-y,+z,-z"))?,
         None => tileset_up(ts),
     };
-    resolve_camera(&v.as_render_args(input), up, tileset_bounds(ts))
+    Ok(resolve_camera(&v.camera_request(), up, tileset_bounds(ts))?)
 }
 
 /// Reads and decodes tile contents (any variant) with their tile-to-world matrices.
@@ -160,7 +154,7 @@ pub struct StaticSummary {
 /// `--headless` with `--camera`/`--auto-view`: one frame to `out/frame_0000.png`.
 pub fn run_static(tileset: &Path, v: &ViewArgs, out: &Path) -> anyhow::Result<StaticSummary> {
     let ts = open_tileset(tileset)?;
-    let cam = tileset_camera(&ts, tileset, v)?;
+    let cam = tileset_camera(&ts, v)?;
     let picked = select_tiles(&ts, &cam, v.max_sse);
     let instances = load_instances(&ts, &picked)?;
     let gpu = crate::gpu::headless()?;

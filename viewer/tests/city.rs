@@ -115,7 +115,7 @@ fn city_overview_and_street_match_the_reference_from_selection_and_stream() {
             ..ViewArgs::default()
         };
         let ts = open_tileset(ts_path).unwrap();
-        let cam = tileset_camera(&ts, ts_path, &v).unwrap();
+        let cam = tileset_camera(&ts, &v).unwrap();
         let (inst, _) = tileset_view(ts_path, &v);
         let cpu = reference(&inst, &cam, &Default::default());
         let mean = mean(&cpu);

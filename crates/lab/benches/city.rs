@@ -388,7 +388,7 @@ fn main() {
     };
     let limit_s = std::env::var("CITY_LIMIT").unwrap_or_else(|_| "2GiB".into());
     let limit = MemoryLimit::parse(&limit_s).expect("CITY_LIMIT").bytes();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let dir = std::env::var_os("CITY_DIR")
         .map(PathBuf::from)
         .unwrap_or_else(|| root.join("target/city-bench"));

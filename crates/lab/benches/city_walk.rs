@@ -20,7 +20,7 @@
 mod common;
 use common::release_binary;
 use serde_json::Value;
-use crate::sim::svg::{Series, line_chart, panels};
+use splat2tiles_lab::sim::svg::{Series, line_chart, panels};
 use std::fmt::Write as _;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -28,7 +28,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::Instant;
 
 fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
 }
 
 fn env_or(key: &str, default: &str) -> String {

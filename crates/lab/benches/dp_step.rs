@@ -18,7 +18,7 @@
 
 use std::time::Instant;
 
-use crate::sim::network::read_log;
+use splat2tiles_lab::sim::network::read_log;
 use splat2tiles_stream::bandwidth::future_pieces;
 use splat2tiles_stream::catalog::{LEVELS, Variant};
 use splat2tiles_stream::plan::{Candidate, Plan, PlanRequest, solve_dp};
@@ -104,7 +104,7 @@ fn execute(cands: &[Candidate], plan: &Plan, pieces: &[(f64, f64)], rtt: f64) ->
 }
 
 fn main() {
-    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let root = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let hsdpa = read_log(
         &root.join(
             "../shared/network-traces/hsdpa/bus.ljansbakken-oslo-report.2010-09-28_1407CEST.log",

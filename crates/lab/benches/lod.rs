@@ -15,7 +15,7 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(16_384);
-    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    let scenes = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
     let tmp = std::env::temp_dir().join(format!("s2t-lod-bench-{}", std::process::id()));
     let mut md = String::new();
     let _ = writeln!(
@@ -91,7 +91,7 @@ fn main() {
         "\n| scene | merge | splats in | leaf radius r | convert s (total) | LOD build s | parent splats |\n|---|---|---|---|---|---|---|\n{timing}"
     );
     print!("{md}");
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/lod_bench.md");
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("target/lod_bench.md");
     std::fs::write(&path, &md).expect("write target/lod_bench.md");
     eprintln!("wrote {}", path.display());
 }

@@ -15,7 +15,7 @@ use splat2tiles_build::convert::{ConvertOptions, convert_scene};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_build::lod::eval::level_table;
 use splat2tiles_build::lod::views::{ViewKind, ViewOptions, evaluate_views, viewer_bytes};
-use crate::city::{CityLayout, city_scene, generate_city, shared_sources};
+use splat2tiles_lab::city::{CityLayout, city_scene, generate_city, shared_sources};
 use splat2tiles_tiles::tiling::load::load_tileset;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -43,7 +43,7 @@ fn main() {
         width: env_or("LOD_CITY_WIDTH", ViewOptions::default().width),
         ..ViewOptions::default()
     };
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let sources = shared_sources(&root.join("../shared/scenes")).expect("shared scenes");
     let tmp = root.join("target/tmp-big");
     let mut md = String::new();

@@ -33,7 +33,7 @@ use splat2tiles_core::frame::UpAxis;
 use splat2tiles_io::{read_path, write_ply};
 use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
 use splat2tiles_render::{Camera, Image};
-use crate::sim::svg::{Series, marked_chart, panels};
+use splat2tiles_lab::sim::svg::{Series, marked_chart, panels};
 use splat2tiles_core::splat::Splats;
 use splat2tiles_core::splat::importance::importance_order;
 use splat2tiles_tiles::variants::{ALL, decode_variant, relative};
@@ -58,7 +58,7 @@ impl Point {
 }
 
 fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
 }
 
 /// Runs splat-transform with `args`, stopped after `PEERS_TIMEOUT_S` seconds (default 900: its

@@ -8,7 +8,7 @@
 //! Writes `target/render_bench.md` (the table pasted into BENCHMARKS.md) and
 //! `docs/render_tradeoff.svg`.
 
-#[path = "../tests/common/splat_file.rs"]
+#[path = "../../../tests/common/splat_file.rs"]
 mod splat_file;
 
 use std::fmt::Write as _;
@@ -359,7 +359,7 @@ fn main() {
         let short = name.split(" (").next().unwrap_or(name).to_string();
         points.push((short, t, s));
     }
-    let root = env!("CARGO_MANIFEST_DIR");
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
     std::fs::create_dir_all(format!("{root}/docs")).unwrap();
     std::fs::write(format!("{root}/docs/render_tradeoff.svg"), svg(&points)).unwrap();
     std::fs::write(format!("{root}/target/render_bench.md"), &md).unwrap();

@@ -43,7 +43,7 @@ fn zstd_streams(raw: &[u8], n: usize, degree: u8) -> usize {
 }
 
 fn main() {
-    let scenes_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    let scenes_dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
     let plant = read_path(&scenes_dir.join("plant.splat")).unwrap();
     let inputs = vec![
         ("plant.splat (SH0)".to_string(), plant.clone()),
@@ -135,7 +135,7 @@ fn main() {
     }
     println!("{table}\n{spz_table}");
     let svg = plot(&points);
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/variants_ssim_bytes.svg");
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("docs/variants_ssim_bytes.svg");
     std::fs::write(&path, svg).unwrap();
     println!("wrote {}", path.display());
 }

@@ -61,7 +61,7 @@ fn load_average() -> f64 {
 
 fn main() {
     let bin = release_binary();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let dir = root.join("target/tmp-big/variants_speed");
     std::fs::create_dir_all(&dir).unwrap();
     let sizes: Vec<usize> = std::env::var("VARIANTS_SPEED_SIZES")

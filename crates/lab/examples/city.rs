@@ -1,4 +1,4 @@
-//! Writes a generated city (`crate::city`, copies of the three shared scenes of
+//! Writes a generated city (`splat2tiles_lab::city`, copies of the three shared scenes of
 //! `../shared/scenes/`) as a z-up binary PLY: the input of the viewers' city checks.
 //!
 //! Run: `cargo run --example city -- SPLATS OUT.ply [SCENES_DIR]`, then
@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use crate::city::{CityLayout, generate_city, shared_sources};
+use splat2tiles_lab::city::{CityLayout, generate_city, shared_sources};
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -19,7 +19,7 @@ fn main() -> anyhow::Result<()> {
     let scenes = args
         .get(2)
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes"));
     let city = generate_city(
         &shared_sources(&scenes)?,
         &CityLayout {

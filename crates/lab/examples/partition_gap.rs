@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release --example partition_gap [SEEDS]` (default 40 seeds per grid).
 
-#[path = "../tests/partition/ilp.rs"]
+#[path = "../../../tests/partition/ilp.rs"]
 mod ilp;
 
 use splat2tiles_build::partition::optimise;

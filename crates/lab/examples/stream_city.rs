@@ -1,4 +1,4 @@
-//! Generates and converts the issue-19 streaming city (`crate::sim::stream_city`): real
+//! Generates and converts the issue-19 streaming city (`splat2tiles_lab::sim::stream_city`): real
 //! content on a street grid, georeferenced, all four variants, reproducible from the seed.
 //!
 //! Run: `cargo run --release --example stream_city -- OUT_DIR [--origin LON,LAT,H] [--seed N]
@@ -7,7 +7,7 @@
 //! arguments or a failed conversion (nothing is left at OUT_DIR then).
 
 use splat2tiles_core::frame::geo::Geodetic;
-use crate::sim::stream_city::{CitySpec, DEFAULT_ORIGIN, build_city};
+use splat2tiles_lab::sim::stream_city::{CitySpec, DEFAULT_ORIGIN, build_city};
 use std::path::PathBuf;
 
 fn run() -> Result<(), String> {
@@ -15,7 +15,7 @@ fn run() -> Result<(), String> {
     let mut out = None;
     let mut origin = DEFAULT_ORIGIN.to_string();
     let mut spec = CitySpec::default();
-    let mut scenes = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    let mut scenes = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
         match a.as_str() {

@@ -13,9 +13,9 @@
 
 use splat2tiles_stream::client::ClientConfig;
 use splat2tiles_stream::trace::Trace;
-use crate::sim::score::Truth;
-use crate::sim::stream_city::{StreetGrid, evaluation_set, tuning_set};
-use crate::sim::tcn_data::{ErrorRow, HORIZONS, coverage, evaluate, trace_kind};
+use splat2tiles_lab::sim::score::Truth;
+use splat2tiles_lab::sim::stream_city::{StreetGrid, evaluation_set, tuning_set};
+use splat2tiles_lab::sim::tcn_data::{ErrorRow, HORIZONS, coverage, evaluate, trace_kind};
 use splat2tiles_stream::ViewPose;
 use splat2tiles_stream::learned::{TcnPredictor, TrajectoryModel};
 use splat2tiles_stream::predict::{

@@ -17,13 +17,13 @@
 
 use splat2tiles_stream::client::{ClientConfig, PredictorKind};
 use splat2tiles_stream::trace::Trace;
-use crate::sim::score::{Ratio, Truth, Waste, cache_hits, held_tiles, tick_views, wasted};
-use crate::sim::session::{SessionOptions, run_session};
-use crate::sim::stream_city::{
+use splat2tiles_lab::sim::score::{Ratio, Truth, Waste, cache_hits, held_tiles, tick_views, wasted};
+use splat2tiles_lab::sim::session::{SessionOptions, run_session};
+use splat2tiles_lab::sim::stream_city::{
     CitySpec, StreetGrid, build_city, city_sources, evaluation_set,
 };
-use crate::sim::tcn_data::trace_kind;
-use crate::sim::transport::{NetModel, Outcome};
+use splat2tiles_lab::sim::tcn_data::trace_kind;
+use splat2tiles_lab::sim::transport::{NetModel, Outcome};
 use splat2tiles_stream::ViewPose;
 use splat2tiles_stream::learned::TcnPredictor;
 use splat2tiles_stream::predict::{BLEND_SIGMA_M, Predictor, Uncertain};
@@ -82,7 +82,7 @@ struct Row {
 fn score(
     truth: &Truth,
     cfg: &ClientConfig,
-    log: &crate::sim::session::SessionLog,
+    log: &splat2tiles_lab::sim::session::SessionLog,
     row: &mut Row,
 ) {
     let needed = truth.needed_per_tick(cfg, log);

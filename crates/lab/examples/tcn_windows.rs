@@ -6,8 +6,8 @@
 //! `--kalman`: histories filtered by `stream::learned::smooth` first, App. C.1).
 //! Test scenes and seeds never reach it: the traces come through `sim::stream_city::tuning_set`.
 
-use crate::sim::stream_city::{StreetGrid, tuning_set};
-use crate::sim::tcn_data::{windows, write_windows};
+use splat2tiles_lab::sim::stream_city::{StreetGrid, tuning_set};
+use splat2tiles_lab::sim::tcn_data::{windows, write_windows};
 use splat2tiles_stream::learned::smooth::Kalman;
 use std::path::PathBuf;
 

@@ -2,4 +2,5 @@
 //! tables, the generated cities, and the shared code of the benches and examples.
 
 pub mod city;
+pub mod experiments;
 pub mod sim;

@@ -86,7 +86,7 @@ pub struct Session {
 }
 
 /// Reads a whole file of at most `limit` bytes; errors name the file.
-pub(crate) fn read_bounded(path: &Path, limit: u64) -> Result<String, String> {
+pub fn read_bounded(path: &Path, limit: u64) -> Result<String, String> {
     let f = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut buf = Vec::new();
     f.take(limit + 1)
@@ -396,7 +396,7 @@ mod tests {
         0.1667,1.1735,0.6560,-1.5210,0,0,0,1\n";
 
     fn shared() -> std::path::PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/navigation-traces")
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/navigation-traces")
     }
 
     #[test]

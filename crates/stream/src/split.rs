@@ -304,7 +304,7 @@ mod tests {
     #[test]
     fn shared_sets_hold_the_right_scenes() {
         let root =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/navigation-traces");
+            std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/navigation-traces");
         if !root.exists() {
             eprintln!("skipped: {} missing", root.display());
             return;
@@ -345,7 +345,7 @@ mod tests {
     /// traces at all.
     #[test]
     fn only_the_split_api_opens_the_human_traces() {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
         let mut all = vec![];
         files(&root.join("src"), &mut all);
         files(&root.join("tools"), &mut all);

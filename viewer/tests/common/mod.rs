@@ -40,7 +40,7 @@ pub fn convert_to(input: &Path, dir: &Path, opts: &ConvertOptions) -> PathBuf {
 /// A tileset's instances (tiles selected as `splat2tiles render` does) and the camera.
 pub fn tileset_view(tileset: &Path, v: &ViewArgs) -> (Vec<(Splats, DMat4)>, Camera) {
     let ts = open_tileset(tileset).unwrap();
-    let cam = tileset_camera(&ts, tileset, v).unwrap();
+    let cam = tileset_camera(&ts, v).unwrap();
     let picked = splat2tiles_tiles::geometry::select_tiles(&ts, &cam, v.max_sse);
     assert!(!picked.is_empty(), "no tile selected");
     (load_instances(&ts, &picked).unwrap(), cam)

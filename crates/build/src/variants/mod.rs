@@ -221,3 +221,110 @@ pub fn tileset_metadata(scheme: Scheme, opts: &VariantOptions) -> Value {
         }
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use splat2tiles_tiles::encode::read_tile_glb;
+    use splat2tiles_tiles::encode::spz2::spz2_payload;
+    use splat2tiles_core::splat::Splat;
+
+    /// Low's position step: a leaf's follows its splats' size, a parent's keeps 18 bits of its
+    /// largest |coordinate| (the SPZ header's fractional bits, byte 13 of the raw stream).
+    #[test]
+    fn parents_keep_the_fine_low_step() {
+        let mut s = Splats::with_capacity(0, 64);
+        for i in 0..64 {
+            let f = i as f64 / 63.0;
+            s.push(
+                Splat {
+                    position: [f - 0.5, 0.5 - f, (f * 7.0).sin() * 0.5],
+                    scale: [0.01; 3],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                    opacity: 0.8,
+                    sh0: [0.1, 0.2, 0.3],
+                },
+                &[],
+            );
+        }
+        let opts = VariantOptions {
+            variants: vec![Variant::Low],
+            measure_utility: false,
+            ..VariantOptions::default()
+        };
+        let key = TileKey {
+            level: 0,
+            x: 0,
+            y: 0,
+            z: 0,
+        };
+        let fb = |parent: bool| {
+            let dir = tempfile::tempdir().unwrap();
+            let slot = TileSlot {
+                scheme: Scheme::Octree,
+                key,
+                parent,
+            };
+            write_tile_contents(
+                dir.path(),
+                slot,
+                &s,
+                [0.0; 3],
+                splat2tiles_tiles::encode::tile::IDENTITY,
+                &opts,
+            )
+            .unwrap();
+            let glb = std::fs::read(dir.path().join(content_uri(
+                Scheme::Octree,
+                key,
+                Variant::Low,
+            )))
+            .unwrap();
+            let payload = spz2_payload(&glb).unwrap().expect("SPZ payload");
+            let mut raw = vec![];
+            std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&payload[..]), &mut raw)
+                .unwrap();
+            raw[13]
+        };
+        let max_abs = 0.5;
+        let fine = splat2tiles_tiles::encode::spz2::position_fractional_bits(max_abs, 18);
+        let by_size = splat2tiles_tiles::encode::spz2::spz_fractional_bits(&s, max_abs, &LOW_SPZ);
+        assert!(by_size < fine, "{by_size} {fine}");
+        assert_eq!(fb(false), by_size);
+        assert_eq!(fb(true), fine);
+    }
+
+    /// What [`Variant::encode_decoded`] returns for Best without decoding is what the reader
+    /// decodes from the glb, bit for bit, at every SH degree and far from the centre.
+    #[test]
+    fn best_decodes_to_the_relative_splats() {
+        let mut rng = splat2tiles_core::rng::SplitMix64::new(0x9E37_79B9_7F4A_7C15u64);
+        let mut f = move || rng.f64();
+        for degree in 0..=3u8 {
+            let mut s = Splats::with_capacity(degree, 200);
+            let k = splat2tiles_core::splat::sh_rest_count(degree);
+            for _ in 0..200 {
+                let splat = Splat {
+                    position: [6.4e6 + f() * 50.0, -3.0e5 + f(), f() * 1e-3],
+                    scale: [1e-4 + f() as f32, f() as f32 * 3.0 + 1e-6, 0.01],
+                    rotation: splat2tiles_core::splat::normalize_quat([
+                        f() as f32 - 0.5,
+                        f() as f32,
+                        -(f() as f32),
+                        0.3,
+                    ]),
+                    opacity: f() as f32,
+                    sh0: [f() as f32 - 0.5, 2.0 * f() as f32, -(f() as f32)],
+                };
+                let rest: Vec<[f32; 3]> = (0..k).map(|_| [f() as f32 - 0.5; 3]).collect();
+                s.push(splat, &rest);
+            }
+            let centre = [6.4e6 + 25.0, -3.0e5, 0.0];
+            let (glb, decoded) = Variant::Best
+                .encode_decoded(&s, centre, splat2tiles_tiles::encode::tile::IDENTITY)
+                .unwrap();
+            let read = read_tile_glb(&glb).unwrap().splats;
+            assert_eq!(decoded, read, "SH degree {degree}");
+        }
+    }
+}

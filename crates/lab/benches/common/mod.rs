@@ -9,7 +9,7 @@ use splat2tiles_core::splat::{Splat, Splats, sh_rest_count};
 
 /// Builds the release `splat2tiles` binary and returns its path (honours `CARGO_TARGET_DIR`).
 pub fn release_binary() -> PathBuf {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let st = Command::new("cargo")
         .args(["build", "--release", "--bin", "splat2tiles"])
         .current_dir(root)

@@ -143,7 +143,7 @@ pub fn parse_log(text: &str, name: &str, scale: f64) -> Result<NetTrace, String>
 
 /// Reads one log file (bounded) with `scale`.
 pub fn read_log(path: &Path, scale: f64) -> Result<NetTrace, String> {
-    let text = super::eyenav::read_bounded(path, MAX_FILE_BYTES)?;
+    let text = splat2tiles_stream::eyenav::read_bounded(path, MAX_FILE_BYTES)?;
     let name = path
         .file_name()
         .and_then(|s| s.to_str())
@@ -254,7 +254,7 @@ mod tests {
     /// means is near the README's ~1 Mbit/s.
     #[test]
     fn shared_logs_read() {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/network-traces");
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/network-traces");
         if !root.exists() {
             eprintln!("skipped: {} missing", root.display());
             return;

@@ -22,9 +22,9 @@
 //! TileSplat (App. C) navigates with WASD/QE and the mouse but states no speeds; 1.4 m/s is the
 //! usual human walking pace and 8 m/s a slow drone, both our choice.
 
-use super::eyenav::{Placement, read_session, session_files};
-use super::split::{EvaluationSet, Split, TuningSet, eyenav_scenes, synthetic_split};
-use super::trace::{TRACE_HZ, Trace};
+use splat2tiles_stream::eyenav::{Placement, read_session, session_files};
+use splat2tiles_stream::split::{EvaluationSet, Split, TuningSet, eyenav_scenes, synthetic_split};
+use splat2tiles_stream::trace::{TRACE_HZ, Trace};
 use splat2tiles_stream::client::{ClientConfig, PredictorKind};
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
 use splat2tiles_core::frame::UpAxis;

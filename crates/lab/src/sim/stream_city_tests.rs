@@ -5,7 +5,7 @@ use super::*;
 use splat2tiles_stream::split::{eyenav_scene_of, split_of};
 
 fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
 }
 
 fn scenes() -> PathBuf {

@@ -4,7 +4,7 @@
 //! The traces come only through [`super::split`]'s sets: the export writes the tuning set's train
 //! and val windows; the evaluation takes whatever set its caller was allowed to build.
 
-use super::trace::Trace;
+use splat2tiles_stream::trace::Trace;
 use splat2tiles_stream::learned::smooth::{Kalman, kalman};
 use splat2tiles_stream::learned::window::{
     FUTURE_STEP_S, FUTURE_STEPS, HISTORY_STEPS, IN_CHANNELS, OUT_CHANNELS, anchors, history_until,

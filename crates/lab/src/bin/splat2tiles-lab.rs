@@ -1,0 +1,27 @@
+//! `splat2tiles-lab`: the measurement commands that are not part of the product (the streaming
+//! experiments behind BENCHMARKS.md's tables), as `splat2tiles-lab simulate ...`.
+
+use clap::{Parser, Subcommand};
+use splat2tiles_lab::experiments::simulate;
+
+/// Measurements of splat2tiles: the trace-driven streaming experiments.
+#[derive(Debug, Parser)]
+#[command(name = "splat2tiles-lab", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the streaming experiments (trace-driven client simulator) and write tables and plots.
+    Simulate(simulate::SimulateArgs),
+}
+
+fn main() {
+    let Command::Simulate(a) = Cli::parse().command;
+    if let Err(e) = simulate::run(&a) {
+        eprintln!("splat2tiles-lab: {e:#}");
+        std::process::exit(2);
+    }
+}
