@@ -5,16 +5,16 @@ mod common;
 
 use common::{bin, scene};
 use glam::{DMat4, DVec3};
+use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_core::camera::Camera;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_stream::Level;
 use splat2tiles_stream::client::native::Driver;
 use splat2tiles_stream::client::{
     Action, ClientConfig, PredictorKind, SceneUpdate, StreamClient, timeline,
 };
-use splat2tiles_build::convert::{ConvertOptions, convert};
 use splat2tiles_tiles::encode::read_tile_glb;
-use splat2tiles_core::camera::Camera;
 use splat2tiles_tiles::geometry::{content_model, select_tiles};
-use splat2tiles_core::splat::Splats;
-use splat2tiles_stream::Level;
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 use splat2tiles_tiles::variants::{Variant, VariantOptions, content_uri};

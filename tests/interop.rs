@@ -450,10 +450,7 @@ fn cesiumjs_draws_every_object_of_a_flat_georeferenced_city_in_the_overview() {
         if let Ok(dir) = std::env::var("SPLAT2TILES_INTEROP_SHOTS") {
             let _ = std::fs::copy(&png, Path::new(&dir).join(name));
         }
-        (
-            splat2tiles_render::image::Image::load_png(&png).unwrap(),
-            v,
-        )
+        (splat2tiles_render::image::Image::load_png(&png).unwrap(), v)
     };
     let (full, vf) = shot(Some("0"), "cesium_city_full.png");
     let (cut, vc) = shot(None, "cesium_city_default_sse.png");

@@ -5,9 +5,9 @@
 mod common;
 
 use common::{bin, scene};
+use splat2tiles_core::splat::Splats;
 use splat2tiles_tiles::encode::prefix::PrefixStream;
 use splat2tiles_tiles::encode::{decode_prefix, read_tile_glb};
-use splat2tiles_core::splat::Splats;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};

@@ -725,10 +725,10 @@ fn web_viewer_runs_the_tcn_predictor() {
 /// reference's layered render.
 #[test]
 fn web_viewer_blends_a_layered_level_change_pose_by_pose() {
-    use splat2tiles_tiles::layers::view::layered_instances;
     use splat2tiles_core::camera::{Camera, auto_views_with};
-    use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
     use splat2tiles_render::raster::{RenderOptions, render};
+    use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
+    use splat2tiles_tiles::layers::view::layered_instances;
     use splat2tiles_tiles::tiling::TileKey;
     use splat2tiles_tiles::tiling::load::load_tileset;
     const STEP: f64 = 0.02;
@@ -745,7 +745,7 @@ fn web_viewer_blends_a_layered_level_change_pose_by_pose() {
         scheme: splat2tiles_build::convert::SchemeChoice::Octree,
         subtree_levels: Some(2),
         layers: true,
-        progress: false,
+        progress: None,
         ..splat2tiles_build::convert::ConvertOptions::default()
     };
     splat2tiles_build::convert::convert(&ply, &dir, &opts).expect("convert --layers");

@@ -1,14 +1,15 @@
 //! `splat2tiles convert`: arguments, their checks, and the human or JSON summary printed at the
 //! end of a conversion.
 
+use super::named;
+use clap::Args;
 use splat2tiles_build::convert::{ConvertOptions, NonFinitePolicy, SchemeChoice, convert};
+use splat2tiles_build::lod::{LodOptions, MergeRule};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_core::named::Named;
 use splat2tiles_io::limits::MemoryLimit;
-use splat2tiles_build::lod::{LodOptions, MergeRule};
 use splat2tiles_tiles::variants::{ALL, Profile, Variant, VariantOptions};
-use clap::Args;
-use std::io::IsTerminal;
 use std::path::PathBuf;
 
 /// Arguments of `convert`.
@@ -44,13 +45,13 @@ pub struct ConvertArgs {
     #[command(flatten)]
     pub frame: FrameArgs,
     /// What to do with splats holding NaN or infinite values.
-    #[arg(long, value_enum, default_value_t = NonFinitePolicy::Drop)]
+    #[arg(long, value_parser = named::<NonFinitePolicy>(), default_value = "drop")]
     pub non_finite: NonFinitePolicy,
     /// Do not build level-of-detail parents (parent tiles stay empty).
     #[arg(long)]
     pub no_lod: bool,
     /// How merged LOD splats get their shape: covariance moment matching or TileSplat's axis cover.
-    #[arg(long, value_enum, default_value_t = MergeRule::Moment)]
+    #[arg(long, value_parser = named::<MergeRule>(), default_value = "moment")]
     pub lod_merge: MergeRule,
     /// Fallback LOD clustering radius in scene units, used only where a parent's input centres
     /// all coincide (parents choose their radius from a target splat count)
@@ -59,7 +60,7 @@ pub struct ConvertArgs {
     pub lod_radius: Option<f64>,
     /// Target clients: `default` (content.uri -> Best, lossless float) or `cesium` (content.uri ->
     /// Low, SPZ_2, plus the 3DTILES_content_gltf declaration CesiumJS needs to render splats).
-    #[arg(long, value_enum, default_value_t = Profile::Default)]
+    #[arg(long, value_parser = named::<Profile>(), default_value = "default")]
     pub profile: Profile,
     /// Quality variants to write per tile: comma list of best, high, medium, low, or `all`
     /// [default: the profile's default variant only]. Sizes and utilities go into the metadata.
@@ -114,7 +115,7 @@ pub struct FrameArgs {
     #[arg(long, value_parser = Geodetic::parse, allow_hyphen_values = true)]
     pub origin: Option<Geodetic>,
     /// Subdivision of local scenes.
-    #[arg(long, value_enum, default_value_t = SchemeChoice::Auto)]
+    #[arg(long, value_parser = named::<SchemeChoice>(), default_value = "auto")]
     pub scheme: SchemeChoice,
     /// Levels per subtree file [default: 6 for quadtrees, 4 for octrees].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
@@ -151,7 +152,7 @@ fn options(args: &ConvertArgs) -> ConvertOptions {
         max_depth: args.max_depth,
         non_finite: args.non_finite,
         keep_index_map: false,
-        progress: !args.quiet && std::io::stderr().is_terminal(),
+        progress: super::progress::bars(args.quiet),
         lod: LodOptions {
             enabled: !args.no_lod,
             merge: args.lod_merge,
@@ -211,7 +212,7 @@ pub fn run(args: ConvertArgs) -> i32 {
         eprintln!("splat2tiles: --output is required");
         return super::EXIT_FAILURE;
     };
-    splat2tiles_build::output::install_interrupt_handler();
+    crate::cli::install_interrupt_handler();
     match convert(&args.input, output, &opts) {
         Ok(r) => {
             for note in &r.notes {
@@ -361,9 +362,9 @@ fn parse_variant(s: &str) -> Result<Vec<Variant>, String> {
     if s.eq_ignore_ascii_case("all") {
         return Ok(ALL.to_vec());
     }
-    <Variant as clap::ValueEnum>::from_str(s, true)
+    Variant::from_name(&s.to_ascii_lowercase())
         .map(|v| vec![v])
-        .map_err(|_| format!("unknown variant '{s}' (best, high, medium, low or all)"))
+        .ok_or_else(|| format!("unknown variant '{s}' (best, high, medium, low or all)"))
 }
 
 /// Peak resident memory of this process in MiB (Linux `VmHWM`), if the OS tells.

@@ -2,8 +2,8 @@
 //! tileset (format v2, `spec/layered-content.md`), with a summary of what was carried or dropped.
 
 use super::convert::FrameArgs;
-use splat2tiles_build::convert::{ConvertOptions, import_lapisgs};
 use clap::Args;
+use splat2tiles_build::convert::{ConvertOptions, import_lapisgs};
 use std::path::PathBuf;
 
 /// Arguments of `import-lapisgs`.
@@ -45,7 +45,7 @@ pub fn run(args: ImportLapisArgs) -> i32 {
         layers: true,
         ..ConvertOptions::default()
     });
-    splat2tiles_build::output::install_interrupt_handler();
+    crate::cli::install_interrupt_handler();
     match import_lapisgs(&args.levels, &args.output, &opts) {
         Ok(r) => {
             if args.json {

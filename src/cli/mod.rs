@@ -3,8 +3,9 @@
 
 pub mod convert;
 pub mod import_lapisgs;
-pub mod serve;
+pub mod progress;
 pub mod render;
+pub mod serve;
 pub mod shard;
 pub mod stats;
 pub mod validate;
@@ -13,3 +14,39 @@ pub mod validate;
 pub const EXIT_FAILURE: i32 = 2;
 /// Exit code when a check ran and found errors.
 pub const EXIT_FINDINGS: i32 = 1;
+
+/// A clap parser of a [`Named`](splat2tiles_core::named::Named) option: its names as the possible
+/// values, each with its help line.
+pub fn named<T: splat2tiles_core::named::Named + Clone + Send + Sync>()
+-> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    PossibleValuesParser::new(
+        T::ALL
+            .iter()
+            .map(|v| PossibleValue::new(v.name()).help(v.help().trim_end_matches('.'))),
+    )
+    // The possible values are exactly T's names.
+    .map(|s| T::from_name(&s).unwrap_or(T::ALL[0]))
+}
+
+/// Installs the Ctrl-C / SIGTERM handler of the commands that write tilesets: without a
+/// conversion writing it exits with 130 at once; during one it asks the pipeline to stop (the
+/// unfinished output is removed, then the command exits with 130); a second signal exits at once.
+pub fn install_interrupt_handler() {
+    use splat2tiles_build::output::{Interrupt, interrupt};
+    let _ = ctrlc::set_handler(|| match interrupt() {
+        Interrupt::Idle => {
+            eprintln!("splat2tiles: interrupted");
+            std::process::exit(130);
+        }
+        Interrupt::Again => {
+            eprintln!(
+                "splat2tiles: interrupted again; exiting now (the next run into this output removes what is left)"
+            );
+            std::process::exit(130);
+        }
+        Interrupt::Stopping => eprintln!(
+            "splat2tiles: interrupting; stopping the workers and removing the unfinished output"
+        ),
+    });
+}

@@ -8,12 +8,14 @@ use anyhow::Context;
 use glam::DVec3;
 
 use splat2tiles_core::camera;
+use splat2tiles_core::splat::Splats;
 use splat2tiles_render::image::Image;
 use splat2tiles_render::metrics;
 use splat2tiles_render::raster::{RenderOptions, render_with_stats};
 use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
-use splat2tiles_tiles::geometry::{content_model, finite_bounds, select_tiles, tileset_bounds, tileset_up};
-use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::geometry::{
+    content_model, finite_bounds, select_tiles, tileset_bounds, tileset_up,
+};
 
 /// Arguments of `splat2tiles render`.
 #[derive(Debug, Clone, clap::Args)]
@@ -123,7 +125,8 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         let cam = resolve_camera(&args.camera_request(), up, tileset_bounds(&ts))?;
         if splat2tiles_tiles::layers::view::is_layered(&ts) {
             // Layered content: ancestors' layers + blended children (spec/layered-content.md).
-            let instances = splat2tiles_tiles::layers::view::layered_instances(&ts, &cam, args.max_sse)?;
+            let instances =
+                splat2tiles_tiles::layers::view::layered_instances(&ts, &cam, args.max_sse)?;
             let note = format!("{} layers of {} tiles, ", instances.len(), ts.tiles.len());
             (instances, cam, note)
         } else {

@@ -7,10 +7,11 @@ mod scenes;
 
 use std::path::{Path, PathBuf};
 
-use glam::DVec3;
 use super::{
-    CompareArgs, RenderArgs, compare_files, default_up_axis, format_compare, run_compare, run_render,
+    CompareArgs, RenderArgs, compare_files, default_up_axis, format_compare, run_compare,
+    run_render,
 };
+use glam::DVec3;
 use splat2tiles_render::view::resolve_camera;
 use splat2tiles_render::{Image, auto_views_with};
 

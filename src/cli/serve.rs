@@ -1,9 +1,9 @@
 //! `splat2tiles serve` and `splat2tiles view`: serve a tileset folder over HTTP (and, for `view`,
 //! the web viewer at `/viewer/`), print the URL, and run until Ctrl-C.
 
-use splat2tiles_serve::{Mount, ServeError, ServeOptions, Server};
 use anyhow::{Context, bail};
 use clap::Args;
+use splat2tiles_serve::{Mount, ServeError, ServeOptions, Server};
 use std::io::Write;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};

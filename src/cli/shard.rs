@@ -2,12 +2,11 @@
 //! PLAN --part I [--phase samples] -o PART_I` (a part) and `merge PLAN PART... -o OUT`.
 
 use super::convert::{ConvertArgs, peak_rss_mib};
+use clap::Args;
 use splat2tiles_build::convert::{
     ConvertError, ConvertOptions, MAX_PARTS, PartPhase, convert_part, make_plan, merge_parts,
 };
 use splat2tiles_io::limits::MemoryLimit;
-use clap::Args;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `convert` for the steps of a sharded conversion.
@@ -22,7 +21,7 @@ pub struct ShardArgs {
     pub part: Option<u64>,
     /// With --part: `samples` writes the part's leaf statistics only (first phase, needed for
     /// the default leaf radius); `build` builds its tiles.
-    #[arg(long, value_enum, default_value_t = PartPhase::Build, requires = "part")]
+    #[arg(long, value_parser = crate::cli::named::<PartPhase>(), default_value = "build", requires = "part")]
     pub phase: PartPhase,
     /// With --part (build phase): the samples folders of all parts, when the plan needs the
     /// data's leaf radius (no --lod-radius, LOD on).
@@ -82,7 +81,7 @@ fn notes(notes: &[String]) {
 
 /// Runs `convert --plan`: the plan, or one part of it.
 pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
-    splat2tiles_build::output::install_interrupt_handler();
+    crate::cli::install_interrupt_handler();
     let s = &args.shard;
     let Some(part) = s.part else {
         let Some(parts) = s.parts else {
@@ -120,7 +119,7 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
         .output
         .as_deref()
         .expect("clap requires --output with --part");
-    let progress = !args.quiet && std::io::stderr().is_terminal();
+    let progress = super::progress::bars(args.quiet);
     match convert_part(
         &args.input,
         plan,
@@ -161,12 +160,12 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
 
 /// Runs `merge`; returns the process exit code.
 pub fn run_merge(args: MergeArgs) -> i32 {
-    splat2tiles_build::output::install_interrupt_handler();
+    crate::cli::install_interrupt_handler();
     let limit = args
         .memory_limit
         .unwrap_or_else(MemoryLimit::machine_default)
         .bytes();
-    let progress = !args.quiet && std::io::stderr().is_terminal();
+    let progress = super::progress::bars(args.quiet);
     match merge_parts(&args.plan, &args.parts, &args.output, limit, progress) {
         Ok(r) => {
             notes(&r.notes);

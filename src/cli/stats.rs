@@ -1,9 +1,9 @@
 //! `splat2tiles stats`: the per-level table of a tileset (tiles, splats, bytes, geometric error),
 //! read from `tileset.json`, its subtrees and the content files' sizes only.
 
+use clap::Args;
 use splat2tiles_build::lod::eval::level_table;
 use splat2tiles_tiles::tiling::load::load_tileset;
-use clap::Args;
 use std::path::PathBuf;
 
 /// Arguments of `stats`.

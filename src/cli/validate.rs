@@ -1,8 +1,8 @@
 //! `splat2tiles validate`: arguments, the run, and the report printed as text or JSON (exit 0 when
 //! no ERROR, 1 when errors were found, 2 when the tileset cannot be read at all).
 
-use splat2tiles_validate::{ValidateOptions, validate_tileset};
 use clap::Args;
+use splat2tiles_validate::{ValidateOptions, validate_tileset};
 use std::path::PathBuf;
 
 /// Arguments of `validate`.

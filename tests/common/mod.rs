@@ -9,8 +9,8 @@ pub mod scenes;
 pub mod splat_file;
 
 use glam::{DMat3, DMat4, DVec3};
-use splat2tiles_tiles::encode::read_tile_glb;
 use splat2tiles_core::splat::{Splat, Splats, sh_rest_count};
+use splat2tiles_tiles::encode::read_tile_glb;
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::load_tileset;
 use std::collections::HashMap;

@@ -15,7 +15,7 @@ pub fn shared_scene(name: &str) -> PathBuf {
         p
     }
     .join("../shared/scenes")
-        .join(name)
+    .join(name)
 }
 
 /// Reads a shared scene by file name, panicking with the reader's message on failure.

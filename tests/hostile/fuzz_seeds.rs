@@ -61,7 +61,11 @@ fn marker_seeds_and_prefixes_decide_without_panicking() {
     std::fs::write(out.join("tileset.json"), "{}").unwrap();
     for seed in seeds("output_marker") {
         for n in cuts(seed.len()) {
-            std::fs::write(out.join(splat2tiles_build::output::marker::MARKER), &seed[..n]).unwrap();
+            std::fs::write(
+                out.join(splat2tiles_build::output::marker::MARKER),
+                &seed[..n],
+            )
+            .unwrap();
             let ok = splat2tiles_build::output::guard::check_target(&out).is_ok();
             // Only a complete marker listing both entries lets the folder be replaced.
             if ok {

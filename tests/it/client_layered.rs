@@ -5,13 +5,13 @@
 
 use crate::common;
 
-use splat2tiles_stream::client::{Action, ClientConfig, StreamClient};
 use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert};
-use splat2tiles_tiles::layers::view::{layered_instances, select_layers};
 use splat2tiles_core::camera::{Camera, auto_views_with};
-use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
 use splat2tiles_lab::sim::transport::{NetModel, SimTransport};
 use splat2tiles_stream::Level;
+use splat2tiles_stream::client::{Action, ClientConfig, StreamClient};
+use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
+use splat2tiles_tiles::layers::view::{layered_instances, select_layers};
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 use std::collections::BTreeSet;
@@ -28,7 +28,7 @@ fn layered(dir: &Path) -> PathBuf {
         scheme: SchemeChoice::Octree,
         subtree_levels: Some(2),
         layers: true,
-        progress: false,
+        progress: None,
         ..ConvertOptions::default()
     };
     convert(&ply, &out, &opts).expect("convert");
@@ -233,7 +233,7 @@ fn a_lapisgs_import_streams_with_the_reference_opacities() {
         scheme: SchemeChoice::Octree,
         subtree_levels: Some(2),
         layers: true,
-        progress: false,
+        progress: None,
         ..ConvertOptions::default()
     };
     import_lapisgs(&files, &out, &opts).unwrap();

@@ -1,18 +1,17 @@
 //! The sans-IO streaming client driven by an in-test transport over the converted plant tileset:
 //! convergence to `select_tiles`, pause/resume with Range + If-Range, budget, refusals, errors.
 
-
 use crate::common::scene;
 use glam::{DMat4, DVec3};
+use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_core::camera::Camera;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_stream::Level;
 use splat2tiles_stream::client::{
     Action, ClientConfig, FetchRequest, PredictorKind, RequestId, SceneUpdate, StreamClient,
 };
-use splat2tiles_build::convert::{ConvertOptions, convert};
 use splat2tiles_tiles::encode::read_tile_glb;
-use splat2tiles_core::camera::Camera;
 use splat2tiles_tiles::geometry::{content_model, select_tiles};
-use splat2tiles_core::splat::Splats;
-use splat2tiles_stream::Level;
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 use splat2tiles_tiles::variants::{Variant, VariantOptions, content_uri};

@@ -9,8 +9,8 @@ use crate::common;
 
 use serde_json::{Value, json};
 use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert};
-use splat2tiles_tiles::encode::glb::{read_glb, write_glb};
 use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_tiles::encode::glb::{read_glb, write_glb};
 use splat2tiles_validate::{ValidateOptions, validate_tileset};
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -38,7 +38,7 @@ fn opts(
         scheme,
         subtree_levels: levels,
         origin: origin.map(|o| Geodetic::parse(o).expect("origin")),
-        progress: false,
+        progress: None,
         ..ConvertOptions::default()
     }
 }

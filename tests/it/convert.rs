@@ -1,12 +1,11 @@
 //! End-to-end tests of `splat2tiles convert`: splat totals on the shared scenes, attribute round
 //! trips through the glb tiles, georeferencing, and bad input leaving no output behind.
 
-
 use crate::common::*;
 use splat2tiles_build::convert::{ConvertOptions, convert};
 use splat2tiles_core::frame::geo::Geodetic;
-use splat2tiles_io::read_path;
 use splat2tiles_core::splat::Splats;
+use splat2tiles_io::read_path;
 use splat2tiles_tiles::tiling::load::load_tileset;
 use std::path::Path;
 use std::process::Command;

@@ -1,7 +1,6 @@
 //! The out-of-core converter: a scene converted through spill files under a tiny memory limit is
 //! byte-identical (every file) to its in-memory conversion, whatever the thread count, and valid.
 
-
 use crate::common::city::write_city_splat;
 use crate::common::*;
 use splat2tiles_build::convert::{ConvertOptions, convert};

@@ -3,7 +3,6 @@
 //! count, the parts' memory limits, re-runs of a part, variants or georeferencing; bad plans
 //! and mismatched inputs and parts are refused with exit 2.
 
-
 use crate::common::city::write_city_splat;
 use crate::common::*;
 use splat2tiles_core::splat::Splats;

@@ -2,7 +2,6 @@
 //! and `@playcanvas/splat-transform` (an independent KHR_gaussian_splatting writer) agreeing with
 //! our tiles splat by splat. Both need `npm ci --prefix tests/js` (done by `.ci/run`).
 
-
 use crate::common::*;
 use glam::{DQuat, DVec3};
 use splat2tiles_tiles::encode::read_tile_glb;

@@ -4,10 +4,10 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use crate::common;
 use splat2tiles_tiles::encode::glb::{parse_json, read_glb, write_gltf_glb};
 use splat2tiles_tiles::encode::tile::IDENTITY;
 use splat2tiles_tiles::encode::write_tile_glb;
-use crate::common;
 
 use crate::common::{js_dir, require_node_modules};
 use splat2tiles_core::splat::{Splat, Splats, normalize_quat};
@@ -170,7 +170,7 @@ fn lapisgs_import_tiles_pass_the_khronos_validator() {
     let opts = ConvertOptions {
         scheme: SchemeChoice::Octree,
         layers: true,
-        progress: false,
+        progress: None,
         ..ConvertOptions::default()
     };
     import_lapisgs(&files, &out, &opts).unwrap();

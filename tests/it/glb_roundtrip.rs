@@ -2,6 +2,7 @@
 //! layouts (strides, offsets, quantised types) and malformed glbs that must fail without panics.
 
 use crate::common::Rng;
+use splat2tiles_core::splat::{Splat, Splats, normalize_quat};
 use splat2tiles_tiles::encode::glb::{GlbError, parse_json, read_glb, write_gltf_glb};
 use splat2tiles_tiles::encode::gltf::{
     Accessor, AccessorType, Buffer, BufferView, ComponentType, Gltf, KhrGaussianSplatting, Mesh,
@@ -9,7 +10,6 @@ use splat2tiles_tiles::encode::gltf::{
 };
 use splat2tiles_tiles::encode::tile::{self, IDENTITY, sh_attribute};
 use splat2tiles_tiles::encode::{read_tile_glb, write_tile_glb};
-use splat2tiles_core::splat::{Splat, Splats, normalize_quat};
 
 fn scene(degree: u8, n: usize, seed: u64) -> Splats {
     let mut r = Rng(seed | 1);

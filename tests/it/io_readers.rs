@@ -4,10 +4,10 @@
 use crate::common::{Rng, scenes};
 use std::io::Write;
 
+use splat2tiles_core::splat::{Splat, Splats, logit, normalize_quat, sh::SH_C0};
 use splat2tiles_io::{
     InputFormat, PlyEncoding, ReadError, ReadErrorKind, Scene, read_bytes, read_path, write_ply,
 };
-use splat2tiles_core::splat::{Splat, Splats, logit, normalize_quat, sh::SH_C0};
 
 // ---------------------------------------------------------------------------------------------
 // Helpers

@@ -8,14 +8,14 @@ use crate::common;
 use crate::common::lapis::{dense, levels, write_levels};
 
 use splat2tiles_build::convert::{ConvertOptions, LapisReport, SchemeChoice, import_lapisgs};
+use splat2tiles_core::camera::auto_views_with;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_render::metrics::ssim;
+use splat2tiles_render::raster::{RenderOptions, render};
+use splat2tiles_tiles::geometry::finite_bounds;
 use splat2tiles_tiles::layers::blend::{DrawnLayer, effective_opacities};
 use splat2tiles_tiles::layers::glb::{LayerInfo, read_layer};
 use splat2tiles_tiles::layers::view::ancestor_deltas;
-use splat2tiles_core::camera::auto_views_with;
-use splat2tiles_tiles::geometry::finite_bounds;
-use splat2tiles_render::metrics::ssim;
-use splat2tiles_render::raster::{RenderOptions, render};
-use splat2tiles_core::splat::Splats;
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::load_tileset;
 use splat2tiles_validate::{ValidateOptions, validate_tileset};
@@ -27,7 +27,7 @@ fn opts() -> ConvertOptions {
         scheme: SchemeChoice::Octree,
         subtree_levels: Some(2),
         layers: true,
-        progress: false,
+        progress: None,
         ..ConvertOptions::default()
     }
 }

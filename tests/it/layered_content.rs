@@ -5,16 +5,16 @@
 use crate::common;
 
 use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert};
-use splat2tiles_tiles::encode::read_tile_glb;
-use splat2tiles_tiles::layers::blend::{DrawnLayer, drawn_layers};
-use splat2tiles_tiles::layers::glb::read_layer;
-use splat2tiles_tiles::layers::view::{is_layered, layered_instances};
 use splat2tiles_core::camera::auto_views_with;
-use splat2tiles_tiles::geometry::{content_model, select_tiles, tileset_bounds, tileset_up};
+use splat2tiles_core::splat::Splats;
 use splat2tiles_render::image::Image;
 use splat2tiles_render::metrics::ssim;
 use splat2tiles_render::raster::{RenderOptions, render};
-use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::encode::read_tile_glb;
+use splat2tiles_tiles::geometry::{content_model, select_tiles, tileset_bounds, tileset_up};
+use splat2tiles_tiles::layers::blend::{DrawnLayer, drawn_layers};
+use splat2tiles_tiles::layers::glb::read_layer;
+use splat2tiles_tiles::layers::view::{is_layered, layered_instances};
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 use splat2tiles_validate::{ValidateOptions, validate_tileset};
@@ -35,7 +35,7 @@ fn converted(dir: &Path, layers: bool) -> std::path::PathBuf {
         scheme: SchemeChoice::Octree,
         subtree_levels: Some(2),
         layers,
-        progress: false,
+        progress: None,
         ..ConvertOptions::default()
     };
     convert(&ply, &out, &opts).expect("convert");
@@ -133,10 +133,8 @@ fn layered_output_validates_and_its_layers_reproduce_the_finer_level() {
 /// Screen-space error of the root as `render::cli::select_tiles` computes it.
 fn root_sse(ts: &LoadedTileset, cam: &splat2tiles_core::camera::Camera) -> f64 {
     let t = ts.tiles.iter().find(|t| t.key == TileKey::ROOT).unwrap();
-    let (c, r) = splat2tiles_tiles::select::box_sphere(
-        t.bounding_box.as_ref().unwrap(),
-        &ts.root_transform,
-    );
+    let (c, r) =
+        splat2tiles_tiles::select::box_sphere(t.bounding_box.as_ref().unwrap(), &ts.root_transform);
     t.geometric_error * cam.fy / (c.distance(cam.center()) - r).max(1e-9)
 }
 

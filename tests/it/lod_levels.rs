@@ -5,13 +5,13 @@
 use crate::common;
 
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
-use splat2tiles_core::frame::UpAxis;
 use splat2tiles_build::lod::eval::level_table;
 use splat2tiles_build::lod::{
     ChildContent, MergeRule, ParentParams, ParentTile, build_parent, target_count,
 };
-use splat2tiles_lab::city::{CityLayout, city_scene, generate_city, shared_sources};
+use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::splat::{Splat, Splats};
+use splat2tiles_lab::city::{CityLayout, city_scene, generate_city, shared_sources};
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::load_tileset;
 

@@ -7,18 +7,18 @@
 
 use crate::common;
 
-use splat2tiles_stream::client::ClientConfig;
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
-use splat2tiles_core::frame::UpAxis;
-use splat2tiles_core::frame::geo::Geodetic;
 use splat2tiles_build::partition::plan::PartitionRequest;
 use splat2tiles_core::camera::Camera;
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_lab::city::{city_scene, generate_city};
 use splat2tiles_lab::sim::score::Truth;
 use splat2tiles_lab::sim::stream_city::{
     CitySpec, DEFAULT_ORIGIN, StreetGrid, city_sources, evaluation_set, tuning_set,
 };
 use splat2tiles_lab::sim::{NetModel, SessionOptions, run_session};
-use splat2tiles_lab::city::{city_scene, generate_city};
+use splat2tiles_stream::client::ClientConfig;
 use splat2tiles_tiles::select::{CutTree, select_cut};
 use std::cell::Cell;
 use std::path::{Path, PathBuf};

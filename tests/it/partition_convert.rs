@@ -4,8 +4,8 @@
 use crate::common;
 
 use glam::DVec3;
-use splat2tiles_stream::trace::Trace;
 use splat2tiles_stream::geom::ViewPose;
+use splat2tiles_stream::trace::Trace;
 use splat2tiles_tiles::tiling::load::load_tileset;
 use std::path::Path;
 use std::process::Command;

@@ -1,13 +1,12 @@
 //! Known-answer, hard-case and determinism tests of the CPU reference rasterizer, on generated
 //! splats (analytic 2D profile, compositing order, SH through the renderer, degenerate inputs).
 
-
 use crate::common::scenes::{Lcg, axis_camera, random_cloud, set, splat};
 use glam::{DMat3, DMat4, DQuat, DVec3};
+use splat2tiles_core::splat::{Splat, Splats, sh};
 use splat2tiles_render::{
     Camera, Image, RenderOptions, render, render_splats, render_with_stats, ssim,
 };
-use splat2tiles_core::splat::{Splat, Splats, sh};
 
 fn opts() -> RenderOptions {
     RenderOptions::default()

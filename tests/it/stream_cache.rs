@@ -2,10 +2,10 @@
 //! no downgrades; the exact frustum test agrees with point sampling and the others' errors.
 
 use glam::DVec3;
+use splat2tiles_core::rng::SplitMix64;
 use splat2tiles_stream::cache::{Cache, CacheConfig, EvictContext, Inserted};
 use splat2tiles_stream::catalog::{Level, TileCatalog};
 use splat2tiles_stream::geom::{Frustum, Intrinsics, Obb, ViewPose};
-use splat2tiles_core::rng::SplitMix64;
 use splat2tiles_stream::visibility::VisTest;
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::LoadedTile;

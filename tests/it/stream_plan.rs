@@ -1,11 +1,11 @@
 //! DC-DP checks: equals brute force on random small instances (bins of one byte); valid, deterministic answers with
 //! zero bandwidth, passed deadlines, ties, an empty list and a binding memory budget.
 
+use splat2tiles_core::rng::SplitMix64;
 use splat2tiles_stream::catalog::{LEVELS, Variant};
 use splat2tiles_stream::plan::{
     Candidate, Plan, PlanRequest, Planner, capacity_prefix, overhead_bytes, solve_dp,
 };
-use splat2tiles_core::rng::SplitMix64;
 
 /// The link's cumulative bytes at `t` (linear within a step, flat past the horizon).
 fn carried(c: &[f64], step_s: f64, t: f64) -> f64 {

@@ -2,7 +2,6 @@
 //! profile with every quality variant written (and georeferenced), validates with 0 errors and
 //! 0 warnings. Variant files are found through the tileset's `splatVariants` metadata.
 
-
 use crate::common::*;
 use std::process::Command;
 

@@ -3,14 +3,13 @@
 //! the same estimate computed from the tiles read back at that distance, over every content tile
 //! of the shared scenes (../shared/scenes, see its README.md) and the plant with generated SH1-3.
 
-
 use crate::common::*;
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
-use splat2tiles_tiles::encode::storage_order::aligned_to_best;
-use splat2tiles_core::splat::Splats;
-use splat2tiles_tiles::tiling::load::load_tileset;
 use splat2tiles_build::variants::estimate::estimated_utilities;
 use splat2tiles_build::variants::utility::ViewSetup;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::encode::storage_order::aligned_to_best;
+use splat2tiles_tiles::tiling::load::load_tileset;
 use splat2tiles_tiles::variants::{
     ALL, VariantOptions, content_uri, content_variant_metadata, decode_variant, up_in_source,
 };

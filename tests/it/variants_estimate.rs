@@ -2,14 +2,13 @@
 //! calibrated to (`variants::utility`): over every content tile and variant of the shared scenes
 //! (../shared/scenes, see its README.md) and the plant with generated SH1-3.
 
-
 use crate::common::*;
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
-use splat2tiles_tiles::encode::storage_order::aligned_to_best;
-use splat2tiles_core::splat::Splats;
-use splat2tiles_tiles::tiling::load::load_tileset;
 use splat2tiles_build::variants::estimate::{FEATURE_NAMES, WEIGHTS, features, predicted_loss};
 use splat2tiles_build::variants::utility::{Score, ViewSetup, scores, utility_of};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::encode::storage_order::aligned_to_best;
+use splat2tiles_tiles::tiling::load::load_tileset;
 use splat2tiles_tiles::variants::{ALL, VariantOptions, content_uri, decode_variant, up_in_source};
 
 /// One (tile, variant) pair: the estimate's features and the rendered utility.

@@ -4,10 +4,10 @@
 use crate::common;
 
 use crate::common::*;
+use splat2tiles_core::splat::Splats;
 use splat2tiles_tiles::encode::read_tile_glb;
 use splat2tiles_tiles::encode::tile::{TileLayout, try_write_tile_glb};
 use splat2tiles_tiles::encode::{decode_prefix, prefix::prefix_layout};
-use splat2tiles_core::splat::Splats;
 
 fn assert_prefix_matches(full: &Splats, part: &Splats, k: usize) {
     assert_eq!(part.len(), k);

@@ -3,12 +3,11 @@
 //! at least 95% of the tiles, Low within 37 B/splat before entropy coding at SH3 and smaller
 //! than SPZ v2 after it, every variant decoding back.
 
-
 use crate::common::*;
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
-use splat2tiles_tiles::encode::spz2::{SpzOptions, encode_spz_v2, encode_spz_v2_raw};
-use splat2tiles_io::Scene;
 use splat2tiles_core::splat::Splats;
+use splat2tiles_io::Scene;
+use splat2tiles_tiles::encode::spz2::{SpzOptions, encode_spz_v2, encode_spz_v2_raw};
 use splat2tiles_tiles::tiling::load::load_tileset;
 use splat2tiles_tiles::variants::{
     ALL, LOW_SPZ, Profile, Variant, VariantOptions, content_uri, content_variant_metadata,

@@ -2,20 +2,21 @@
 //! copies of a real tile (half the splats, positions jittered by 1% of the box, colours at 3
 //! bits) score at least 0.05 below Best. Scenes: ../shared/scenes (see its README.md).
 
-
 use crate::common::*;
 use glam::DVec3;
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
-use splat2tiles_tiles::encode::storage_order::aligned_to_best;
-use splat2tiles_render::metrics::ssim_plane;
-use splat2tiles_render::{Camera, Image, render_splats, ssim};
-use splat2tiles_core::splat::Splats;
-use splat2tiles_core::splat::sh::SH_C0;
-use splat2tiles_tiles::tiling::load::load_tileset;
 use splat2tiles_build::variants::curve::loss_curve;
 use splat2tiles_build::variants::estimate::{estimated_utilities, features};
 use splat2tiles_build::variants::utility::{BACKGROUND, ViewSetup, render_options, scores};
-use splat2tiles_tiles::variants::{Variant, VariantOptions, content_uri, decode_variant, up_in_source};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_core::splat::sh::SH_C0;
+use splat2tiles_render::metrics::ssim_plane;
+use splat2tiles_render::{Camera, Image, render_splats, ssim};
+use splat2tiles_tiles::encode::storage_order::aligned_to_best;
+use splat2tiles_tiles::tiling::load::load_tileset;
+use splat2tiles_tiles::variants::{
+    Variant, VariantOptions, content_uri, decode_variant, up_in_source,
+};
 
 /// The largest leaf tile of a shared scene converted at the default tile size: tile-relative
 /// Best splats and the up direction of the utility views.

@@ -1,7 +1,6 @@
 //! Khronos glTF-Validator over every variant of every tile (SH3 and SH0 scenes, both profiles):
 //! no errors and no warnings, with only `MESH_PRIMITIVE_INVALID_ATTRIBUTE` ignored.
 
-
 use crate::common::*;
 use std::path::Path;
 use std::process::Command;

@@ -14,9 +14,9 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-use splat2tiles_stream::client::native::Driver;
-use splat2tiles_render::view::{CameraRequest, resolve_camera};
 use splat2tiles_core::view_spec::{ViewSpec, is_georeferenced};
+use splat2tiles_render::view::{CameraRequest, resolve_camera};
+use splat2tiles_stream::client::native::Driver;
 
 use crate::headless::ViewArgs;
 use crate::renderer::{RendererConfig, SplatRenderer};

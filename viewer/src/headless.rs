@@ -5,11 +5,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use glam::DMat4;
-use splat2tiles_render::Image;
 use splat2tiles_core::camera::{self, Camera};
-use splat2tiles_tiles::geometry::{content_model, select_tiles, tileset_bounds, tileset_up};
-use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
 use splat2tiles_core::splat::Splats;
+use splat2tiles_render::Image;
+use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
+use splat2tiles_tiles::geometry::{content_model, select_tiles, tileset_bounds, tileset_up};
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 
 use crate::gpu::{Headless, OFFSCREEN_FORMAT, Offscreen};

@@ -3,9 +3,9 @@
 
 use anyhow::bail;
 use glam::{DMat4, DVec3};
+use splat2tiles_core::camera::Camera;
 use splat2tiles_stream::client::native::Driver;
 use splat2tiles_stream::client::{ClientConfig, SceneUpdate};
-use splat2tiles_core::camera::Camera;
 
 /// Applies scene updates to the renderer at time `now_s` (inserts fade in, removes fade out,
 /// appends grow a tile being downloaded); a client's frames go through

@@ -8,10 +8,10 @@ use std::process::Command;
 use common::*;
 use glam::DVec3;
 use splat2tiles_build::convert::ConvertOptions;
-use splat2tiles_tiles::geometry::tileset_bounds;
 use splat2tiles_render::{Camera, Image, metrics};
-use splat2tiles_stream::trace::Trace;
 use splat2tiles_stream::geom::ViewPose;
+use splat2tiles_stream::trace::Trace;
+use splat2tiles_tiles::geometry::tileset_bounds;
 use splat2tiles_viewer::headless::{ViewArgs, open_tileset};
 
 fn bin() -> Command {

@@ -80,11 +80,9 @@ fn biker_sh3_subset_matches_reference() {
     );
     let full = reference(&inst, &cam, &Default::default());
     let s0 = splat2tiles_render::metrics::psnr(&full, &dc).unwrap();
-    let s3 = splat2tiles_render::metrics::psnr(
-        &full,
-        &gpu_frame(&g, &inst, &cam, Default::default()).0,
-    )
-    .unwrap();
+    let s3 =
+        splat2tiles_render::metrics::psnr(&full, &gpu_frame(&g, &inst, &cam, Default::default()).0)
+            .unwrap();
     println!("biker: PSNR SH0-only {s0:.2} dB vs SH3 {s3:.2} dB");
     assert!(s3 > s0 + 1.0, "degree-3 SH must bring the frame closer");
 }

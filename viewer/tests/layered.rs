@@ -8,13 +8,13 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert};
-use splat2tiles_tiles::layers::view::{is_layered, layered_instances};
 use splat2tiles_core::camera::auto_views_with;
-use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
+use splat2tiles_core::splat::{Splat, Splats};
 use splat2tiles_render::metrics::ssim;
 use splat2tiles_render::raster::{RenderOptions, render};
 use splat2tiles_render::{Camera, Image};
-use splat2tiles_core::splat::{Splat, Splats};
+use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
+use splat2tiles_tiles::layers::view::{is_layered, layered_instances};
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 use splat2tiles_viewer::gpu::{Headless, OFFSCREEN_FORMAT, Offscreen};
@@ -79,7 +79,7 @@ fn layered_tileset(dir: &Path) -> PathBuf {
         scheme: SchemeChoice::Octree,
         subtree_levels: Some(2),
         layers: true,
-        progress: false,
+        progress: None,
         ..ConvertOptions::default()
     };
     convert(&ply, &out, &opts).expect("convert --layers");
@@ -253,9 +253,9 @@ fn a_streamed_level_change_blends_frame_by_frame_where_a_hard_swap_jumps() {
 /// more per frame than the ramp's slope allows, where the client's factor alone pops.
 #[test]
 fn late_layers_ramp_in_over_time_instead_of_popping() {
+    use splat2tiles_lab::sim::transport::{NetModel, SimTransport};
     use splat2tiles_stream::client::{Action, ClientConfig, StreamClient};
     use splat2tiles_tiles::layers::ramp::LAYER_RAMP_S;
-    use splat2tiles_lab::sim::transport::{NetModel, SimTransport};
     use std::collections::HashMap;
 
     let dir = tempfile::tempdir().unwrap();

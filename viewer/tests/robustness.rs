@@ -7,8 +7,8 @@ mod common;
 use common::*;
 use glam::{DMat4, DVec3};
 use splat2tiles_core::camera::Camera;
-use splat2tiles_render::metrics::ssim;
 use splat2tiles_core::splat::{Splat, Splats};
+use splat2tiles_render::metrics::ssim;
 use splat2tiles_viewer::gpu::{OFFSCREEN_FORMAT, Offscreen};
 use splat2tiles_viewer::{RendererConfig, SplatRenderer};
 

@@ -5,4 +5,5 @@ pub mod convert;
 pub mod lod;
 pub mod output;
 pub mod partition;
+pub mod progress;
 pub mod variants;

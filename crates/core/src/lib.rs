@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod frame;
+pub mod named;
 pub mod rng;
 pub mod splat;
 pub mod view_spec;

@@ -7,9 +7,9 @@
 //! allocate beyond what the input size justifies. Errors print `FILE: byte N: what is wrong`.
 //! Trailing bytes after the declared data are an error, not a warning.
 
-pub mod limits;
 mod chunked;
 mod error;
+pub mod limits;
 mod ply;
 mod ply_header;
 mod ply_write;

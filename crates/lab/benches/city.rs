@@ -13,9 +13,9 @@
 
 mod common;
 use common::release_binary;
-use splat2tiles_io::{PlyWriter, read_path, write_splat_records};
-use splat2tiles_io::limits::{MemoryLimit, human, in_memory_estimate, physical_memory};
 use splat2tiles_core::splat::{Splats, sh_rest_count};
+use splat2tiles_io::limits::{MemoryLimit, human, in_memory_estimate, physical_memory};
+use splat2tiles_io::{PlyWriter, read_path, write_splat_records};
 use std::fmt::Write as _;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

@@ -18,12 +18,12 @@
 
 use std::time::Instant;
 
+use splat2tiles_core::rng::SplitMix64;
 use splat2tiles_lab::sim::network::read_log;
 use splat2tiles_stream::bandwidth::future_pieces;
 use splat2tiles_stream::catalog::{LEVELS, Variant};
 use splat2tiles_stream::plan::{Candidate, Plan, PlanRequest, solve_dp};
 use splat2tiles_stream::planner::{LinkForecast, PlanStepConfig};
-use splat2tiles_core::rng::SplitMix64;
 
 /// A link of the table: name, `(start s, bytes/s)` pieces, RTT (s).
 type Link = (String, Vec<(f64, f64)>, f64);

@@ -8,8 +8,8 @@
 
 use std::time::Instant;
 
-use splat2tiles_io::{read_bytes, write_ply};
 use splat2tiles_core::splat::{Splat, Splats, normalize_quat};
+use splat2tiles_io::{read_bytes, write_ply};
 
 fn scene(n: usize) -> Splats {
     let mut state = 0x1234_5678_9abc_def1u64;

@@ -12,9 +12,9 @@
 //! (`../shared/scenes/README.md`), built in memory. Writes `target/lod_city.md`.
 
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
-use splat2tiles_core::frame::UpAxis;
 use splat2tiles_build::lod::eval::level_table;
 use splat2tiles_build::lod::views::{ViewKind, ViewOptions, evaluate_views, viewer_bytes};
+use splat2tiles_core::frame::UpAxis;
 use splat2tiles_lab::city::{CityLayout, city_scene, generate_city, shared_sources};
 use splat2tiles_tiles::tiling::load::load_tileset;
 use std::fmt::Write as _;

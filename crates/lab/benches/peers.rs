@@ -26,16 +26,16 @@ mod peer_views;
 use common::plant_sh3;
 use glam::DVec3;
 use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
+use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_core::splat::importance::importance_order;
+use splat2tiles_io::{read_path, write_ply};
+use splat2tiles_lab::sim::svg::{Series, marked_chart, panels};
+use splat2tiles_render::{Camera, Image};
 use splat2tiles_tiles::encode::spz2::{SpzOptions, encode_spz_v2, gzip};
 use splat2tiles_tiles::encode::table6;
 use splat2tiles_tiles::encode::tile::IDENTITY;
-use splat2tiles_core::frame::UpAxis;
-use splat2tiles_io::{read_path, write_ply};
-use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
-use splat2tiles_render::{Camera, Image};
-use splat2tiles_lab::sim::svg::{Series, marked_chart, panels};
-use splat2tiles_core::splat::Splats;
-use splat2tiles_core::splat::importance::importance_order;
 use splat2tiles_tiles::variants::{ALL, decode_variant, relative};
 
 /// One encoded scene: which codec, how many bytes, what it looks like.

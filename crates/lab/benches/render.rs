@@ -15,10 +15,10 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use glam::{DMat4, DVec3};
+use splat2tiles_core::splat::Splats;
 use splat2tiles_render::{
     Camera, DepthSort, Image, RenderOptions, auto_views_with, render, render_with_stats, ssim,
 };
-use splat2tiles_core::splat::Splats;
 
 const W: u32 = 1280;
 const H: u32 = 720;

@@ -9,11 +9,11 @@
 use std::time::Instant;
 
 use glam::DVec3;
+use splat2tiles_core::rng::SplitMix64;
 use splat2tiles_stream::catalog::{LEVELS, TileCatalog, Variant};
 use splat2tiles_stream::geom::{Intrinsics, ViewPose};
 use splat2tiles_stream::plan::{Candidate, PlanRequest, solve_dp};
 use splat2tiles_stream::planner::{PlanStepConfig, plan_step};
-use splat2tiles_core::rng::SplitMix64;
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::LoadedTile;
 

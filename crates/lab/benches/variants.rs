@@ -7,8 +7,8 @@
 mod common;
 use common::plant_sh3;
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
-use splat2tiles_tiles::encode::spz2::{SpzOptions, encode_spz_v2, encode_spz_v2_raw, gzip};
 use splat2tiles_io::{Scene, read_path};
+use splat2tiles_tiles::encode::spz2::{SpzOptions, encode_spz_v2, encode_spz_v2_raw, gzip};
 use splat2tiles_tiles::tiling::load::load_tileset;
 use splat2tiles_tiles::variants::{ALL, VariantOptions, content_uri, variant_table};
 use std::fmt::Write as _;
@@ -43,7 +43,8 @@ fn zstd_streams(raw: &[u8], n: usize, degree: u8) -> usize {
 }
 
 fn main() {
-    let scenes_dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+    let scenes_dir =
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
     let plant = read_path(&scenes_dir.join("plant.splat")).unwrap();
     let inputs = vec![
         ("plant.splat (SH0)".to_string(), plant.clone()),
@@ -135,7 +136,8 @@ fn main() {
     }
     println!("{table}\n{spz_table}");
     let svg = plot(&points);
-    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("docs/variants_ssim_bytes.svg");
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .join("docs/variants_ssim_bytes.svg");
     std::fs::write(&path, svg).unwrap();
     println!("wrote {}", path.display());
 }

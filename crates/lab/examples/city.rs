@@ -16,10 +16,9 @@ fn main() -> anyhow::Result<()> {
     let splats: usize = n
         .parse()
         .map_err(|e| anyhow::anyhow!("SPLATS '{n}': {e}"))?;
-    let scenes = args
-        .get(2)
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes"));
+    let scenes = args.get(2).map(PathBuf::from).unwrap_or_else(|| {
+        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes")
+    });
     let city = generate_city(
         &shared_sources(&scenes)?,
         &CityLayout {

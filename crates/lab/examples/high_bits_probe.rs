@@ -18,21 +18,22 @@ mod peer_views;
 
 use glam::DVec3;
 use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
+use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_io::read_path;
+use splat2tiles_render::{Camera, Image};
 use splat2tiles_tiles::encode::exp_filter::ExpMode;
 use splat2tiles_tiles::encode::meshopt::{HIGH, MEDIUM, MeshoptLevel, write_meshopt_glb};
 use splat2tiles_tiles::encode::spz_rotation::RotationFit;
 use splat2tiles_tiles::encode::spz2::{SpzOptions, encode_spz_v2, gzip, write_spz2_glb};
 use splat2tiles_tiles::encode::table6;
 use splat2tiles_tiles::encode::tile::IDENTITY;
-use splat2tiles_core::frame::UpAxis;
-use splat2tiles_io::read_path;
-use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
-use splat2tiles_render::{Camera, Image};
-use splat2tiles_core::splat::Splats;
 use splat2tiles_tiles::variants::{LOW_SPZ, decode_variant, relative};
 
 fn main() {
-    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .join("../shared/scenes");
     let only = std::env::var("PROBE_SCENES").unwrap_or_default();
     let cands: Vec<Vec<i32>> = std::env::var("PROBE_CANDS")
         .unwrap_or("18,12,11,12,12".into())

@@ -16,12 +16,12 @@ mod peer_views;
 use meshoptimizer_rs::codec::{VertexEncoding, decode_vertex_buffer, encode_vertex_buffer};
 use meshoptimizer_rs::{Limits, Workspace};
 use peer_views::core_box;
+use splat2tiles_build::variants::relative;
+use splat2tiles_io::read_path;
 use splat2tiles_tiles::encode::glb::read_glb;
 use splat2tiles_tiles::encode::meshopt::{HIGH, MEDIUM, write_meshopt_glb};
 use splat2tiles_tiles::encode::spz2::gzip;
 use splat2tiles_tiles::encode::tile::IDENTITY;
-use splat2tiles_io::read_path;
-use splat2tiles_build::variants::relative;
 
 /// The tile's JSON and binary chunk with each compressed stream re-encoded at `version`/`level`
 /// (version 0: as written).
@@ -53,7 +53,8 @@ fn rewritten(glb: &[u8], version: u8, level: u8) -> Vec<u8> {
 }
 
 fn main() {
-    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .join("../shared/scenes");
     println!("| scene | variant | v0 (as written) | v1 level 2 | v1 level 3 |");
     println!("|---|---|---|---|---|");
     for f in ["plant.splat", "donut_fused_sh0.ply", "biker.spz", "sh3"] {

@@ -6,13 +6,13 @@
 //! Run: `cargo run --release --example order_bytes` (no renders: the same splats in another
 //! order render the same; prints wire B/splat, the smaller of file and gzip -6).
 
+use splat2tiles_core::splat::Splats;
+use splat2tiles_core::splat::importance::importance_order;
+use splat2tiles_io::read_path;
 use splat2tiles_tiles::encode::meshopt::{HIGH, MEDIUM, write_meshopt_glb_as_given};
 use splat2tiles_tiles::encode::spz2::{gzip, write_spz2_glb_as_given};
 use splat2tiles_tiles::encode::storage_order::storage_order;
 use splat2tiles_tiles::encode::tile::IDENTITY;
-use splat2tiles_io::read_path;
-use splat2tiles_core::splat::Splats;
-use splat2tiles_core::splat::importance::importance_order;
 use splat2tiles_tiles::variants::{LOW_SPZ, relative};
 
 /// Splat indices in importance order, each run of `block` of them in the writer's Morton order
@@ -30,7 +30,8 @@ fn morton_order(s: &Splats, block: usize) -> Vec<usize> {
 }
 
 fn main() {
-    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .join("../shared/scenes");
     println!("| scene | order | High | Medium | Low |");
     println!("|---|---|---:|---:|---:|");
     for f in ["plant.splat", "donut_fused_sh0.ply", "biker.spz"] {

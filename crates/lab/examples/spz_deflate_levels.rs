@@ -19,9 +19,9 @@ use std::io::{Read, Write};
 
 use libdeflater::{CompressionLvl, Compressor};
 use peer_views::core_box;
+use splat2tiles_io::read_path;
 use splat2tiles_tiles::encode::spz2::{spz2_payload, write_spz2_glb};
 use splat2tiles_tiles::encode::tile::IDENTITY;
-use splat2tiles_io::read_path;
 use splat2tiles_tiles::variants::{LOW_SPZ, relative};
 
 /// Fastest of three runs of `f`, in ms, and its output length.
@@ -37,7 +37,8 @@ fn timed(mut f: impl FnMut() -> usize) -> (usize, f64) {
 }
 
 fn main() {
-    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .join("../shared/scenes");
     println!("| scene | coder | level | B/splat | ms |");
     println!("|---|---|---:|---:|---:|");
     let extra = std::env::var("LEVELS_PLY").ok();

@@ -15,7 +15,8 @@ fn run() -> Result<(), String> {
     let mut out = None;
     let mut origin = DEFAULT_ORIGIN.to_string();
     let mut spec = CitySpec::default();
-    let mut scenes = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+    let mut scenes =
+        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
         match a.as_str() {

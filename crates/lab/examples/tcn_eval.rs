@@ -11,16 +11,16 @@
 //! The oracle row reads each trace's own future (ADE 0 and coverage 100% by construction,
 //! measured as a check of the evaluation).
 
-use splat2tiles_stream::client::ClientConfig;
-use splat2tiles_stream::trace::Trace;
 use splat2tiles_lab::sim::score::Truth;
 use splat2tiles_lab::sim::stream_city::{StreetGrid, evaluation_set, tuning_set};
 use splat2tiles_lab::sim::tcn_data::{ErrorRow, HORIZONS, coverage, evaluate, trace_kind};
 use splat2tiles_stream::ViewPose;
+use splat2tiles_stream::client::ClientConfig;
 use splat2tiles_stream::learned::{TcnPredictor, TrajectoryModel};
 use splat2tiles_stream::predict::{
     ConstantVelocity, LinearExtrapolation, Oracle, Predictor, Reactive,
 };
+use splat2tiles_stream::trace::Trace;
 use splat2tiles_tiles::tiling::TileKey;
 use std::path::PathBuf;
 

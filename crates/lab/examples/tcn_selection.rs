@@ -15,9 +15,9 @@
 //! `BLEND_SIGMA_M` are dropped and the radius rule (App. C.5) joins in; "tcn (mean only)" is the
 //! same model with its sigma ignored (every mean pose planned for, never the radius rule).
 
-use splat2tiles_stream::client::{ClientConfig, PredictorKind};
-use splat2tiles_stream::trace::Trace;
-use splat2tiles_lab::sim::score::{Ratio, Truth, Waste, cache_hits, held_tiles, tick_views, wasted};
+use splat2tiles_lab::sim::score::{
+    Ratio, Truth, Waste, cache_hits, held_tiles, tick_views, wasted,
+};
 use splat2tiles_lab::sim::session::{SessionOptions, run_session};
 use splat2tiles_lab::sim::stream_city::{
     CitySpec, StreetGrid, build_city, city_sources, evaluation_set,
@@ -25,8 +25,10 @@ use splat2tiles_lab::sim::stream_city::{
 use splat2tiles_lab::sim::tcn_data::trace_kind;
 use splat2tiles_lab::sim::transport::{NetModel, Outcome};
 use splat2tiles_stream::ViewPose;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind};
 use splat2tiles_stream::learned::TcnPredictor;
 use splat2tiles_stream::predict::{BLEND_SIGMA_M, Predictor, Uncertain};
+use splat2tiles_stream::trace::Trace;
 use splat2tiles_tiles::tiling::TileKey;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

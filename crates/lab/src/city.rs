@@ -1,10 +1,10 @@
 //! Generated city scenes for tests and benchmarks: displaced, rotated and scaled copies of real
 //! scenes (brought to z up) on a jittered grid of blocks, deterministic for a given seed.
 
-use splat2tiles_core::splat::Splats;
-use splat2tiles_core::frame::UpAxis;
-use splat2tiles_io::{InputFormat, Locator, PlyEncoding, Scene, read_path};
 use glam::{DMat3, DQuat, DVec3};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_io::{InputFormat, Locator, PlyEncoding, Scene, read_path};
 use std::path::Path;
 
 /// Layout of a generated city.

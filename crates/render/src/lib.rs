@@ -5,11 +5,11 @@
 //! [`auto_views`], [`ssim`] and [`psnr`]. See `raster` for the exact rules followed.
 
 pub mod image;
-pub mod view;
 pub mod metrics;
 pub mod raster;
+pub mod view;
 
-pub use splat2tiles_core::camera::{Camera, auto_views, auto_views_with};
 pub use image::{Image, ImageError};
 pub use metrics::{MetricError, psnr, ssim};
 pub use raster::{DepthSort, RenderOptions, RenderStats, render, render_splats, render_with_stats};
+pub use splat2tiles_core::camera::{Camera, auto_views, auto_views_with};

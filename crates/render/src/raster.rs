@@ -22,8 +22,8 @@
 use glam::{DMat3, DMat4, DVec3};
 use rayon::prelude::*;
 
-use splat2tiles_core::camera::Camera;
 use super::image::Image;
+use splat2tiles_core::camera::Camera;
 use splat2tiles_core::splat::{Splats, sh};
 
 /// Side of a screen tile in pixels (the reference's BLOCK_X/BLOCK_Y).

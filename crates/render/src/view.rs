@@ -56,7 +56,10 @@ pub fn resolve_camera(
         return fail(format!("image size must be positive, got {w}x{h}"));
     }
     if !(req.fov > 0.0 && req.fov < 180.0) {
-        return fail(format!("--fov must be in (0, 180) degrees, got {}", req.fov));
+        return fail(format!(
+            "--fov must be in (0, 180) degrees, got {}",
+            req.fov
+        ));
     }
     if let Some(k) = req.auto_view {
         if k >= camera::AUTO_VIEW_COUNT {

@@ -7,10 +7,10 @@
 //! paper's figures (1.0 / 0.98 / 0.95 / 0.90). [`VariantSource`] records which one a catalog holds.
 
 use super::geom::Obb;
+use glam::{DMat4, DVec3};
 use splat2tiles_core::rng::SplitMix64;
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::LoadedTile;
-use glam::{DMat4, DVec3};
 use std::collections::HashMap;
 
 /// Number of quality levels per tile.

@@ -8,14 +8,14 @@
 pub mod bandwidth;
 pub mod cache;
 pub mod catalog;
+pub mod client;
+pub mod eyenav;
 pub mod geom;
 pub mod learned;
 pub mod plan;
 pub mod planner;
 pub mod predict;
 pub mod priority;
-pub mod client;
-pub mod eyenav;
 pub mod split;
 pub mod trace;
 pub mod visibility;

@@ -303,8 +303,8 @@ mod tests {
     /// sessions of nyc and truck.
     #[test]
     fn shared_sets_hold_the_right_scenes() {
-        let root =
-            std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/navigation-traces");
+        let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+            .join("../shared/navigation-traces");
         if !root.exists() {
             eprintln!("skipped: {} missing", root.display());
             return;

@@ -8,8 +8,8 @@
 //! towards +y and pitch upwards, in degrees.
 
 use crate::geom::{ViewPose, wrap_angle};
-use splat2tiles_core::rng::SplitMix64;
 use glam::DVec3;
+use splat2tiles_core::rng::SplitMix64;
 use std::fmt::Write as _;
 
 /// Sampling rate of generated traces (TileSplat: 12 Hz).

@@ -81,11 +81,7 @@ pub fn tile_sse(ts: &LoadedTileset, i: usize, cam: &Camera) -> f64 {
 /// REPLACE-refinement selection: from the root, a tile is refined into its children while its
 /// screen-space error (geometric error * focal / distance to its box) exceeds `max_sse` pixels;
 /// the content of every tile reached and not refined is drawn.
-pub fn select_tiles(
-    ts: &LoadedTileset,
-    cam: &Camera,
-    max_sse: f64,
-) -> Vec<PathBuf> {
+pub fn select_tiles(ts: &LoadedTileset, cam: &Camera, max_sse: f64) -> Vec<PathBuf> {
     let children = ts.children();
     let Some(root) = ts.root_index() else {
         return vec![];

@@ -1,8 +1,8 @@
 //! The refined cut a camera needs: REPLACE selection by screen-space error over each tile's
 //! bounding sphere, skipping tiles whose sphere is outside the view, shared by client and scoring.
 
-use splat2tiles_core::camera::Camera;
 use glam::DVec3;
+use splat2tiles_core::camera::Camera;
 
 /// A tile tree as the selection sees it (indices into the caller's tile list).
 pub trait CutTree {

@@ -3,9 +3,9 @@
 
 use super::context::Ctx;
 use super::issues::Issue;
+use glam::{DMat3, DMat4, DQuat, DVec3};
 use splat2tiles_tiles::encode::glb::{GlbError, parse_json, read_glb};
 use splat2tiles_tiles::encode::gltf::{Gltf, KHR_GAUSSIAN_SPLATTING, KHR_MESH_QUANTIZATION};
-use glam::{DMat3, DMat4, DQuat, DVec3};
 
 /// Splat geometry of one content, in the tile frame (after the node matrix and y-up -> z-up).
 #[derive(Debug, Default)]

@@ -9,10 +9,10 @@ use super::metadata::Schema;
 use super::subtree_file::{availability, check_views, parse_subtree, table_column};
 use super::tileset::{Parent, content_file};
 use super::volume::{Volume, parse_box};
+use serde_json::Value;
 use splat2tiles_tiles::tiling::load::expand_template;
 use splat2tiles_tiles::tiling::subtree::tile_count;
 use splat2tiles_tiles::tiling::{Scheme, TileKey};
-use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 
 /// Most subtree files one validation walks.

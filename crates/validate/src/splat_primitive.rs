@@ -7,11 +7,11 @@ use super::glb_buffers::Buffers;
 use super::issues::Issue;
 use std::collections::BTreeMap;
 
+use glam::{DMat3, DMat4, DQuat, DVec3};
 use splat2tiles_tiles::encode::gltf::{
     AccessorType, ComponentType, Gltf, KHR_GAUSSIAN_SPLATTING, KHR_GAUSSIAN_SPLATTING_SPZ_2,
     KhrGaussianSplatting, MODE_DEFAULT, MODE_POINTS, Primitive,
 };
-use glam::{DMat3, DMat4, DQuat, DVec3};
 
 const SPLAT: &str = "KHR_gaussian_splatting:";
 const ROTATION: &str = "KHR_gaussian_splatting:ROTATION";

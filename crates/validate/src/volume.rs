@@ -1,8 +1,8 @@
 //! Bounding volumes as the validator sees them (3D Tiles 1.1 "Bounding volumes"): parsing and
 //! validity of box / region / sphere, implicit subdivision, and point containment.
 
-use splat2tiles_core::frame::geo::Geodetic;
 use glam::{DMat4, DVec3};
+use splat2tiles_core::frame::geo::Geodetic;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// A parsed bounding volume.

@@ -9,8 +9,8 @@ use std::sync::Arc;
 
 use glam::{DMat3, DMat4, DVec3};
 use splat2tiles_core::camera::Camera;
-use splat2tiles_render::raster::NEAR_Z;
 use splat2tiles_core::splat::Splats;
+use splat2tiles_render::raster::NEAR_Z;
 
 use crate::alloc::{Run, SlotAllocator};
 use crate::attr_tex::{AttrTex, table_texture};

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 
 use glam::DMat4;
 use splat2tiles_build::convert::{ConvertOptions, convert};
+use splat2tiles_core::splat::Splats;
 use splat2tiles_render::raster::{RenderOptions, render};
 use splat2tiles_render::{Camera, Image, metrics};
-use splat2tiles_core::splat::Splats;
 use splat2tiles_viewer::gpu::Headless;
 use splat2tiles_viewer::headless::{
     ViewArgs, load_instances, open_tileset, render_instances, tileset_camera,

@@ -6,8 +6,8 @@ use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
 
 use js_sys::{Reflect, Uint8Array};
-use splat2tiles_stream::client::{Action, FetchRequest, RequestId, StreamClient};
 use splat2tiles_core::camera::Camera;
+use splat2tiles_stream::client::{Action, FetchRequest, RequestId, StreamClient};
 use wasm_bindgen::{JsCast, JsValue};
 use wasm_bindgen_futures::JsFuture;
 use web_sys::{

@@ -6,10 +6,10 @@ use std::rc::Rc;
 
 use glam::DVec3;
 use serde_json::json;
-use splat2tiles_stream::client::{ClientConfig, PredictorKind, StreamClient};
 use splat2tiles_core::camera::{self, Camera};
 use splat2tiles_core::view_spec::{ViewSpec, is_georeferenced};
 use splat2tiles_stream::Level;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind, StreamClient};
 use splat2tiles_viewer::layered::{BlendMode, SceneSync};
 use splat2tiles_viewer::{RendererConfig, SplatRenderer};
 use wasm_bindgen::prelude::*;

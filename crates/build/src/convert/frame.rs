@@ -5,6 +5,8 @@
 //! of the root volume, so later stages place splats one at a time, chunk by chunk.
 
 use super::{ConvertOptions, SchemeChoice};
+use glam::{DMat3, DMat4, DVec3};
+use rayon::prelude::*;
 use splat2tiles_core::frame::geo::{Geodetic, mercator_unit};
 use splat2tiles_core::frame::mercator::{MAX_ZOOM, MercatorKey};
 use splat2tiles_core::frame::region::RegionBuilder;
@@ -12,8 +14,6 @@ use splat2tiles_core::splat::Splats;
 use splat2tiles_tiles::tiling::Scheme;
 use splat2tiles_tiles::tiling::extent::reach;
 use splat2tiles_tiles::tiling::tileset::BoundingVolume;
-use glam::{DMat3, DMat4, DVec3};
-use rayon::prelude::*;
 
 /// What the frame pass accumulates over the (finite) splats; merging is order-free (min/max).
 #[derive(Debug, Clone, Copy)]

@@ -15,15 +15,15 @@ use super::tileset::{
     TreeTile, build_tree, finish_tree, tileset_json, write_subtrees, write_tileset_json,
 };
 use super::{ConvertError, ConvertOptions, ConvertReport, io_err, region};
+use crate::output::Staging;
+use crate::variants::{Variant, content_uri};
 use splat2tiles_core::frame::geo::Geodetic;
 use splat2tiles_core::frame::{UpAxis, source_to_tileset};
 use splat2tiles_io::{self as io, Scene};
 use splat2tiles_tiles::layers::build::LayerError;
 use splat2tiles_tiles::layers::glb::add_layer_v2;
-use crate::output::Staging;
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::partition::code_of;
-use crate::variants::{Variant, content_uri};
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;

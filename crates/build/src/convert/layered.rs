@@ -3,9 +3,9 @@
 
 use super::tileset::TreeTile;
 use super::{ConvertError, ConvertOptions, ConvertReport};
+use crate::variants::{Variant, content_uri};
 use splat2tiles_tiles::layers::build::{LayerError, layer_contents};
 use splat2tiles_tiles::tiling::{Scheme, TileKey};
-use crate::variants::{Variant, content_uri};
 use std::collections::BTreeMap;
 use std::path::Path;
 

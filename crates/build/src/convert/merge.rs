@@ -51,7 +51,7 @@ pub fn merge_parts(
     parts: &[PathBuf],
     output: &Path,
     memory_limit: u64,
-    progress: bool,
+    progress: crate::progress::ProgressSink,
 ) -> Result<MergeReport, ConvertError> {
     let start = Instant::now();
     let plan = Plan::load(plan_path)?;
@@ -313,7 +313,8 @@ fn load_roots(
         r.read_exact(&mut buf)
             .map_err(|e| bad(path, Some(offset), e))?;
         offset += buf.len() as u64;
-        let mut s = splat2tiles_core::splat::Splats::with_capacity(codec.degree(), u.content as usize);
+        let mut s =
+            splat2tiles_core::splat::Splats::with_capacity(codec.degree(), u.content as usize);
         let mut idx = Vec::with_capacity(u.content as usize);
         codec.decode(&buf, &mut s, &mut idx);
         if !u.radius.0.is_finite() || u.radius.0 < 0.0 {

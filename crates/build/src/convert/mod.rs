@@ -20,15 +20,9 @@ mod store;
 mod tileset;
 mod top;
 
-use splat2tiles_core::frame::geo::Geodetic;
-use splat2tiles_core::frame::{UpAxis, source_to_tileset};
-use splat2tiles_io::{self as io, ChunkedInput, Scene};
 use crate::lod::LEAF_SIZE_DIVISOR;
 use crate::output::{OutputError, Staging};
-use splat2tiles_core::splat::Splats;
-use splat2tiles_tiles::tiling::TileKey;
 use frame::{FrameAccum, Layout};
-use indicatif::{ProgressBar, ProgressStyle};
 pub use lapis::{LapisReport, import_lapisgs};
 use layered::layer_tree;
 pub use merge::{MergeReport, merge_parts};
@@ -40,6 +34,11 @@ use region::{GroupLeaves, RegionCtx};
 use source::Input;
 use spill::Spiller;
 use spill_records::{Codec, SpillFormat};
+use splat2tiles_core::frame::geo::Geodetic;
+use splat2tiles_core::frame::{UpAxis, source_to_tileset};
+use splat2tiles_core::splat::Splats;
+use splat2tiles_io::{self as io, ChunkedInput, Scene};
+use splat2tiles_tiles::tiling::TileKey;
 use std::collections::HashMap;
 use std::panic::resume_unwind;
 use std::path::Path;
@@ -85,9 +84,13 @@ pub fn convert(
     let source = match ChunkedInput::open(input)? {
         Some(c) => Input::Chunked(c),
         None => {
-            let spinner = spinner(opts.progress, format!("reading {}", input.display()));
+            let spinner = crate::progress::begin(
+                &opts.progress,
+                &format!("reading {}", input.display()),
+                None,
+            );
             let scene = io::read_path_limited(input, opts.memory_limit)?;
-            spinner.finish_and_clear();
+            spinner.finish();
             Input::Memory(scene)
         }
     };
@@ -223,7 +226,7 @@ fn run(
     let format = SpillFormat::for_input(&input);
 
     // Spill stage: regions that fit the budget (one in memory when the whole scene does).
-    let spinner = spinner(opts.progress, "partitioning".to_string());
+    let spinner = crate::progress::begin(&opts.progress, "partitioning", None);
     let mut spiller = Spiller::new(
         name,
         opts.memory_limit,
@@ -286,7 +289,7 @@ fn run(
         drop(input);
         groups
     };
-    spinner.finish_and_clear();
+    spinner.finish();
     report.spill_bytes = spiller.bytes;
     report
         .stage_seconds
@@ -302,7 +305,8 @@ fn run(
         write_leaves: true,
         must_split: split_plan.as_ref().map(|p| &p.must_split),
     };
-    let leaf_bar = bar(opts.progress, groups.len() as u64, "writing leaves");
+    let leaf_bar =
+        crate::progress::begin(&opts.progress, "writing leaves", Some(groups.len() as u64));
     let mut built: Vec<GroupLeaves> = Vec::with_capacity(groups.len());
     let mut leaves: HashMap<TileKey, TreeTile> = HashMap::new();
     let mut spacing = Vec::new();
@@ -316,11 +320,11 @@ fn run(
             spacing.append(&mut gl.spacing);
             index_map.append(&mut gl.index_map);
             built.push(gl);
-            leaf_bar.inc(1);
+            leaf_bar.advance(1);
         },
     )
     .map_err(relocate)?;
-    leaf_bar.finish_and_clear();
+    leaf_bar.finish();
     report
         .stage_seconds
         .push(("leaves", start.elapsed().as_secs_f64()));
@@ -345,7 +349,8 @@ fn run(
                 layout.tile_edge(0),
             )
         });
-        let lod_bar = bar(opts.progress, built.len() as u64, "building LOD");
+        let lod_bar =
+            crate::progress::begin(&opts.progress, "building LOD", Some(built.len() as u64));
         let mut parents = std::collections::BTreeMap::new();
         let mut roots = Vec::new();
         let spill = dir.join(SPILL_DIR);
@@ -361,11 +366,11 @@ fn run(
             |(p, rc)| {
                 parents.extend(p);
                 roots.extend(rc);
-                lod_bar.inc(1);
+                lod_bar.advance(1);
             },
         )
         .map_err(relocate)?;
-        lod_bar.finish_and_clear();
+        lod_bar.finish();
         report
             .stage_seconds
             .push(("parents", start.elapsed().as_secs_f64()));
@@ -575,28 +580,4 @@ fn default_radius(spacing: &mut [f64], deepest_edge: f64, root_size: f64) -> f64
     } else {
         1e-6_f64.max(root_size * 1e-6)
     }
-}
-
-fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
-    if !show {
-        return ProgressBar::hidden();
-    }
-    let b = ProgressBar::new(len);
-    b.set_style(
-        ProgressStyle::with_template("{msg:>14} [{bar:40}] {pos}/{len} ({eta})")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    b.set_message(msg);
-    b
-}
-
-fn spinner(show: bool, msg: String) -> ProgressBar {
-    if !show {
-        return ProgressBar::hidden();
-    }
-    let s = ProgressBar::new_spinner();
-    s.set_message(msg);
-    s.enable_steady_tick(std::time::Duration::from_millis(120));
-    s
 }

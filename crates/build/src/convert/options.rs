@@ -3,17 +3,17 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::lod::LodOptions;
+use crate::output::OutputError;
+use crate::variants::{ContentError, ContentFacts, VariantOptions};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::frame::geo::Geodetic;
 use splat2tiles_io::ReadError;
 use splat2tiles_tiles::layers::build::LayerError;
-use crate::lod::LodOptions;
-use crate::output::OutputError;
 use splat2tiles_tiles::tiling::TileKey;
-use crate::variants::{ContentError, ContentFacts, VariantOptions};
 
 /// What to do with splats holding NaN or infinite values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NonFinitePolicy {
     /// Drop them and report how many were dropped.
     Drop,
@@ -21,8 +21,13 @@ pub enum NonFinitePolicy {
     Fail,
 }
 
+splat2tiles_core::named!(NonFinitePolicy {
+    Drop => ("drop", "Drop them and report how many were dropped."),
+    Fail => ("fail", "Refuse the input, naming the first bad splat."),
+});
+
 /// Which subdivision to use for a local (not georeferenced) scene.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SchemeChoice {
     /// Quadtree when the scene is flat (vertical extent < 1/4 of the horizontal), else octree.
     Auto,
@@ -31,6 +36,12 @@ pub enum SchemeChoice {
     /// Always a quadtree.
     Quadtree,
 }
+
+splat2tiles_core::named!(SchemeChoice {
+    Auto => ("auto", "Quadtree when the scene is flat (vertical extent < 1/4 of the horizontal), else octree."),
+    Octree => ("octree", "Always an octree."),
+    Quadtree => ("quadtree", "Always a quadtree."),
+});
 
 /// Settings of one conversion.
 #[derive(Debug, Clone)]
@@ -53,8 +64,8 @@ pub struct ConvertOptions {
     pub subtree_levels: Option<u32>,
     /// Keep each leaf's splat indices in the report (for tests and tools).
     pub keep_index_map: bool,
-    /// Draw progress bars (they hide themselves when stderr is not a terminal).
-    pub progress: bool,
+    /// Where progress goes (none: nowhere).
+    pub progress: crate::progress::ProgressSink,
     /// Level of detail: parents by weighted clustering of their children.
     pub lod: LodOptions,
     /// Quality variants per tile, target profile, utility measurement.
@@ -74,7 +85,11 @@ pub struct ConvertOptions {
 impl ConvertOptions {
     /// Levels per subtree file for a tree of `levels` levels: `subtree_levels`, or 6 for a
     /// quadtree and 4 for an octree, within 1..=`levels`.
-    pub fn subtree_levels_for(&self, scheme: splat2tiles_tiles::tiling::Scheme, levels: u32) -> u32 {
+    pub fn subtree_levels_for(
+        &self,
+        scheme: splat2tiles_tiles::tiling::Scheme,
+        levels: u32,
+    ) -> u32 {
         self.subtree_levels
             .unwrap_or(match scheme {
                 splat2tiles_tiles::tiling::Scheme::Quadtree => 6,
@@ -96,7 +111,7 @@ impl Default for ConvertOptions {
             non_finite: NonFinitePolicy::Drop,
             subtree_levels: None,
             keep_index_map: false,
-            progress: false,
+            progress: None,
             lod: LodOptions::default(),
             variants: VariantOptions::default(),
             memory_limit: splat2tiles_io::limits::MemoryLimit::machine_default().bytes(),

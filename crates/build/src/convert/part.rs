@@ -18,10 +18,10 @@ use super::store::ContentStore;
 use super::tileset::{TreeTile, build_tree, finish_tree, view_error};
 use super::{Budget, ConvertError, SPACING_SAMPLES, SPILL_DIR, default_radius, io_err, read_ahead};
 use crate::output::Staging;
-use splat2tiles_tiles::tiling::TileKey;
 use crate::variants::ContentFacts;
 use crate::variants::curve::{CURVE_DISTANCES, LossCurve};
 use serde::{Deserialize, Serialize};
+use splat2tiles_tiles::tiling::TileKey;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -40,13 +40,18 @@ pub(super) const SAMPLES_FILE: &str = "samples.json";
 const MAX_SAMPLES_BYTES: u64 = 256 << 20;
 
 /// Which phase of a part to run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PartPhase {
     /// Partition only: spacing samples and deepest leaf level (for the default leaf radius).
     Samples,
     /// Build the part's tiles.
     Build,
 }
+
+splat2tiles_core::named!(PartPhase {
+    Samples => ("samples", "Partition only: spacing samples and deepest leaf level (for the default leaf radius)."),
+    Build => ("build", "Build the part's tiles."),
+});
 
 /// What a part (either phase) did.
 #[derive(Debug, Clone, Default)]
@@ -228,7 +233,7 @@ pub fn convert_part(
     samples: &[PathBuf],
     output: &Path,
     memory_limit: u64,
-    progress: bool,
+    progress: crate::progress::ProgressSink,
 ) -> Result<PartReport, ConvertError> {
     let start = Instant::now();
     let plan = Plan::load(plan_path)?;

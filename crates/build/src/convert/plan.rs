@@ -13,16 +13,16 @@ use super::spill_records::SpillFormat;
 use super::{
     ConvertError, ConvertOptions, check_counts, check_interrupt, frame_and_budget, frame_pass,
 };
-use splat2tiles_core::frame::UpAxis;
-use splat2tiles_core::frame::mercator::MercatorKey;
-use splat2tiles_io::{self as io, ChunkedInput};
 use crate::lod::{LodOptions, MergeRule};
-use splat2tiles_tiles::tiling::tileset::BoundingVolume;
-use splat2tiles_tiles::tiling::{Scheme, TileKey};
 use crate::variants::{Profile, Variant, VariantOptions};
-use clap::ValueEnum;
 use glam::{DMat3, DMat4};
 use serde::{Deserialize, Serialize};
+use splat2tiles_core::frame::UpAxis;
+use splat2tiles_core::frame::mercator::MercatorKey;
+use splat2tiles_core::named::Named;
+use splat2tiles_io::{self as io, ChunkedInput};
+use splat2tiles_tiles::tiling::tileset::BoundingVolume;
+use splat2tiles_tiles::tiling::{Scheme, TileKey};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -145,10 +145,8 @@ pub(super) fn open_input(path: &Path, memory_limit: u64) -> Result<Input, Conver
     })
 }
 
-fn name_of<T: ValueEnum>(v: &T) -> String {
-    v.to_possible_value()
-        .map(|p| p.get_name().to_string())
-        .unwrap_or_default()
+fn name_of<T: Named>(v: &T) -> String {
+    v.name().to_string()
 }
 
 /// Writes the plan of converting `input` in `parts` parts with `opts` to the file `plan`.
@@ -403,8 +401,9 @@ fn layout_of(r: &LayoutRec) -> Result<Layout, String> {
     })
 }
 
-fn enum_of<T: ValueEnum>(s: &str, what: &str) -> Result<T, String> {
-    T::from_str(s, true).map_err(|_| format!("options.{what}: unknown value '{s}'"))
+fn enum_of<T: Named>(s: &str, what: &str) -> Result<T, String> {
+    T::from_name(&s.to_ascii_lowercase())
+        .ok_or_else(|| format!("options.{what}: unknown value '{s}'"))
 }
 
 impl Plan {
@@ -541,7 +540,11 @@ impl Plan {
     }
 
     /// The conversion options of the plan, with this machine's memory limit.
-    pub(super) fn options(&self, memory_limit: u64, progress: bool) -> ConvertOptions {
+    pub(super) fn options(
+        &self,
+        memory_limit: u64,
+        progress: crate::progress::ProgressSink,
+    ) -> ConvertOptions {
         let o = &self.file.options;
         ConvertOptions {
             max_splats_per_tile: o.max_splats,

@@ -5,9 +5,9 @@
 //! values the single-machine conversion computes (decimal JSON may round the last bit).
 
 use super::ConvertError;
-use splat2tiles_tiles::tiling::TileKey;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use splat2tiles_tiles::tiling::TileKey;
 use std::io::Read;
 use std::path::Path;
 

@@ -5,8 +5,8 @@
 //! of the input (the index map of the report and the tie-break that keeps orders identical).
 
 use super::ConvertError;
-use splat2tiles_io::{ChunkedInput, InputFormat, Locator, Scene};
 use splat2tiles_core::splat::Splats;
+use splat2tiles_io::{ChunkedInput, InputFormat, Locator, Scene};
 
 /// Where the splats come from.
 #[derive(Debug)]

@@ -11,9 +11,9 @@ use super::ConvertError;
 use super::frame::Layout;
 use super::source::{Batch, Input};
 use super::spill_records::SpillFormat;
+use rayon::prelude::*;
 use splat2tiles_core::splat::Splats;
 use splat2tiles_tiles::tiling::TileKey;
-use rayon::prelude::*;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
@@ -411,9 +411,9 @@ mod tests {
     use super::super::spill_records::Codec;
     use super::super::{ConvertOptions, SchemeChoice};
     use super::*;
-    use splat2tiles_io::{InputFormat, Locator, Scene};
-    use splat2tiles_core::splat::Splat;
     use glam::DMat3;
+    use splat2tiles_core::splat::Splat;
+    use splat2tiles_io::{InputFormat, Locator, Scene};
 
     /// A clumpy scene: a third of the splats in a corner 1/20 of the size.
     fn scene(n: usize) -> Scene {

@@ -3,9 +3,9 @@
 
 use super::ConvertError;
 use super::source::{Batch, Input, Recs};
-use splat2tiles_io::ChunkedInput;
-use splat2tiles_core::splat::Splats;
 use rayon::prelude::*;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_io::ChunkedInput;
 use std::io::{BufReader, Read, Write};
 use std::path::Path;
 

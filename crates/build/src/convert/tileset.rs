@@ -3,12 +3,12 @@
 
 use super::frame::{Layout, box_array, padded_box};
 use super::{ConvertError, ConvertReport, check_interrupt, io_err};
+use crate::variants::{self, ContentFacts, VariantOptions};
+use glam::DVec3;
 use splat2tiles_tiles::tiling::levels::{child_counts, keeps_content, monotone_errors};
 use splat2tiles_tiles::tiling::subtree::{self, Column, SubtreeData, Table};
 use splat2tiles_tiles::tiling::tileset::{self, Asset, Content, ImplicitTiling, Tile, Tileset};
 use splat2tiles_tiles::tiling::{Scheme, TileKey};
-use crate::variants::{self, ContentFacts, VariantOptions};
-use glam::DVec3;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 

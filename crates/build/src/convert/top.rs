@@ -6,8 +6,8 @@ use super::ConvertError;
 use super::region::{RegionCtx, RootContent, WrittenParent, write_parent};
 use super::store::ContentStore;
 use crate::lod::{ChildContent, ParentParams, ParentTile, build_parent};
-use splat2tiles_tiles::tiling::TileKey;
 use rayon::prelude::*;
+use splat2tiles_tiles::tiling::TileKey;
 use std::collections::{BTreeMap, HashMap};
 
 /// Builds and writes every tile above the region roots `roots` (in Morton order, disjoint

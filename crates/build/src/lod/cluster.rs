@@ -3,9 +3,9 @@
 
 use super::merge::{MergeRule, merge_drawn};
 use super::radius::{CELL_PER_RADIUS, Occupancy, radius_for_count};
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use splat2tiles_core::splat::Splats;
 use splat2tiles_core::splat::importance::importance_order;
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 /// The result of clustering one tile's input.
 #[derive(Debug, Clone)]

@@ -6,14 +6,36 @@
 //! the renderer's default camera): `D = e * f / 16` with `f` = that viewer's focal length. Images
 //! are rendered smaller (same field of view) to keep the measurement fast.
 
-use splat2tiles_tiles::encode::read_tile_glb;
+/// Why an evaluation could not run (the message names the file).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct EvalError(pub String);
+
+macro_rules! eval_error_from {
+    ($($t:ty),+) => {$(
+        impl From<$t> for EvalError {
+            fn from(e: $t) -> Self {
+                EvalError(e.to_string())
+            }
+        }
+    )+};
+}
+eval_error_from!(
+    std::io::Error,
+    splat2tiles_render::MetricError,
+    splat2tiles_render::ImageError,
+    splat2tiles_tiles::tiling::load::LoadError,
+    splat2tiles_tiles::encode::GlbError
+);
+
+use glam::{DMat4, DVec3};
 use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, fov_to_focal};
-use splat2tiles_tiles::geometry::{box_corners, content_model};
-use splat2tiles_render::{Camera, RenderOptions, auto_views_with, render, ssim};
 use splat2tiles_core::splat::Splats;
+use splat2tiles_render::{Camera, RenderOptions, auto_views_with, render, ssim};
+use splat2tiles_tiles::encode::read_tile_glb;
+use splat2tiles_tiles::geometry::{box_corners, content_model};
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
-use glam::{DMat4, DVec3};
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::Path;
 
@@ -63,7 +85,7 @@ pub(crate) fn parents_of(ts: &LoadedTileset) -> HashSet<TileKey> {
 
 /// The per-level table of a loaded tileset: counts from subtree metadata (glb read only when the
 /// metadata lacks a splat count), bytes from the content files' sizes.
-pub fn level_table(ts: &LoadedTileset) -> anyhow::Result<Vec<LevelRow>> {
+pub fn level_table(ts: &LoadedTileset) -> Result<Vec<LevelRow>, EvalError> {
     let parents = parents_of(ts);
     let mut rows: BTreeMap<u32, LevelRow> = BTreeMap::new();
     let mut counts: HashMap<TileKey, u64> = HashMap::new();
@@ -76,16 +98,16 @@ pub fn level_table(ts: &LoadedTileset) -> anyhow::Result<Vec<LevelRow>> {
         row.tiles += 1;
         row.leaves += usize::from(!parents.contains(&t.key));
         let bytes = std::fs::metadata(path)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+            .map_err(|e| EvalError(format!("{}: {e}", path.display())))?
             .len();
         row.bytes += bytes;
         let n = match t.splat_count {
             Some(n) => n as u64,
             None => {
-                let b =
-                    std::fs::read(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+                let b = std::fs::read(path)
+                    .map_err(|e| EvalError(format!("{}: {e}", path.display())))?;
                 read_tile_glb(&b)
-                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+                    .map_err(|e| EvalError(format!("{}: {e}", path.display())))?
                     .splats
                     .len() as u64
             }
@@ -195,7 +217,7 @@ fn cameras(c: DVec3, up: DVec3, dist: f64, opts: &EvalOptions) -> Vec<Camera> {
         .collect()
 }
 
-fn ssim_of(a: &[&Decoded], b: &[&Decoded], cams: &[Camera]) -> anyhow::Result<Vec<f64>> {
+fn ssim_of(a: &[&Decoded], b: &[&Decoded], cams: &[Camera]) -> Result<Vec<f64>, EvalError> {
     let ro = RenderOptions::default();
     let ia: Vec<(&Splats, DMat4)> = a.iter().map(|d| (&d.splats, d.model)).collect();
     let ib: Vec<(&Splats, DMat4)> = b.iter().map(|d| (&d.splats, d.model)).collect();
@@ -215,7 +237,7 @@ fn mean_min(v: &[f64]) -> (Option<f64>, Option<f64>) {
 }
 
 /// Loads `tileset` (a `tileset.json`) and measures every level (see [`LevelQuality`]).
-pub fn evaluate(tileset: &Path, opts: &EvalOptions) -> anyhow::Result<Vec<LevelQuality>> {
+pub fn evaluate(tileset: &Path, opts: &EvalOptions) -> Result<Vec<LevelQuality>, EvalError> {
     let ts = load_tileset(tileset)?;
     let rows = level_table(&ts)?;
     let parents = parents_of(&ts);
@@ -243,7 +265,7 @@ pub fn evaluate(tileset: &Path, opts: &EvalOptions) -> anyhow::Result<Vec<LevelQ
     let root = info
         .get(&TileKey::ROOT)
         .and_then(|t| t.bounding_box)
-        .ok_or_else(|| anyhow::anyhow!("root has no bounding box metadata"))?;
+        .ok_or_else(|| EvalError("root has no bounding box metadata".into()))?;
     let (scene_c, scene_r) = sphere(&ts, &root);
     let all_leaves: Vec<&Decoded> = leaves.iter().map(|t| &tiles[&t.key]).collect();
 

@@ -4,11 +4,11 @@
 #![allow(clippy::needless_range_loop)] // dense small-matrix maths reads best indexed
 
 use super::math::{covariance, decompose_covariance, markley_average, mat_to_quat, quat_to_mat};
-use splat2tiles_core::splat::{Splat, Splats};
 use glam::{DMat3, DVec3};
+use splat2tiles_core::splat::{Splat, Splats};
 
 /// How the shape (rotation + scales) of a merged Gaussian is chosen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum MergeRule {
     /// Covariance moment matching: Sigma* = sum w (Sigma_i + d_i d_i^T) / sum w, eigen-decomposed
     /// into rotation and scales.
@@ -18,6 +18,11 @@ pub enum MergeRule {
     /// half the extent of the member centres +/- their standard deviations along the axis.
     Axis,
 }
+
+splat2tiles_core::named!(MergeRule {
+    Moment => ("moment", "Covariance moment matching: Sigma* = sum w (Sigma_i + d_i d_i^T) / sum w, eigen-decomposed into rotation and scales."),
+    Axis => ("axis", "TileSplat's cover: rotation = Markley's weighted quaternion average; per axis of that frame, half the extent of the member centres +/- their standard deviations along the axis."),
+});
 
 impl MergeRule {
     /// The option value (`moment` or `axis`).

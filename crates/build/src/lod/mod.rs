@@ -19,13 +19,13 @@ pub mod views;
 pub use cluster::{Clustered, cluster, cluster_drawn, cluster_to_budget, cluster_to_target};
 pub use merge::{MergeRule, merge_all, merge_drawn, merge_into};
 
-use splat2tiles_render::raster::LOW_PASS;
-use splat2tiles_core::splat::Splats;
-use splat2tiles_core::splat::importance::importance_order;
-use splat2tiles_tiles::tiling::TileKey;
 use eval::MAX_SSE;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_core::splat::importance::importance_order;
+use splat2tiles_render::raster::LOW_PASS;
+use splat2tiles_tiles::tiling::TileKey;
 use std::collections::{BTreeMap, HashMap};
 
 /// Divisor of the deepest leaf tile's size giving the default leaf radius `r` (see

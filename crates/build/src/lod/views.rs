@@ -10,15 +10,16 @@
 //! the renderer's 0.3 px^2 low-pass filter widens sub-pixel splats exactly as in the viewer),
 //! cropped to the scene's bounding sphere so that empty background does not inflate the SSIM.
 
+use super::eval::EvalError;
 use super::eval::{MAX_SSE, VIEWER_HEIGHT, parents_of, sphere, switching_distance};
-use splat2tiles_tiles::encode::read_tile_glb;
+use glam::{DMat4, DVec3};
 use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, fov_to_focal};
-use splat2tiles_tiles::geometry::{content_model, select_tiles};
-use splat2tiles_render::{Camera, Image, RenderOptions, render, ssim};
 use splat2tiles_core::splat::Splats;
+use splat2tiles_render::{Camera, Image, RenderOptions, render, ssim};
+use splat2tiles_tiles::encode::read_tile_glb;
+use splat2tiles_tiles::geometry::{content_model, select_tiles};
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
-use glam::{DMat4, DVec3};
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
@@ -147,7 +148,7 @@ fn exit_distance(w: DVec3, u: DVec3, rho: f64) -> f64 {
 }
 
 /// Loads `tileset` and measures every level with parent content (see the module comment).
-pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> anyhow::Result<Vec<LevelViews>> {
+pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> Result<Vec<LevelViews>, EvalError> {
     let ts = load_tileset(tileset)?;
     let parents = parents_of(&ts);
     let up = splat2tiles_tiles::geometry::tileset_up(&ts);
@@ -157,7 +158,7 @@ pub fn evaluate_views(tileset: &Path, opts: &ViewOptions) -> anyhow::Result<Vec<
             continue;
         };
         let tile = read_tile_glb(
-            &std::fs::read(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?,
+            &std::fs::read(path).map_err(|e| EvalError(format!("{}: {e}", path.display())))?,
         )?;
         let (centre, radius) = sphere(&ts, &b);
         tiles.insert(
@@ -290,7 +291,7 @@ pub fn viewer_bytes(
     tileset: &Path,
     distances: &[f64],
     error_scale: f64,
-) -> anyhow::Result<Vec<(ViewKind, f64, u64)>> {
+) -> Result<Vec<(ViewKind, f64, u64)>, EvalError> {
     let ts = load_tileset(tileset)?;
     let up = splat2tiles_tiles::geometry::tileset_up(&ts);
     let (scene_c, scene_r) = scene_sphere(&ts)?;
@@ -317,7 +318,7 @@ pub fn viewer_bytes(
                     Some(&b) => b,
                     None => {
                         let b = std::fs::metadata(&path)
-                            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+                            .map_err(|e| EvalError(format!("{}: {e}", path.display())))?
                             .len();
                         sizes.insert(path, b);
                         b
@@ -330,17 +331,17 @@ pub fn viewer_bytes(
     Ok(out)
 }
 
-fn save(img: &Image, path: &Path) -> anyhow::Result<()> {
+fn save(img: &Image, path: &Path) -> Result<(), EvalError> {
     img.save_png(path)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+        .map_err(|e| EvalError(format!("{}: {e}", path.display())))
 }
 
 /// World-space centre and bounding-sphere radius of the root tile's box (the whole scene).
-fn scene_sphere(ts: &LoadedTileset) -> anyhow::Result<(DVec3, f64)> {
+fn scene_sphere(ts: &LoadedTileset) -> Result<(DVec3, f64), EvalError> {
     let root = ts
         .root_index()
         .and_then(|i| ts.tiles[i].bounding_box)
-        .ok_or_else(|| anyhow::anyhow!("root has no bounding box"))?;
+        .ok_or_else(|| EvalError("root has no bounding box".into()))?;
     Ok(sphere(ts, &root))
 }
 

@@ -76,28 +76,30 @@ pub fn interrupted() -> bool {
     INTERRUPTED.load(Ordering::SeqCst)
 }
 
-/// Installs the Ctrl-C / SIGTERM handler of `convert`: without a conversion writing, it exits
-/// with 130 at once; during one it asks the pipeline to stop (the worker threads finish their
-/// tile, the staging folder is removed, then the command exits with 130). A second signal exits
-/// at once; the staging folder left then is removed by the next run into that output.
-pub fn install_interrupt_handler() {
-    #[cfg(feature = "native")]
-    let _ = ctrlc::set_handler(|| {
-        let busy = ACTIVE.lock().map(|a| !a.is_empty()).unwrap_or(false);
-        if !busy {
-            eprintln!("splat2tiles: interrupted");
-            std::process::exit(130);
-        }
-        if INTERRUPTED.swap(true, Ordering::SeqCst) {
-            eprintln!(
-                "splat2tiles: interrupted again; exiting now (the next run into this output removes what is left)"
-            );
-            std::process::exit(130);
-        }
-        eprintln!(
-            "splat2tiles: interrupting; stopping the workers and removing the unfinished output"
-        );
-    });
+/// What an interrupt (Ctrl-C / SIGTERM) means now.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Interrupt {
+    /// No conversion is writing: exit at once.
+    Idle,
+    /// A conversion is writing: it stops (the workers finish their tile, the staging folder is
+    /// removed, then the command exits with 130).
+    Stopping,
+    /// The second interrupt during a conversion: exit at once (the next run into that output
+    /// removes the staging folder left).
+    Again,
+}
+
+/// Records an interrupt and says what it means. The binary's signal handler calls this and
+/// prints and exits accordingly; the pipeline polls [`interrupted`].
+pub fn interrupt() -> Interrupt {
+    let busy = ACTIVE.lock().map(|a| !a.is_empty()).unwrap_or(false);
+    if !busy {
+        Interrupt::Idle
+    } else if INTERRUPTED.swap(true, Ordering::SeqCst) {
+        Interrupt::Again
+    } else {
+        Interrupt::Stopping
+    }
 }
 
 /// The staging folder of one run into `target`, with the run's lock.

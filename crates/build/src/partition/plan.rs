@@ -8,12 +8,12 @@
 use super::cost::{CostModel, View};
 use super::grid::Grid;
 use super::tree::optimise;
+use glam::DVec3;
+use splat2tiles_stream::geom::{Frustum, Intrinsics, Obb};
 use splat2tiles_stream::split::TuningSet;
 use splat2tiles_stream::trace::Trace;
-use splat2tiles_stream::geom::{Frustum, Intrinsics, Obb};
 use splat2tiles_stream::visibility::{exact_test, planes_test};
 use splat2tiles_tiles::tiling::partition::{Scheme, TileKey};
-use glam::DVec3;
 use std::collections::BTreeSet;
 use std::path::Path;
 

@@ -6,11 +6,11 @@
 
 use super::cost::View;
 use super::grid::Grid;
+use glam::DVec3;
+use splat2tiles_stream::geom::{Frustum, Intrinsics, Obb, ViewPose};
 use splat2tiles_stream::split::TuningSet;
 use splat2tiles_stream::trace::Trace;
-use splat2tiles_stream::geom::{Frustum, Intrinsics, Obb, ViewPose};
 use splat2tiles_stream::visibility::{exact_test, planes_test};
-use glam::DVec3;
 
 /// Where the grid lies in the tileset frame.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -7,8 +7,8 @@ use super::estimate::{WEIGHTS, colour_diff2};
 use super::utility::{MIN_WINDOW, ViewSetup};
 use crate::lod::eval::{VIEWER_HEIGHT, viewer_focal};
 use splat2tiles_core::camera::{DEFAULT_WIDTH, box_radius};
-use splat2tiles_render::raster::LOW_PASS;
 use splat2tiles_core::splat::Splats;
+use splat2tiles_render::raster::LOW_PASS;
 
 /// Eye distances (over the tile's radius) at which the sums are computed: the eye on the
 /// bounding sphere (1) out to 1024 radii, doubling. A geometric error `e` puts the eye at
@@ -252,8 +252,8 @@ fn quat(q: [f32; 4]) -> DQuat {
 mod tests {
     use super::*;
     use crate::lod::eval::MAX_SSE;
-    use splat2tiles_core::splat::Splat;
     use crate::variants::estimate::estimated_utilities;
+    use splat2tiles_core::splat::Splat;
 
     /// `n` splats of SH degree 1 from a xorshift generator, and a copy with every attribute
     /// perturbed (a stand-in for a quantised variant).
@@ -281,7 +281,8 @@ mod tests {
                 .position
                 .map(|p| p + (f() - 0.5) as f64 * step as f64 * 0.01);
             q.scale = s.scale.map(|v| v * (1.0 + (f() - 0.5) * step));
-            q.rotation = splat2tiles_core::splat::normalize_quat(s.rotation.map(|r| r + (f() - 0.5) * step));
+            q.rotation =
+                splat2tiles_core::splat::normalize_quat(s.rotation.map(|r| r + (f() - 0.5) * step));
             q.opacity = (s.opacity + (f() - 0.5) * step).clamp(0.0, 1.0);
             q.sh0 = s.sh0.map(|c| c + (f() - 0.5) * step);
             b.push(q, &rest.map(|r| r.map(|c| c + (f() - 0.5) * step)));

@@ -6,8 +6,8 @@ use glam::{DQuat, DVec3};
 use super::utility::ViewSetup;
 use crate::lod::eval::{VIEWER_HEIGHT, viewer_focal};
 use splat2tiles_core::camera::DEFAULT_WIDTH;
-use splat2tiles_render::raster::LOW_PASS;
 use splat2tiles_core::splat::Splats;
+use splat2tiles_render::raster::LOW_PASS;
 
 /// Coverage-weighted squared differences of a candidate from the reference, per kind, as a mean
 /// over the viewer's 1280x720 frame.

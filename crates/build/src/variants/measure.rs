@@ -8,8 +8,8 @@ use rayon::prelude::*;
 use super::curve::LossCurve;
 use super::utility::{ViewSetup, utilities};
 use super::{ALL, ContentError, Variant, VariantOptions, content_uri, decode_variant, estimate};
-use splat2tiles_tiles::encode::storage_order::aligned_to_best;
 use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::encode::storage_order::aligned_to_best;
 use splat2tiles_tiles::tiling::{Scheme, TileKey};
 
 /// Reads and decodes one written variant of a tile under `dir`.

@@ -109,13 +109,13 @@ pub fn write_tile_contents(
     let written_variants = opts.written();
     let stored = match written_variants.iter().find(|v| **v != Variant::Best) {
         Some(v) => {
-            splat2tiles_tiles::encode::tile::check_writable(splats, centre_s).map_err(|source| {
-                ContentError::Encode {
+            splat2tiles_tiles::encode::tile::check_writable(splats, centre_s).map_err(
+                |source| ContentError::Encode {
                     key,
                     variant: v.name(),
                     source,
-                }
-            })?;
+                },
+            )?;
             Some(in_storage_order(splats, centre_s, splats.sh_degree).1)
         }
         None => None,
@@ -196,7 +196,6 @@ pub fn write_tile_contents(
     Ok(facts)
 }
 
-
 /// The tileset-level metadata entity (`tileset.metadata`) for these options.
 pub fn tileset_metadata(scheme: Scheme, opts: &VariantOptions) -> Value {
     let written = opts.written();
@@ -225,9 +224,9 @@ pub fn tileset_metadata(scheme: Scheme, opts: &VariantOptions) -> Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use splat2tiles_core::splat::Splat;
     use splat2tiles_tiles::encode::read_tile_glb;
     use splat2tiles_tiles::encode::spz2::spz2_payload;
-    use splat2tiles_core::splat::Splat;
 
     /// Low's position step: a leaf's follows its splats' size, a parent's keeps 18 bits of its
     /// largest |coordinate| (the SPZ header's fractional bits, byte 13 of the raw stream).

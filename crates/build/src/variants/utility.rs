@@ -5,9 +5,9 @@ use glam::DVec3;
 
 use crate::lod::eval::{VIEWER_HEIGHT, switching_distance, viewer_focal};
 use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, DEFAULT_WIDTH, box_radius, orbit_views};
+use splat2tiles_core::splat::Splats;
 use splat2tiles_render::metrics::mse;
 use splat2tiles_render::{Camera, Image, RenderOptions, render_splats, ssim};
-use splat2tiles_core::splat::Splats;
 
 /// Neutral mid-grey behind the tile: dark and bright splats both show against it.
 pub const BACKGROUND: [f32; 3] = [0.5; 3];

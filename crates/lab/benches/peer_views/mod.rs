@@ -3,9 +3,9 @@
 
 use glam::DVec3;
 use rayon::prelude::*;
-use splat2tiles_render::{Camera, Image, render_splats, ssim};
-use splat2tiles_core::splat::Splats;
 use splat2tiles_build::variants::utility::render_options;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_render::{Camera, Image, render_splats, ssim};
 
 /// The box holding the 0.5%..99.5% quantiles of the centres on each axis (floaters far out
 /// would otherwise shrink the scene to a few pixels of the frame).

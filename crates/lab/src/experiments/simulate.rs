@@ -2,23 +2,23 @@
 //! Tables 4-5, SGSS Table 3, frustum-test false positives), trace generation, and their tables
 //! (markdown) and plots (SVG). Deterministic for a fixed `--seed`.
 
-use splat2tiles_stream::client::{ClientConfig, PredictorKind};
-use splat2tiles_render::{Camera, Image, RenderOptions, render, ssim};
 use crate::sim::session::{SessionLog, SessionOptions, TickLog, run_session};
 use crate::sim::summary::{Summary, summarize};
 use crate::sim::svg::{Series, write_time_plots};
-use splat2tiles_stream::trace::{self, Trace};
 use crate::sim::transport::NetModel;
+use anyhow::Context;
+use glam::{DMat4, DVec3};
+use splat2tiles_core::rng::SplitMix64;
 use splat2tiles_core::splat::Splats;
+use splat2tiles_render::{Camera, Image, RenderOptions, render, ssim};
 use splat2tiles_stream::catalog::{Level, TileCatalog};
+use splat2tiles_stream::client::{ClientConfig, PredictorKind};
 use splat2tiles_stream::geom::{Frustum, Intrinsics, ViewPose};
 use splat2tiles_stream::plan::{Candidate, PlanRequest, Planner, execute};
 use splat2tiles_stream::predict::Oracle;
-use splat2tiles_core::rng::SplitMix64;
+use splat2tiles_stream::trace::{self, Trace};
 use splat2tiles_stream::visibility::VisTest;
 use splat2tiles_tiles::tiling::TileKey;
-use anyhow::Context;
-use glam::{DMat4, DVec3};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -92,7 +92,8 @@ fn load_scene(file: &Path, work: &Path, max_splats: u32) -> anyhow::Result<Scene
         },
         ..Default::default()
     };
-    splat2tiles_build::convert::convert(file, &out, &opts).with_context(|| file.display().to_string())?;
+    splat2tiles_build::convert::convert(file, &out, &opts)
+        .with_context(|| file.display().to_string())?;
     let ts = splat2tiles_tiles::tiling::load::load_tileset(&out.join("tileset.json"))?;
     let cat = TileCatalog::from_loaded(&ts.tiles, |t| {
         t.content
@@ -117,9 +118,9 @@ fn load_scene(file: &Path, work: &Path, max_splats: u32) -> anyhow::Result<Scene
             {
                 let mut per_variant = Vec::with_capacity(splat2tiles_tiles::variants::ALL.len());
                 for v in splat2tiles_tiles::variants::ALL {
-                    let p = ts
-                        .dir
-                        .join(splat2tiles_tiles::variants::content_uri(ts.scheme, t.key, v));
+                    let p = ts.dir.join(splat2tiles_tiles::variants::content_uri(
+                        ts.scheme, t.key, v,
+                    ));
                     let bytes = std::fs::read(&p).with_context(|| p.display().to_string())?;
                     let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
                         .with_context(|| p.display().to_string())?;

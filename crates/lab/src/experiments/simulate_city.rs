@@ -10,25 +10,25 @@
 //! (`sim::network`), each scaled to a mean of 10 Mbit/s and looped.
 
 use super::simulate::SimulateArgs;
-use splat2tiles_stream::client::{ClientConfig, PredictorKind};
-use splat2tiles_render::{Image, ssim};
 use crate::sim::network::{Network, log_files, read_log};
 use crate::sim::score::{Chr, EventRule, Ratio, Truth, WarmUp, Waste, events};
 use crate::sim::score::{cache_hits_with, link_warm_up};
 use crate::sim::score::{drawn_is_needed_at_best, held_tiles, tick_views, time_to_quality, wasted};
 use crate::sim::session::{SessionLog, SessionOptions, run_session};
-use splat2tiles_stream::split::EvaluationSet;
 use crate::sim::stream_city::{BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set};
 use crate::sim::svg::{Series, write_time_plots};
-use splat2tiles_stream::trace::{self, Trace};
 use crate::sim::transport::{NetModel, Outcome};
+use anyhow::Context;
+use glam::DVec3;
+use splat2tiles_render::{Image, ssim};
 use splat2tiles_stream::catalog::Level;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind};
 use splat2tiles_stream::geom::ViewPose;
 use splat2tiles_stream::plan::Planner;
 use splat2tiles_stream::predict::{Oracle, Predictor};
+use splat2tiles_stream::split::EvaluationSet;
+use splat2tiles_stream::trace::{self, Trace};
 use splat2tiles_tiles::tiling::TileKey;
-use anyhow::Context;
-use glam::DVec3;
 use std::collections::{HashMap, HashSet};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -363,7 +363,8 @@ fn networks(args: &SimulateArgs, until: f64) -> anyhow::Result<Vec<(String, NetM
 pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
     let start = Instant::now();
     let dir = args.out.join("city");
-    let origin = splat2tiles_core::frame::geo::Geodetic::parse(DEFAULT_ORIGIN).map_err(anyhow::Error::msg)?;
+    let origin = splat2tiles_core::frame::geo::Geodetic::parse(DEFAULT_ORIGIN)
+        .map_err(anyhow::Error::msg)?;
     let spec = CitySpec::default();
     let city: BuiltCity = build_city(&args.scenes, &dir, &spec, Some(origin))?;
     eprintln!("simulate: city {}", city.summary());

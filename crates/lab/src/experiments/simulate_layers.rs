@@ -11,16 +11,16 @@
 //! sees the fading); and every layer the pose needs held (what the layered client converges to).
 
 use super::simulate::SimulateArgs;
-use splat2tiles_stream::client::{ClientConfig, PredictorKind};
-use splat2tiles_render::{Camera, ssim};
 use crate::sim::score::Truth;
 use crate::sim::session::{SessionLog, SessionOptions, run_session};
 use crate::sim::svg::{Series, write_time_plots};
-use splat2tiles_stream::trace::{self, Trace};
 use crate::sim::transport::NetModel;
-use splat2tiles_stream::catalog::{Level, TileCatalog};
-use splat2tiles_tiles::tiling::TileKey;
 use anyhow::Context;
+use splat2tiles_render::{Camera, ssim};
+use splat2tiles_stream::catalog::{Level, TileCatalog};
+use splat2tiles_stream::client::{ClientConfig, PredictorKind};
+use splat2tiles_stream::trace::{self, Trace};
+use splat2tiles_tiles::tiling::TileKey;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -73,7 +73,7 @@ fn convert_scene(file: &Path, out: &Path, max_splats: u32, layers: bool) -> anyh
     let opts = splat2tiles_build::convert::ConvertOptions {
         max_splats_per_tile: max_splats as usize,
         layers,
-        progress: false,
+        progress: None,
         variants: splat2tiles_tiles::variants::VariantOptions {
             variants: if layers {
                 vec![splat2tiles_tiles::variants::Variant::Best]
@@ -84,7 +84,8 @@ fn convert_scene(file: &Path, out: &Path, max_splats: u32, layers: bool) -> anyh
         },
         ..Default::default()
     };
-    splat2tiles_build::convert::convert(file, out, &opts).with_context(|| file.display().to_string())?;
+    splat2tiles_build::convert::convert(file, out, &opts)
+        .with_context(|| file.display().to_string())?;
     Ok(())
 }
 

@@ -241,8 +241,8 @@ pub fn breakdown_with(log: &SessionLog, ticks: &[TickView], warm_up: WarmUp) -> 
 mod tests {
     use super::*;
     use crate::sim::session::{RequestLog, TickLog};
-    use splat2tiles_stream::geom::ViewPose;
     use glam::DVec3;
+    use splat2tiles_stream::geom::ViewPose;
 
     fn key(x: u32) -> TileKey {
         TileKey {

@@ -254,7 +254,8 @@ mod tests {
     /// means is near the README's ~1 Mbit/s.
     #[test]
     fn shared_logs_read() {
-        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/network-traces");
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+            .join("../shared/network-traces");
         if !root.exists() {
             eprintln!("skipped: {} missing", root.display());
             return;

@@ -17,14 +17,14 @@
 //! - **WD**: content downloads completed for tiles in no needed cut from the download's end on.
 
 use super::session::SessionLog;
-use splat2tiles_render::{Camera, Image, RenderOptions, render, ssim};
+use anyhow::Context;
+use glam::{DMat4, DVec3};
 use splat2tiles_core::splat::Splats;
+use splat2tiles_render::{Camera, Image, RenderOptions, render, ssim};
 use splat2tiles_stream::catalog::Level;
 use splat2tiles_tiles::select::{CutTree, box_sphere, select_cut};
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::LoadedTileset;
-use anyhow::Context;
-use glam::{DMat4, DVec3};
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
@@ -158,13 +158,14 @@ impl Truth {
         }
         if !self.content.contains_key(&(i, level)) {
             let v = splat2tiles_tiles::variants::ALL[level.index()];
-            let p = self
-                .ts
-                .dir
-                .join(splat2tiles_tiles::variants::content_uri(self.ts.scheme, key, v));
+            let p = self.ts.dir.join(splat2tiles_tiles::variants::content_uri(
+                self.ts.scheme,
+                key,
+                v,
+            ));
             let bytes = std::fs::read(&p).with_context(|| p.display().to_string())?;
-            let (splats, node) =
-                splat2tiles_tiles::variants::decode_variant(&bytes).with_context(|| p.display().to_string())?;
+            let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
+                .with_context(|| p.display().to_string())?;
             let m = splat2tiles_tiles::geometry::content_model(&self.ts, &node);
             if level == Level::Best {
                 let layer = splat2tiles_tiles::layers::glb::read_layer(&bytes)

@@ -8,10 +8,10 @@
 
 use std::path::Path;
 
-use splat2tiles_stream::client::timeline::Input;
-use splat2tiles_stream::client::{Action, ClientConfig, StreamClient};
 use splat2tiles_core::camera::Camera;
 use splat2tiles_stream::catalog::Level;
+use splat2tiles_stream::client::timeline::Input;
+use splat2tiles_stream::client::{Action, ClientConfig, StreamClient};
 use splat2tiles_stream::geom::ViewPose;
 use splat2tiles_stream::predict::Predictor;
 use splat2tiles_tiles::tiling::TileKey;

@@ -22,19 +22,19 @@
 //! TileSplat (App. C) navigates with WASD/QE and the mouse but states no speeds; 1.4 m/s is the
 //! usual human walking pace and 8 m/s a slow drone, both our choice.
 
-use splat2tiles_stream::eyenav::{Placement, read_session, session_files};
-use splat2tiles_stream::split::{EvaluationSet, Split, TuningSet, eyenav_scenes, synthetic_split};
-use splat2tiles_stream::trace::{TRACE_HZ, Trace};
-use splat2tiles_stream::client::{ClientConfig, PredictorKind};
+use crate::city::{CityLayout, city_scene, generate_city, grid_side, shared_sources};
+use glam::{DVec2, DVec3};
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::frame::geo::Geodetic;
-use splat2tiles_core::splat::Splats;
-use crate::city::{CityLayout, city_scene, generate_city, grid_side, shared_sources};
-use splat2tiles_stream::geom::{ViewPose, wrap_angle};
 use splat2tiles_core::rng::SplitMix64;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind};
+use splat2tiles_stream::eyenav::{Placement, read_session, session_files};
+use splat2tiles_stream::geom::{ViewPose, wrap_angle};
+use splat2tiles_stream::split::{EvaluationSet, Split, TuningSet, eyenav_scenes, synthetic_split};
+use splat2tiles_stream::trace::{TRACE_HZ, Trace};
 use splat2tiles_tiles::variants::{ALL, VariantOptions};
-use glam::{DVec2, DVec3};
 use std::path::{Path, PathBuf};
 
 /// Horizontal scale of the EyeNavGS sessions placed in the city.

@@ -4,13 +4,13 @@
 //! The traces come only through [`super::split`]'s sets: the export writes the tuning set's train
 //! and val windows; the evaluation takes whatever set its caller was allowed to build.
 
-use splat2tiles_stream::trace::Trace;
 use splat2tiles_stream::learned::smooth::{Kalman, kalman};
 use splat2tiles_stream::learned::window::{
     FUTURE_STEP_S, FUTURE_STEPS, HISTORY_STEPS, IN_CHANNELS, OUT_CHANNELS, anchors, history_until,
     input_window, target_window,
 };
 use splat2tiles_stream::predict::{Predictor, sample_trace};
+use splat2tiles_stream::trace::Trace;
 use std::io::Write;
 use std::path::Path;
 
@@ -75,7 +75,10 @@ pub fn windows(traces: &[Trace], stride_s: f64, smooth: Option<&Kalman>) -> Wind
 }
 
 /// The history a client holds at `t`: the last 10 s.
-fn client_history(trace: &[splat2tiles_stream::ViewPose], t: f64) -> Vec<splat2tiles_stream::ViewPose> {
+fn client_history(
+    trace: &[splat2tiles_stream::ViewPose],
+    t: f64,
+) -> Vec<splat2tiles_stream::ViewPose> {
     let mut h = history_until(trace, t);
     let drop = h.iter().take_while(|p| p.t < t - 10.0).count();
     h.drain(..drop);
@@ -227,9 +230,9 @@ pub fn coverage<K: std::hash::Hash + Eq + Copy>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec3;
     use splat2tiles_stream::ViewPose;
     use splat2tiles_stream::predict::{ConstantVelocity, Reactive};
-    use glam::DVec3;
 
     fn line(seed: u64, v: f64) -> Trace {
         Trace {

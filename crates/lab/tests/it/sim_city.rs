@@ -5,13 +5,13 @@
 
 use crate::common;
 
-use splat2tiles_stream::client::{ClientConfig, PredictorKind};
 use splat2tiles_lab::sim::misses::{MissBreakdown, breakdown, breakdown_with};
 use splat2tiles_lab::sim::score::{Ratio, Truth, WarmUp, cache_hits, cache_hits_with, held_tiles};
 use splat2tiles_lab::sim::score::{link_warm_up, tick_views};
 use splat2tiles_lab::sim::session::{SessionOptions, run_session};
 use splat2tiles_lab::sim::stream_city::{CitySpec, StreetGrid, build_city, street_walk};
 use splat2tiles_lab::sim::transport::NetModel;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind};
 use splat2tiles_stream::predict::Oracle;
 use splat2tiles_tiles::tiling::TileKey;
 
@@ -409,8 +409,7 @@ fn oracle_miss_causes_on_the_city_traces() {
                 predictor: (p == "oracle").then(|| {
                     Box::new(Oracle {
                         trace: tr.poses.clone(),
-                    })
-                        as Box<dyn splat2tiles_stream::predict::Predictor + Send>
+                    }) as Box<dyn splat2tiles_stream::predict::Predictor + Send>
                 }),
                 ..SessionOptions::default()
             };
@@ -580,7 +579,8 @@ fn oracle_miss_causes_on_the_city_traces() {
             eprintln!("  DETAIL first-time entries / warm misses per 5 s: {bins:?}");
             // Earliest-deadline-first at Low over a 10 Mbit/s link with perfect foresight from
             // the first tick: the first cut due at t0, every first-time entry at its tick.
-            let ts = splat2tiles_tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap();
+            let ts =
+                splat2tiles_tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap();
             let meta = splat2tiles_tiles::variants::content_variant_metadata(&ts);
             for lvl in [3usize, 0] {
                 let mut jobs: Vec<(f64, u64)> = vec![];

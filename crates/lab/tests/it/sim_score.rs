@@ -2,7 +2,6 @@
 //! refines near and coarsens far, and the quality metric is 1 for the cut at Best and moves when
 //! what is drawn is damaged (Low variants, parents instead of leaves, nothing).
 
-
 use crate::common::*;
 use glam::DVec3;
 use splat2tiles_core::camera::Camera;

@@ -7,15 +7,15 @@ use crate::common;
 
 use crate::common::scene;
 use glam::DVec3;
-use splat2tiles_stream::client::{ClientConfig, PredictorKind, StreamClient, timeline};
 use splat2tiles_build::convert::{ConvertOptions, convert};
 use splat2tiles_lab::sim::session::{SessionLog, SessionOptions, run_session};
 use splat2tiles_lab::sim::summary::summarize;
-use splat2tiles_stream::trace::{self, Trace};
 use splat2tiles_lab::sim::transport::{NetModel, Outcome};
 use splat2tiles_stream::Level;
 use splat2tiles_stream::catalog::TileCatalog;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind, StreamClient, timeline};
 use splat2tiles_stream::predict::{Oracle, Predictor};
+use splat2tiles_stream::trace::{self, Trace};
 use splat2tiles_tiles::tiling::load::load_tileset;
 use splat2tiles_tiles::variants::{Variant, VariantOptions};
 use std::collections::BTreeSet;

@@ -4,9 +4,9 @@
 use glam::DMat4;
 
 use super::{PLAN_STEP_S, RequestId};
-use splat2tiles_core::splat::Splats;
 use crate::catalog::Level;
 use crate::planner::PlanStepConfig;
+use splat2tiles_core::splat::Splats;
 use splat2tiles_tiles::tiling::TileKey;
 
 /// Which trajectory predictor feeds the planner.

@@ -56,9 +56,6 @@ use std::collections::{HashMap, HashSet};
 
 use glam::{DMat4, DVec3};
 
-use splat2tiles_tiles::encode::prefix::PrefixStream;
-use splat2tiles_core::camera::Camera;
-use splat2tiles_core::splat::Splats;
 use crate::bandwidth::EwmaBandwidth;
 use crate::cache::{Cache, CacheConfig, EvictContext, Inserted};
 use crate::catalog::{
@@ -71,6 +68,9 @@ use crate::predict::{
     needs_fallback, radius_tiles,
 };
 use crate::priority::priority;
+use splat2tiles_core::camera::Camera;
+use splat2tiles_core::splat::Splats;
+use splat2tiles_tiles::encode::prefix::PrefixStream;
 use splat2tiles_tiles::tiling::TileKey;
 use splat2tiles_tiles::tiling::load::{
     ImplicitRoot, SubtreeTile, expand_template, parse_subtree_tiles, parse_tileset_json,

@@ -44,10 +44,10 @@ pub fn coalesce(batch: Vec<SceneUpdate>) -> Vec<SceneUpdate> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use splat2tiles_core::splat::Splats;
     use crate::catalog::Level;
-    use splat2tiles_tiles::tiling::TileKey;
     use glam::DMat4;
+    use splat2tiles_core::splat::Splats;
+    use splat2tiles_tiles::tiling::TileKey;
 
     fn insert(tile: u64) -> SceneUpdate {
         SceneUpdate::Insert {

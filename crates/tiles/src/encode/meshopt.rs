@@ -638,7 +638,9 @@ mod tests {
         let r = random_bytes(2000 * 4, 77);
         let q: Vec<[f32; 4]> = r
             .chunks_exact(4)
-            .map(|b| splat2tiles_core::splat::normalize_quat([0, 1, 2, 3].map(|k| b[k] as f32 - 127.5)))
+            .map(|b| {
+                splat2tiles_core::splat::normalize_quat([0, 1, 2, 3].map(|k| b[k] as f32 - 127.5))
+            })
             .collect();
         for bits in [4, 9, 12, 16] {
             let enc: Vec<u8> = meshopt::encode_filter_quat(&q, bits)

@@ -1,8 +1,8 @@
 //! SPZ v2 rotation bytes chosen for the splat's shape: among the 27 byte triples around the
 //! rounded `x, y, z`, the one whose decoded quaternion gives the covariance nearest the splat's.
 
-use splat2tiles_io::spz::v2_rotation;
 use splat2tiles_core::splat::normalize_quat;
+use splat2tiles_io::spz::v2_rotation;
 
 /// How the SPZ v2 writer picks a splat's three rotation bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

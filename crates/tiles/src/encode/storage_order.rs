@@ -1,8 +1,8 @@
 //! The order High, Medium and Low store a tile's splats in: Morton (Z-order) of their
 //! tile-relative positions, so the codecs see neighbours (these variants are decoded whole).
 
-use splat2tiles_core::splat::{Splats, sh_rest_count};
 use crate::tiling::morton::encode3;
+use splat2tiles_core::splat::{Splats, sh_rest_count};
 
 /// Largest cell index per axis of the Morton codes (21 bits per axis).
 const CELLS: f64 = ((1u32 << 21) - 1) as f64;

@@ -5,12 +5,11 @@
 use super::blend::{AncestorDelta, DrawnLayer, blend_factor, drawn_layers};
 use super::glb::read_layer;
 use crate::encode::read_tile_glb;
-use splat2tiles_core::camera::Camera;
-use splat2tiles_core::splat::Splats;
 use crate::tiling::TileKey;
 use crate::tiling::load::LoadedTileset;
-use anyhow::Context;
 use glam::DMat4;
+use splat2tiles_core::camera::Camera;
+use splat2tiles_core::splat::Splats;
 use std::path::PathBuf;
 
 /// One layer a camera draws.
@@ -87,20 +86,26 @@ pub fn select_layers(ts: &LoadedTileset, cam: &Camera, max_sse: f64) -> Vec<View
     out
 }
 
+/// Why a layered cut could not be drawn (the message names the file).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct LayerViewError(String);
+
 /// The splats `cam` draws from layered `ts` (effective opacities, occupancy rule applied), each
 /// with its content's model matrix.
 pub fn layered_instances(
     ts: &LoadedTileset,
     cam: &Camera,
     max_sse: f64,
-) -> anyhow::Result<Vec<(Splats, DMat4)>> {
+) -> Result<Vec<(Splats, DMat4)>, LayerViewError> {
     let picked = select_layers(ts, cam, max_sse);
     let mut decoded = Vec::with_capacity(picked.len());
     for l in &picked {
-        let bytes =
-            std::fs::read(&l.path).with_context(|| format!("{}: cannot read", l.path.display()))?;
-        let tile = read_tile_glb(&bytes).with_context(|| l.path.display().to_string())?;
-        let layer = read_layer(&bytes).with_context(|| l.path.display().to_string())?;
+        let at = |e: &dyn std::fmt::Display| LayerViewError(format!("{}: {e}", l.path.display()));
+        let bytes = std::fs::read(&l.path)
+            .map_err(|e| LayerViewError(format!("{}: cannot read: {e}", l.path.display())))?;
+        let tile = read_tile_glb(&bytes).map_err(|e| at(&e))?;
+        let layer = read_layer(&bytes).map_err(|e| at(&e))?;
         decoded.push((tile, layer));
     }
     let ancestors: Vec<Vec<AncestorDelta<'_>>> = picked
@@ -128,7 +133,7 @@ pub fn layered_instances(
             | super::blend::ComposeError::BadAncestor(k)
             | super::blend::ComposeError::DeltaCount { layer: k, .. } => picked[*k].path.display(),
         };
-        anyhow::anyhow!("{at}: {e}")
+        LayerViewError(format!("{at}: {e}"))
     })?;
     Ok(drawn
         .into_iter()

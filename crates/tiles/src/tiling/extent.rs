@@ -1,9 +1,9 @@
 //! The visible reach of splats: half extents, along the tileset frame's axes, of the box around
 //! the part of each splat's ellipsoid a renderer draws, so tile boxes and regions enclose it.
 
-use splat2tiles_core::splat::Splats;
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
+use splat2tiles_core::splat::Splats;
 
 /// Sigmas out to which a splat of `opacity` is drawn: the 3-sigma footprint of the 3DGS
 /// rasterizers, cut where opacity * exp(-k^2 / 2) falls under 1/255 (fragments below that are

@@ -1,9 +1,9 @@
 //! `tileset.json` of 3D Tiles 1.1 as serde structs (the subset we write, tolerant of the rest
 //! when reading), plus the metadata schema our implicit tilesets declare.
 
-use splat2tiles_core::frame::mercator::MercatorKey;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
+use splat2tiles_core::frame::mercator::MercatorKey;
 
 /// Root object of `tileset.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -20,14 +20,14 @@ use crate::encode::spz2::{
     write_spz2_glb_as_given_and_decoded,
 };
 use crate::encode::tile::{TileLayout, try_write_tile_glb};
-use splat2tiles_core::splat::Splats;
 use crate::tiling::load::{
     LoadedTileset, expand_template, implicit_root, parse_subtree_tiles, resolve_inside,
 };
 use crate::tiling::{Scheme, TileKey};
+use splat2tiles_core::splat::Splats;
 
 /// One quality level of a tile.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Variant {
     /// Lossless float, interleaved prefix-renderable layout (`KHR_gaussian_splatting` only).
     Best,
@@ -38,6 +38,13 @@ pub enum Variant {
     /// `KHR_gaussian_splatting_compression_spz_2` (SPZ v2), SH up to degree 1.
     Low,
 }
+
+splat2tiles_core::named!(Variant {
+    Best => ("best", "Lossless float, interleaved prefix-renderable layout (`KHR_gaussian_splatting` only)."),
+    High => ("high", "`EXT_meshopt_compression`, fine quantization (filters EXPONENTIAL / QUATERNION)."),
+    Medium => ("medium", "`EXT_meshopt_compression`, coarse quantization."),
+    Low => ("low", "`KHR_gaussian_splatting_compression_spz_2` (SPZ v2), SH up to degree 1."),
+});
 
 /// Every variant, in metadata array order.
 pub const ALL: [Variant; 4] = [Variant::Best, Variant::High, Variant::Medium, Variant::Low];
@@ -161,7 +168,7 @@ impl Variant {
 }
 
 /// Which clients the tileset is written for.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum Profile {
     /// Standards first: default content Best (needs only `KHR_gaussian_splatting`).
     #[default]
@@ -169,6 +176,11 @@ pub enum Profile {
     /// CesiumJS: default content SPZ_2 (Low) and the `3DTILES_content_gltf` declaration.
     Cesium,
 }
+
+splat2tiles_core::named!(Profile {
+    Default => ("default", "Standards first: default content Best (needs only `KHR_gaussian_splatting`)."),
+    Cesium => ("cesium", "CesiumJS: default content SPZ_2 (Low) and the `3DTILES_content_gltf` declaration."),
+});
 
 impl Profile {
     /// The variant a tile's `content.uri` points at.
