@@ -338,25 +338,32 @@ mod tests {
         }
     }
 
-    /// Nothing that fits or tunes can reach the EyeNavGS files but through this module: in
-    /// `src/` only the reader, this module and the streaming city (which hands its traces out
-    /// through [`TuningSet`] and [`EvaluationSet`]) open sessions, and no fitting tool in
-    /// `tools/` (`tools/tcn/train.py` reads exported train/val windows) or example mentions the
-    /// traces at all.
+    /// Nothing that fits or tunes can reach the EyeNavGS files but through this module: in the
+    /// crates' and the binary's sources only the reader, this module and the streaming city
+    /// (which hands its traces out through [`TuningSet`] and [`EvaluationSet`]) open sessions,
+    /// and no fitting tool in `tools/` (`tools/tcn/train.py` reads exported train/val windows)
+    /// or example mentions the traces at all.
     #[test]
     fn only_the_split_api_opens_the_human_traces() {
         let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
         let mut all = vec![];
         files(&root.join("src"), &mut all);
+        for c in std::fs::read_dir(root.join("crates"))
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            files(&c.path().join("src"), &mut all);
+        }
+        // The learned predictor's export and evaluation (the lab's examples/tcn_*.rs) take the
+        // traces' folder as an argument and go through stream_city's split sets too.
+        files(&root.join("crates/lab/examples"), &mut all);
         files(&root.join("tools"), &mut all);
-        // The learned predictor's export and evaluation (examples/tcn_*.rs) take the traces'
-        // folder as an argument and go through stream_city's split sets too.
-        files(&root.join("examples"), &mut all);
         let allowed = [
-            "src/sim/eyenav.rs",
-            "src/sim/split.rs",
-            "src/sim/stream_city.rs",
-            "src/sim/stream_city_tests.rs",
+            "crates/stream/src/eyenav.rs",
+            "crates/stream/src/split.rs",
+            "crates/lab/src/sim/stream_city.rs",
+            "crates/lab/src/sim/stream_city_tests.rs",
         ];
         let mut checked = 0;
         for f in all {

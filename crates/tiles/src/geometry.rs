@@ -71,7 +71,7 @@ pub fn tile_sse(ts: &LoadedTileset, i: usize, cam: &Camera) -> f64 {
         .bounding_box
         .as_ref()
         .map(|b| {
-            let (centre, radius) = crate::select::box_sphere(b, &ts.root_transform);
+            let (centre, radius) = box_sphere(b, &ts.root_transform);
             (centre.distance(cam.center()) - radius).max(1e-9)
         })
         .unwrap_or(1e-9);
@@ -98,4 +98,16 @@ pub fn select_tiles(ts: &LoadedTileset, cam: &Camera, max_sse: f64) -> Vec<PathB
     }
     out.sort();
     out
+}
+
+/// World-space bounding sphere of a 3D Tiles box (`[centre, x half-axis, y, z]`) under `m`:
+/// the centre of the transformed corners and the farthest corner's distance.
+pub fn box_sphere(b: &[f64; 12], m: &glam::DMat4) -> (DVec3, f64) {
+    let corners = crate::geometry::box_corners(b).map(|c| m.transform_point3(c));
+    let centre = corners.iter().copied().sum::<DVec3>() / 8.0;
+    let radius = corners
+        .iter()
+        .map(|c| c.distance(centre))
+        .fold(0.0, f64::max);
+    (centre, radius)
 }

@@ -1,6 +1,7 @@
 //! The refined cut a camera needs: REPLACE selection by screen-space error over each tile's
 //! bounding sphere, skipping tiles whose sphere is outside the view, shared by client and scoring.
 
+pub use crate::geometry::box_sphere;
 use glam::DVec3;
 use splat2tiles_core::camera::Camera;
 
@@ -155,18 +156,6 @@ pub fn sphere_in_view(cam: &Camera, c: DVec3, r: f64) -> bool {
         DVec3::new(0.0, -cam.fy, -cam.cy),
     ];
     planes.iter().all(|n| n.normalize_or_zero().dot(c) <= r)
-}
-
-/// World-space bounding sphere of a 3D Tiles box (`[centre, x half-axis, y, z]`) under `m`:
-/// the centre of the transformed corners and the farthest corner's distance.
-pub fn box_sphere(b: &[f64; 12], m: &glam::DMat4) -> (DVec3, f64) {
-    let corners = crate::geometry::box_corners(b).map(|c| m.transform_point3(c));
-    let centre = corners.iter().copied().sum::<DVec3>() / 8.0;
-    let radius = corners
-        .iter()
-        .map(|c| c.distance(centre))
-        .fold(0.0, f64::max);
-    (centre, radius)
 }
 
 #[cfg(test)]

@@ -9,8 +9,8 @@
 //! Converted z up (`--up-axis +z`), georeferenced at `--origin` (the positions are the ENU frame
 //! of the origin), Best, High, Medium and Low per tile, estimated utilities.
 //!
-//! Traces (12 Hz, all in the tileset frame; split as in [`super::split`]):
-//! - EyeNavGS sessions ([`super::eyenav`]) at street level: the session's start at a street
+//! Traces (12 Hz, all in the tileset frame; split as in [`splat2tiles_stream::split`]):
+//! - EyeNavGS sessions ([`splat2tiles_stream::eyenav`]) at street level: the session's start at a street
 //!   intersection chosen from the scene and user, turned by a multiple of 90 degrees, horizontal
 //!   offsets x[`HUMAN_H_SCALE`] (the dataset's median 0.23 m/s becomes 1.4 m/s, a walking pace:
 //!   people in the VR rooms walked a few metres, a street walk needs tens), eyes 1.7 m above the

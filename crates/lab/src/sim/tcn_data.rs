@@ -1,7 +1,7 @@
 //! Training windows for the learned trajectory predictor (`stream::learned`) cut from traces, and
 //! the per-horizon ADE/FDE and tile coverage of predictors on traces (TileSplat Table 3, Fig. 10).
 //!
-//! The traces come only through [`super::split`]'s sets: the export writes the tuning set's train
+//! The traces come only through [`splat2tiles_stream::split`]'s sets: the export writes the tuning set's train
 //! and val windows; the evaluation takes whatever set its caller was allowed to build.
 
 use splat2tiles_stream::learned::smooth::{Kalman, kalman};

@@ -4,6 +4,7 @@
 #[path = "../../../../tests/common/mod.rs"]
 mod common;
 
+mod module_cycles;
 mod sim_city;
 mod sim_score;
 mod sim_session;

@@ -227,9 +227,9 @@ impl VariantOptions {
             .collect()
     }
     /// Whether utilities are measured after the tree is built, from the written files at each
-    /// tile's real switching distance ([`measure::measure_utilities`]): when they are measured,
+    /// tile's real switching distance (`splat2tiles_build::variants::measure`): when they are measured,
     /// Best (the reference) is written and some other variant is. Otherwise the writer measures
-    /// them at once, viewed at [`utility::VIEW_ERROR_PER_RADIUS`] times the tile's radius.
+    /// them at once, viewed at `splat2tiles_build::variants::utility::VIEW_ERROR_PER_RADIUS` times the tile's radius.
     pub fn deferred_utility(&self) -> bool {
         let w = self.written();
         self.measure_utility && w.contains(&Variant::Best) && w.len() > 1
