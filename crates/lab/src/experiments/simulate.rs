@@ -1,4 +1,4 @@
-//! `splat2tiles simulate`: the streaming experiments side by side with the papers (TileSplat
+//! `splat2tiles-lab simulate`: the streaming experiments side by side with the papers (TileSplat
 //! Tables 4-5, SGSS Table 3, frustum-test false positives), trace generation, and their tables
 //! (markdown) and plots (SVG). Deterministic for a fixed `--seed`.
 
