@@ -145,7 +145,7 @@ fn fuzz_crash_regressions_replay_cleanly() {
 }
 
 /// The first fuzz crash: a SCALE accessor typed SCALAR (reported as ACCESSOR_TYPE_INVALID) was
-/// then read as VEC3, past the end of its data (src/validate/content.rs, fixed).
+/// then read as VEC3, past the end of its data (crates/validate/src/content.rs, fixed).
 #[test]
 fn r_fuzz_glb_wrongly_typed_attribute_is_reported_not_read() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -156,7 +156,7 @@ fn r_fuzz_glb_wrongly_typed_attribute_is_reported_not_read() {
 
 /// A fuzz crash of the `tileset` target: a legacy (b3dm/i3dm/pnts/cmpt) tile whose byteLength is
 /// shorter than its header was cut to byteLength and then read at byte 12: index out of bounds
-/// (src/validate/legacy.rs; fixed: such a header is BINARY_INVALID_LENGTH, nothing more is read).
+/// (crates/validate/src/legacy.rs; fixed: such a header is BINARY_INVALID_LENGTH, nothing more is read).
 #[test]
 fn r_fuzz_tileset_legacy_byte_length_below_header_is_reported_not_read() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))

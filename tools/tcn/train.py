@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Trains the learned trajectory predictor (TileSplat sec. 3.3, App. C.2/C.3) on the windows that
 `cargo run --release --example tcn_windows` exported, and writes the ONNX model Rust runs
-(`src/stream/learned/model.rs`) plus recorded inputs/outputs for the Rust parity test.
+(`crates/stream/src/learned/model.rs`) plus recorded inputs/outputs for the Rust parity test.
 
 Usage: python tools/tcn/train.py WINDOWS_DIR OUT.onnx [--arch tcn|lstm] [--channels 64] [--every 1]
        [--blocks 4] [--hidden 64] [--epochs 40] [--parity PARITY.json] [--seed 7]
@@ -48,7 +48,7 @@ class CausalConv(nn.Module):
 
     def forward(self, x):
         # Padded on both sides, the right side chomped: constant Conv pads and a constant Slice
-        # in ONNX (a functional pad exports a computed Pad; src/stream/learned/net.rs checks the
+        # in ONNX (a functional pad exports a computed Pad; crates/stream/src/learned/net.rs checks the
         # Conv's pads are the causal (k-1)d).
         return self.conv(x)[:, :, : -self.pad]
 

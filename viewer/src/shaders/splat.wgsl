@@ -1,6 +1,6 @@
 // Instanced 3DGS splats for WebGL2-class devices: attributes from paged texture arrays
 // (textureLoad only, no storage buffers), one 4-vertex strip per sorted splat, premultiplied alpha.
-// The projection follows splat2tiles' CPU reference (src/render/raster.rs) step by step.
+// The projection follows splat2tiles' CPU reference (crates/render/src/raster.rs) step by step.
 
 struct Frame {
     // width, height, unused, unused (pixels)
