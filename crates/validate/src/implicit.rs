@@ -60,19 +60,15 @@ fn template(ctx: &mut Ctx<'_>, uri: &str, path: &str, octree: bool) {
     }
 }
 
-/// Validates an implicit root tile and walks its subtrees; `at` holds the root tile's own
-/// geometric error, world transform and refinement, and its parent's place in the walk.
-pub(crate) fn validate(
+/// The rules of an implicit root tile itself (no children, metadata or content bounding
+/// volumes; contents need a `uri`; no sphere volume); returns its content templates with their
+/// JSON paths.
+fn root_rules(
     ctx: &mut Ctx<'_>,
     tile: &Value,
-    it: &Value,
     path: &str,
     volume: Option<Volume>,
-    at: Parent,
-    schema: &Schema,
-) {
-    let (world, root_error) = (at.world, at.error);
-    let ip = format!("{path}/implicitTiling");
+) -> Vec<(String, String)> {
     // "children, metadata and content.boundingVolume MUST NOT be defined on an implicit root".
     if tile.get("children").is_some() {
         ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
@@ -117,9 +113,21 @@ pub(crate) fn validate(
             "implicit tiling does not allow sphere bounding volumes",
         ));
     }
+    templates
+}
+
+/// The `implicitTiling` object's rules (scheme, level counts, subtree URI template and the
+/// content templates' variables, the walk's limits); returns the scheme, subtree levels,
+/// available levels and the subtrees' URI template when they allow a walk.
+fn tiling_params(
+    ctx: &mut Ctx<'_>,
+    it: &Value,
+    ip: &str,
+    templates: &[(String, String)],
+) -> Option<(Scheme, u32, u32, String)> {
     let Some(obj) = it.as_object() else {
         ctx.push(Issue::TYPE_MISMATCH(ip, "implicitTiling must be an object"));
-        return;
+        return None;
     };
     let scheme = match obj.get("subdivisionScheme").and_then(Value::as_str) {
         Some("QUADTREE") => Some(Scheme::Quadtree),
@@ -133,7 +141,7 @@ pub(crate) fn validate(
         }
         None => {
             ctx.push(Issue::PROPERTY_MISSING(
-                ip.clone(),
+                ip.to_string(),
                 "'subdivisionScheme' is required",
             ));
             None
@@ -142,7 +150,7 @@ pub(crate) fn validate(
     let mut levels = |key: &str| match obj.get(key) {
         None => {
             ctx.push(Issue::PROPERTY_MISSING(
-                ip.clone(),
+                ip.to_string(),
                 format!("'{key}' is required"),
             ));
             None
@@ -173,17 +181,17 @@ pub(crate) fn validate(
             None
         }
     };
-    let Some(scheme) = scheme else { return };
+    let scheme = scheme?;
     let octree = scheme == Scheme::Octree;
     if let Some(u) = &subtrees_uri {
         template(ctx, u, &format!("{ip}/subtrees/uri"), octree);
     }
-    for (p, u) in &templates {
+    for (p, u) in templates {
         template(ctx, u, p, octree);
     }
     let (Some(sl), Some(al), Some(subtrees_uri)) = (subtree_levels, available_levels, subtrees_uri)
     else {
-        return;
+        return None;
     };
     let arity = scheme.arity();
     let max_level = if octree { 21 } else { 31 };
@@ -196,9 +204,31 @@ pub(crate) fn validate(
             ip,
             format!("subtreeLevels {sl} / availableLevels {al} are beyond what this validator walks (N^subtreeLevels <= 2^24, levels <= {max_level})"),
         ));
-        return;
+        return None;
     }
     let (sl, al) = (sl as u32, al as u32);
+    Some((scheme, sl, al, subtrees_uri))
+}
+
+/// Validates an implicit root tile and walks its subtrees; `at` holds the root tile's own
+/// geometric error, world transform and refinement, and its parent's place in the walk.
+pub(crate) fn validate(
+    ctx: &mut Ctx<'_>,
+    tile: &Value,
+    it: &Value,
+    path: &str,
+    volume: Option<Volume>,
+    at: Parent,
+    schema: &Schema,
+) {
+    let (world, root_error) = (at.world, at.error);
+    let ip = format!("{path}/implicitTiling");
+    let templates = root_rules(ctx, tile, path, volume);
+    let Some((scheme, sl, al, subtrees_uri)) = tiling_params(ctx, it, &ip, &templates) else {
+        return;
+    };
+    let octree = scheme == Scheme::Octree;
+    let arity = scheme.arity();
     let n_tiles = tile_count(arity, sl) as usize;
     let n_children = arity.pow(sl) as usize;
     let dims = scheme.dims();
