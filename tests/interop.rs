@@ -332,19 +332,6 @@ fn georeferenced_matches_placed(
     ssim
 }
 
-fn convert_file(input: &Path, out: &Path, extra: &[&str]) {
-    let o = Command::new(bin())
-        .arg("convert")
-        .arg(input)
-        .arg("-o")
-        .arg(out)
-        .arg("-q")
-        .args(extra)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-}
-
 #[test]
 fn cesiumjs_renders_a_georeferenced_plant_like_a_placed_local_one() {
     require_browser_harness();

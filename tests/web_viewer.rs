@@ -870,13 +870,9 @@ fn web_viewer_draws_every_object_of_a_flat_city_at_its_default_max_sse() {
     common::objects::write_flat_city(&ply);
     let convert = |name: &str, extra: &[&str]| {
         let out = tmp.path().join(name);
-        run(Command::new(bin())
-            .arg("convert")
-            .arg(&ply)
-            .arg("-o")
-            .arg(&out)
-            .args(["-q", "--up-axis", "+z", "--max-splats", "2048"])
-            .args(extra));
+        let mut args = vec!["--up-axis", "+z", "--max-splats", "2048"];
+        args.extend(extra);
+        convert_file(&ply, &out, &args);
         out
     };
     let local = convert("local", &[]);

@@ -351,3 +351,17 @@ pub fn plant_sample(step: usize) -> Splats {
         splat2tiles_core::frame::UpAxis::NegY,
     )
 }
+
+/// Runs `splat2tiles convert INPUT -o OUT -q EXTRA...` and requires success (stderr in the panic).
+pub fn convert_file(input: &Path, out: &Path, extra: &[&str]) {
+    let o = std::process::Command::new(bin())
+        .arg("convert")
+        .arg(input)
+        .arg("-o")
+        .arg(out)
+        .arg("-q")
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
