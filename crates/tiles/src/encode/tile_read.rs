@@ -6,7 +6,8 @@ use glam::{DMat4, DQuat, DVec3};
 use super::glb::{GlbError, parse_json, read_glb};
 use super::gltf::{
     AccessorType, BufferView, ComponentType, Gltf, KHR_GAUSSIAN_SPLATTING,
-    KHR_GAUSSIAN_SPLATTING_SPZ_2, KHR_MESH_QUANTIZATION, MODE_DEFAULT, MODE_POINTS, Node,
+    KHR_GAUSSIAN_SPLATTING_SPZ_2, KHR_MESH_QUANTIZATION, KhrGaussianSplatting, MODE_DEFAULT,
+    MODE_POINTS, Node, Primitive,
 };
 use super::tile::{
     ATTR_COLOR_0, ATTR_OPACITY, ATTR_POSITION, ATTR_ROTATION, ATTR_SCALE, COLOR_SPACE_LINEAR,
@@ -355,27 +356,18 @@ fn linear_to_srgb(v: f32) -> f32 {
     }
 }
 
-/// Reads a `KHR_gaussian_splatting` glb: ours or any other conforming writer's (any stride and
-/// offset, every component type the extension allows, optional SH degrees and `COLOR_0`).
-///
-/// The one splat primitive placed by the default scene is decoded; its node's world matrix is
-/// returned as `node_matrix`. Allocations stay proportional to the input size.
-pub fn read_tile_glb(bytes: &[u8]) -> Result<DecodedTile, GlbError> {
-    let chunks = read_glb(bytes)?;
-    let doc = parse_json(&chunks)?;
-    for (i, ext) in doc.extensions_required.iter().enumerate() {
-        if ext != KHR_GAUSSIAN_SPLATTING && ext != KHR_MESH_QUANTIZATION {
-            return Err(GlbError::unsupported(
-                format!("/extensionsRequired/{i}"),
-                format!("required extension {ext}"),
-            ));
-        }
-    }
-    let mut warnings = Vec::new();
+/// The one splat primitive the default scene places, checked for what this reader decodes.
+struct SplatPrimitive<'a> {
+    prim: &'a Primitive,
+    ext: &'a KhrGaussianSplatting,
+    world: DMat4,
+    path: String,
+}
 
-    // Find the splat primitive(s) through the scene graph.
+/// Finds the scene's one splat primitive: POINTS, unindexed, with no child extension.
+fn find_splat_primitive(doc: &Gltf) -> Result<SplatPrimitive<'_>, GlbError> {
     let mut found = Vec::new();
-    for (m, world, node_path) in placed_meshes(&doc)? {
+    for (m, world, node_path) in placed_meshes(doc)? {
         for (p, prim) in doc.meshes[m].primitives.iter().enumerate() {
             let ext = prim
                 .extensions
@@ -402,17 +394,17 @@ pub fn read_tile_glb(bytes: &[u8]) -> Result<DecodedTile, GlbError> {
         ));
     }
     let (m, p, prim, ext, world, _) = found.swap_remove(0);
-    let prim_path = format!("/meshes/{m}/primitives/{p}");
+    let path = format!("/meshes/{m}/primitives/{p}");
     let mode = prim.mode.unwrap_or(MODE_DEFAULT);
     if mode != MODE_POINTS {
         return Err(GlbError::invalid(
-            format!("{prim_path}/mode"),
+            format!("{path}/mode"),
             format!("mode {mode}: KHR_gaussian_splatting primitives must be POINTS (0)"),
         ));
     }
     if prim.indices.is_some() {
         return Err(GlbError::unsupported(
-            format!("{prim_path}/indices"),
+            format!("{path}/indices"),
             "indexed splat primitives",
         ));
     }
@@ -425,146 +417,172 @@ pub fn read_tile_glb(bytes: &[u8]) -> Result<DecodedTile, GlbError> {
             format!("child extension {name}")
         };
         return Err(GlbError::unsupported(
-            format!("{prim_path}/extensions/{KHR_GAUSSIAN_SPLATTING}/extensions/{name}"),
+            format!("{path}/extensions/{KHR_GAUSSIAN_SPLATTING}/extensions/{name}"),
             what,
         ));
     }
-    let kernel = ext.kernel.clone().unwrap_or_else(|| {
-        warnings.push("kernel missing; read as ellipse".into());
-        KERNEL_ELLIPSE.into()
-    });
-    let color_space = ext.color_space.clone().unwrap_or_else(|| {
-        warnings.push("colorSpace missing; read as srgb_rec709_display".into());
-        COLOR_SPACE_SRGB.into()
-    });
+    Ok(SplatPrimitive {
+        prim,
+        ext,
+        world,
+        path,
+    })
+}
 
-    let ctx = Ctx {
-        doc: &doc,
-        bin: chunks.bin,
-        prim_path: prim_path.clone(),
-    };
-    let attr = |name: &str| prim.attributes.get(name).copied();
-    let required = |name: &str| {
-        attr(name).ok_or_else(|| {
+/// The primitive's attributes decoded, before tidying.
+struct RawAttributes {
+    pos: Vec<f32>,
+    rot: Vec<f32>,
+    scale: Vec<f32>,
+    opacity: Vec<f32>,
+    sh0: Vec<[f32; 3]>,
+    has_color0: bool,
+}
+
+impl Ctx<'_> {
+    /// Accessor index of attribute `name`, if the primitive has it.
+    fn attr(&self, prim: &Primitive, name: &str) -> Option<u32> {
+        prim.attributes.get(name).copied()
+    }
+
+    /// Accessor index of attribute `name`, an error when the primitive lacks it.
+    fn required(&self, prim: &Primitive, name: &str) -> Result<u32, GlbError> {
+        self.attr(prim, name).ok_or_else(|| {
             GlbError::invalid(
-                format!("{prim_path}/attributes"),
+                format!("{}/attributes", self.prim_path),
                 format!("missing required attribute {name}"),
             )
         })
-    };
-    use AccessorType::{Scalar, Vec3, Vec4};
-
-    let quantized = doc
-        .extensions_used
-        .iter()
-        .any(|e| e == KHR_MESH_QUANTIZATION);
-    let pos_allowed = if quantized {
-        Allowed::Quantized
-    } else {
-        Allowed::Float
-    };
-    let (pos, _) = ctx.accessor(
-        ATTR_POSITION,
-        required(ATTR_POSITION)?,
-        &[Vec3],
-        pos_allowed,
-        None,
-    )?;
-    let n = pos.len() / 3;
-    let (rot, _) = ctx.accessor(
-        ATTR_ROTATION,
-        required(ATTR_ROTATION)?,
-        &[Vec4],
-        Allowed::Rotation,
-        Some(n),
-    )?;
-    let (scale, _) = ctx.accessor(
-        ATTR_SCALE,
-        required(ATTR_SCALE)?,
-        &[Vec3],
-        Allowed::Scale,
-        Some(n),
-    )?;
-    let color = attr(ATTR_COLOR_0)
-        .map(|i| ctx.accessor(ATTR_COLOR_0, i, &[Vec3, Vec4], Allowed::Unorm, Some(n)))
-        .transpose()?;
-    let opacity = match attr(ATTR_OPACITY) {
-        Some(i) => {
-            ctx.accessor(ATTR_OPACITY, i, &[Scalar], Allowed::Unorm, Some(n))?
-                .0
-        }
-        None => match &color {
-            Some((c, 4)) => {
-                warnings.push("OPACITY missing; taken from COLOR_0 alpha".into());
-                c.chunks_exact(4).map(|c| c[3]).collect()
-            }
-            _ => {
-                return Err(GlbError::invalid(
-                    format!("{prim_path}/attributes"),
-                    format!("missing required attribute {ATTR_OPACITY} (and no COLOR_0 alpha)"),
-                ));
-            }
-        },
-    };
-    let sh0_name = sh_attribute(0, 0);
-    let sh0: Vec<[f32; 3]> = match attr(&sh0_name) {
-        Some(i) => {
-            let (v, _) = ctx.accessor(&sh0_name, i, &[Vec3], Allowed::Float, Some(n))?;
-            v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
-        }
-        None => match &color {
-            Some((c, comps)) => {
-                warnings.push(format!("{sh0_name} missing; derived from COLOR_0"));
-                let srgb = color_space != COLOR_SPACE_LINEAR;
-                c.chunks_exact(*comps)
-                    .map(|c| {
-                        let rgb = [c[0], c[1], c[2]];
-                        color_to_sh0(if srgb { rgb.map(linear_to_srgb) } else { rgb })
-                    })
-                    .collect()
-            }
-            None => {
-                return Err(GlbError::invalid(
-                    format!("{prim_path}/attributes"),
-                    format!("missing {sh0_name} and no COLOR_0 to fall back on"),
-                ));
-            }
-        },
-    };
-
-    // SH degree: the highest degree whose coefficients (and all lower ones) are all present.
-    let mut degree = 0u8;
-    for l in 1..=3u8 {
-        let present = (0..=2 * l)
-            .filter(|&c| attr(&sh_attribute(l, c)).is_some())
-            .count();
-        if present == 0 {
-            break;
-        }
-        if present as u8 != 2 * l + 1 || degree != l - 1 {
-            warnings.push(format!(
-                "SH degree {l} has {present} of {} coefficients; degrees from {l} up ignored",
-                2 * l + 1
-            ));
-            break;
-        }
-        degree = l;
-    }
-    let k = sh_rest_count(degree);
-    let mut sh_rest = vec![[0f32; 3]; n * k];
-    for l in 1..=degree {
-        for c in 0..=2 * l {
-            let name = sh_attribute(l, c);
-            let index = attr(&name).expect("presence checked above");
-            let (v, _) = ctx.accessor(&name, index, &[Vec3], Allowed::Float, Some(n))?;
-            let j = (l as usize).pow(2) - 1 + c as usize;
-            for (i, t) in v.chunks_exact(3).enumerate() {
-                sh_rest[i * k + j] = [t[0], t[1], t[2]];
-            }
-        }
     }
 
-    // Normalise rotations that are not unit (quantised ones); keep float unit ones bit-exact.
+    /// Decodes position, rotation, scale, opacity and SH degree 0 (the last two may come from
+    /// `COLOR_0`).
+    fn raw_attributes(
+        &self,
+        prim: &Primitive,
+        color_space: &str,
+        warnings: &mut Vec<String>,
+    ) -> Result<RawAttributes, GlbError> {
+        use AccessorType::{Scalar, Vec3, Vec4};
+        let quantized = self
+            .doc
+            .extensions_used
+            .iter()
+            .any(|e| e == KHR_MESH_QUANTIZATION);
+        let pos_allowed = if quantized {
+            Allowed::Quantized
+        } else {
+            Allowed::Float
+        };
+        let index = self.required(prim, ATTR_POSITION)?;
+        let (pos, _) = self.accessor(ATTR_POSITION, index, &[Vec3], pos_allowed, None)?;
+        let n = pos.len() / 3;
+        let index = self.required(prim, ATTR_ROTATION)?;
+        let (rot, _) = self.accessor(ATTR_ROTATION, index, &[Vec4], Allowed::Rotation, Some(n))?;
+        let index = self.required(prim, ATTR_SCALE)?;
+        let (scale, _) = self.accessor(ATTR_SCALE, index, &[Vec3], Allowed::Scale, Some(n))?;
+        let color = self
+            .attr(prim, ATTR_COLOR_0)
+            .map(|i| self.accessor(ATTR_COLOR_0, i, &[Vec3, Vec4], Allowed::Unorm, Some(n)))
+            .transpose()?;
+        let opacity = match self.attr(prim, ATTR_OPACITY) {
+            Some(i) => {
+                self.accessor(ATTR_OPACITY, i, &[Scalar], Allowed::Unorm, Some(n))?
+                    .0
+            }
+            None => match &color {
+                Some((c, 4)) => {
+                    warnings.push("OPACITY missing; taken from COLOR_0 alpha".into());
+                    c.chunks_exact(4).map(|c| c[3]).collect()
+                }
+                _ => {
+                    return Err(GlbError::invalid(
+                        format!("{}/attributes", self.prim_path),
+                        format!("missing required attribute {ATTR_OPACITY} (and no COLOR_0 alpha)"),
+                    ));
+                }
+            },
+        };
+        let sh0_name = sh_attribute(0, 0);
+        let sh0: Vec<[f32; 3]> = match self.attr(prim, &sh0_name) {
+            Some(i) => {
+                let (v, _) = self.accessor(&sh0_name, i, &[Vec3], Allowed::Float, Some(n))?;
+                v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+            }
+            None => match &color {
+                Some((c, comps)) => {
+                    warnings.push(format!("{sh0_name} missing; derived from COLOR_0"));
+                    let srgb = color_space != COLOR_SPACE_LINEAR;
+                    c.chunks_exact(*comps)
+                        .map(|c| {
+                            let rgb = [c[0], c[1], c[2]];
+                            color_to_sh0(if srgb { rgb.map(linear_to_srgb) } else { rgb })
+                        })
+                        .collect()
+                }
+                None => {
+                    return Err(GlbError::invalid(
+                        format!("{}/attributes", self.prim_path),
+                        format!("missing {sh0_name} and no COLOR_0 to fall back on"),
+                    ));
+                }
+            },
+        };
+        Ok(RawAttributes {
+            pos,
+            rot,
+            scale,
+            opacity,
+            sh0,
+            has_color0: color.is_some(),
+        })
+    }
+
+    /// The SH degree (the highest whose coefficients, and all lower ones, are all present) and
+    /// its rest coefficients for `n` splats.
+    fn sh_rest(
+        &self,
+        prim: &Primitive,
+        n: usize,
+        warnings: &mut Vec<String>,
+    ) -> Result<(u8, Vec<[f32; 3]>), GlbError> {
+        let mut degree = 0u8;
+        for l in 1..=3u8 {
+            let present = (0..=2 * l)
+                .filter(|&c| self.attr(prim, &sh_attribute(l, c)).is_some())
+                .count();
+            if present == 0 {
+                break;
+            }
+            if present as u8 != 2 * l + 1 || degree != l - 1 {
+                warnings.push(format!(
+                    "SH degree {l} has {present} of {} coefficients; degrees from {l} up ignored",
+                    2 * l + 1
+                ));
+                break;
+            }
+            degree = l;
+        }
+        let k = sh_rest_count(degree);
+        let mut sh_rest = vec![[0f32; 3]; n * k];
+        for l in 1..=degree {
+            for c in 0..=2 * l {
+                let name = sh_attribute(l, c);
+                let index = self.required(prim, &name)?;
+                let (v, _) =
+                    self.accessor(&name, index, &[AccessorType::Vec3], Allowed::Float, Some(n))?;
+                let j = (l as usize).pow(2) - 1 + c as usize;
+                for (i, t) in v.chunks_exact(3).enumerate() {
+                    sh_rest[i * k + j] = [t[0], t[1], t[2]];
+                }
+            }
+        }
+        Ok((degree, sh_rest))
+    }
+}
+
+/// Normalises rotations that are not unit (quantised ones), keeping float unit ones bit-exact.
+fn unit_rotations(rot: &[f32], warnings: &mut Vec<String>) -> Vec<[f32; 4]> {
     let mut renormalised = 0usize;
     let rotations: Vec<[f32; 4]> = rot
         .chunks_exact(4)
@@ -584,6 +602,11 @@ pub fn read_tile_glb(bytes: &[u8]) -> Result<DecodedTile, GlbError> {
             "{renormalised} rotations were not unit quaternions; normalised"
         ));
     }
+    rotations
+}
+
+/// Clamps opacities outside [0, 1] (NaN kept for the caller's checks).
+fn clamped_opacities(opacity: Vec<f32>, warnings: &mut Vec<String>) -> Vec<f32> {
     let mut clamped = 0usize;
     let opacities: Vec<f32> = opacity
         .into_iter()
@@ -599,22 +622,70 @@ pub fn read_tile_glb(bytes: &[u8]) -> Result<DecodedTile, GlbError> {
     if clamped > 0 {
         warnings.push(format!("{clamped} opacities outside [0, 1]; clamped"));
     }
-    let negative = scale.iter().filter(|&&s| s < 0.0).count();
+    opacities
+}
+
+/// Reads a `KHR_gaussian_splatting` glb: ours or any other conforming writer's (any stride and
+/// offset, every component type the extension allows, optional SH degrees and `COLOR_0`).
+///
+/// The one splat primitive placed by the default scene is decoded; its node's world matrix is
+/// returned as `node_matrix`. Allocations stay proportional to the input size.
+pub fn read_tile_glb(bytes: &[u8]) -> Result<DecodedTile, GlbError> {
+    let chunks = read_glb(bytes)?;
+    let doc = parse_json(&chunks)?;
+    for (i, ext) in doc.extensions_required.iter().enumerate() {
+        if ext != KHR_GAUSSIAN_SPLATTING && ext != KHR_MESH_QUANTIZATION {
+            return Err(GlbError::unsupported(
+                format!("/extensionsRequired/{i}"),
+                format!("required extension {ext}"),
+            ));
+        }
+    }
+    let mut warnings = Vec::new();
+    let SplatPrimitive {
+        prim,
+        ext,
+        world,
+        path: prim_path,
+    } = find_splat_primitive(&doc)?;
+    let kernel = ext.kernel.clone().unwrap_or_else(|| {
+        warnings.push("kernel missing; read as ellipse".into());
+        KERNEL_ELLIPSE.into()
+    });
+    let color_space = ext.color_space.clone().unwrap_or_else(|| {
+        warnings.push("colorSpace missing; read as srgb_rec709_display".into());
+        COLOR_SPACE_SRGB.into()
+    });
+    let ctx = Ctx {
+        doc: &doc,
+        bin: chunks.bin,
+        prim_path,
+    };
+    let raw = ctx.raw_attributes(prim, &color_space, &mut warnings)?;
+    let n = raw.pos.len() / 3;
+    let (degree, sh_rest) = ctx.sh_rest(prim, n, &mut warnings)?;
+    let rotations = unit_rotations(&raw.rot, &mut warnings);
+    let opacities = clamped_opacities(raw.opacity, &mut warnings);
+    let negative = raw.scale.iter().filter(|&&s| s < 0.0).count();
     if negative > 0 {
         warnings.push(format!(
             "{negative} negative scale components (the spec wants linear, non-negative)"
         ));
     }
-
     let splats = Splats {
-        positions: pos
+        positions: raw
+            .pos
             .chunks_exact(3)
             .map(|c| [c[0] as f64, c[1] as f64, c[2] as f64])
             .collect(),
-        scales: scale.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        scales: raw
+            .scale
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
         rotations,
         opacities,
-        sh0,
+        sh0: raw.sh0,
         sh_degree: degree,
         sh_rest,
     };
@@ -625,7 +696,7 @@ pub fn read_tile_glb(bytes: &[u8]) -> Result<DecodedTile, GlbError> {
         color_space,
         kernel,
         generator: doc.asset.generator.clone(),
-        has_color0: color.is_some(),
+        has_color0: raw.has_color0,
         warnings,
     })
 }
