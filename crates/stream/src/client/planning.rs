@@ -37,6 +37,37 @@ fn want_group(w: &Want, held: bool, predicting: bool) -> (bool, u8) {
     (held, class)
 }
 
+/// What the overload rules decided for one plan.
+struct Overload {
+    /// Missing prefetches are asked at Low.
+    at_low: bool,
+    /// Per tile: set aside by Moore-Hodgson (requested after every other missing tile).
+    late: Vec<bool>,
+}
+
+impl Overload {
+    fn is_late(&self, tile: usize) -> bool {
+        self.late[tile]
+    }
+}
+
+/// The wants of one plan, each tile at most once.
+#[derive(Default)]
+struct Wants {
+    list: Vec<Want>,
+    seen: HashSet<usize>,
+}
+
+impl Wants {
+    /// Adds `w` unless its tile is already wanted; `late` marks it set aside.
+    fn push(&mut self, mut w: Want, late: bool) {
+        if self.seen.insert(w.tile) {
+            w.late = late;
+            self.list.push(w);
+        }
+    }
+}
+
 /// The missing prefetches to set aside so that the most of the others arrive by their deadlines
 /// at Low: `dues` holds `(seconds until due, Low bytes, tile)`; a tile due at `d` may enter until
 /// `d + slack_s` (the prediction's step). Moore-Hodgson over `link`'s per-step capacity (in-flight
@@ -231,6 +262,9 @@ impl StreamClient {
             .map(Level::from_index)
     }
 
+    /// Plans: predicts the views over the horizon, runs the deadline planner on the tiles they
+    /// show and turns its fetches (and the tiles in view, and the fallback radius) into the
+    /// ordered wants.
     pub(super) fn replan(&mut self, camera: &Camera, pose: &ViewPose) {
         self.last_plan = self.now;
         self.stats.plans += 1;
@@ -253,15 +287,107 @@ impl StreamClient {
                 BLEND_SIGMA_M,
             )
         };
+        let predicting = !predicted.is_empty();
+        let first = self.first_visible(camera, &predicted);
+        // Deadlines go on the record (judged when the tile enters or the time passes).
+        if self.cfg.set_aside_late {
+            self.deadlines.set_predicting(predicting);
+            for (i, &t) in first.iter().enumerate() {
+                if t.is_finite() && !self.in_view[i] {
+                    self.deadlines.predicted(i, self.now + t);
+                }
+            }
+        }
+        self.predicted = first
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.is_finite())
+            .map(|(i, t)| (i, *t))
+            .collect();
+        let flying = self.flying();
+        let mut pinned_tile = vec![false; self.info.len()];
+        for &(i, _) in &flying {
+            pinned_tile[i] = true;
+        }
+        let firsts: Vec<(usize, f64)> = first
+            .iter()
+            .enumerate()
+            .filter(|(i, t)| t.is_finite() && self.usable(*i) && !pinned_tile[*i])
+            .map(|(i, t)| (i, *t))
+            .collect();
+        let budget = self.plan_budget();
+        let link = LinkForecast {
+            pieces: self.bw.forecast(self.cfg.plan.horizon_s),
+            in_flight_bytes: self.in_flight_bytes(),
+        };
+        let step = PlanStepConfig {
+            concurrency: self.cfg.max_concurrent,
+            ..self.cfg.plan
+        };
+        let (cands, plan) = plan_visible_link(
+            &self.catalog,
+            pose.pos,
+            &firsts,
+            &step,
+            &link,
+            |i| self.cache.level(i),
+            budget,
+        );
+        let aside = self.overload(&firsts, &link, &step);
+        let frustum = Frustum::new(pose, &self.cfg.plan.intrinsics);
+        let mut wants = Wants::default();
+        for f in &plan.fetches {
+            let tile = cands[f.candidate].tile;
+            // Under overload a missing prefetch comes at Low, as the overload test assumed.
+            let asked = if aside.at_low && !self.in_view[tile] && self.cache.level(tile).is_none() {
+                Level::Low
+            } else {
+                f.level
+            };
+            let Some(level) = self.usable_level(tile, asked) else {
+                continue;
+            };
+            let level = self.resume_level(tile, level);
+            // The predicted first visibility, not the planner's deadline (at least `urgent_s`):
+            // the wants are requested in this order.
+            let late = aside.is_late(tile);
+            wants.push(self.want(tile, level, first[tile], &frustum), late);
+        }
+        // Downloads in flight go on while their tile is in view or predicted within the
+        // horizon (a prefetch is not aborted because one plan left it out).
+        for (i, level) in flying {
+            if first[i].is_finite() && self.usable(i) {
+                wants.push(self.want(i, level, first[i], &frustum), false);
+            }
+        }
+        // Every tile of the view set is needed whatever the plan says.
+        for i in self.view.clone() {
+            if self.usable(i)
+                && self.cache.level(i).is_none()
+                && !wants.seen.contains(&i)
+                && let Some(level) = self.usable_level(i, Level::Low)
+            {
+                wants.push(self.want(i, level, 0.0, &frustum), aside.is_late(i));
+            }
+        }
+        if (fallback || uncertain) && self.cfg.fallback_radius_m > 0.0 {
+            self.radius_wants(pose, budget, &frustum, &mut wants);
+        }
+        self.wanted = self.ordered(wants.list, predicting);
+    }
+
+    /// Seconds from now to each tile's first predicted visibility (0 in view, infinite never);
+    /// the subtrees the predicted views need go to `predicted_subtrees`.
+    fn first_visible(&mut self, camera: &Camera, predicted: &[ViewPose]) -> Vec<f64> {
         let mut first = vec![f64::INFINITY; self.info.len()];
         for &i in &self.view {
             first[i] = 0.0;
         }
         // A tile first seen at a predicted sample may enter any time after the sample before
         // it: due at that earlier sample (with the sample's own time, the oracle's missed
-        // tiles were due a median 0.42 s after they entered: issue 19, flight 38).
+        // tiles were due a median 0.42 s after they entered).
         let mut before = 0.0f64;
-        for p in &predicted {
+        for p in predicted {
             let cam = Camera {
                 world_from_camera: self.root_transform * p.world_from_camera(),
                 ..*camera
@@ -279,60 +405,41 @@ impl StreamClient {
                 }
             }
         }
-        // Deadlines go on the record (judged when the tile enters or the time passes).
-        if self.cfg.set_aside_late {
-            self.deadlines.set_predicting(!predicted.is_empty());
-            for (i, &t) in first.iter().enumerate() {
-                if t.is_finite() && !self.in_view[i] {
-                    self.deadlines.predicted(i, self.now + t);
-                }
-            }
-        }
-        self.predicted = first
-            .iter()
-            .enumerate()
-            .filter(|(_, t)| t.is_finite())
-            .map(|(i, t)| (i, *t))
-            .collect();
-        // A download in flight keeps its level and is not offered to the planner again (its
-        // remaining bytes are the link's `in_flight_bytes`): re-deciding it every plan switched
-        // levels and dropped the partial bytes (issue 19: the full-city walk asked for 331
-        // (tile, level) pairs over 169 tiles).
-        let flying: Vec<(usize, Level)> = self
-            .state
+        first
+    }
+
+    /// Downloads in flight and their levels. Each keeps its level and is not offered to the
+    /// planner again (its remaining bytes are the link's `in_flight_bytes`): re-deciding it every
+    /// plan switched levels and dropped the partial bytes.
+    fn flying(&self) -> Vec<(usize, Level)> {
+        self.state
             .iter()
             .enumerate()
             .filter_map(|(i, s)| {
                 let d = s.download.as_ref()?;
                 d.req.map(|_| (i, d.level))
             })
-            .collect();
-        let mut pinned_tile = vec![false; self.info.len()];
-        for &(i, _) in &flying {
-            pinned_tile[i] = true;
-        }
-        let firsts: Vec<(usize, f64)> = first
-            .iter()
-            .enumerate()
-            .filter(|(i, t)| t.is_finite() && self.usable(*i) && !pinned_tile[*i])
-            .map(|(i, t)| (i, *t))
-            .collect();
+            .collect()
+    }
+
+    /// The memory the planner may fill: the budget less what is drawn or in view and the partial
+    /// downloads.
+    fn plan_budget(&self) -> u64 {
         let pinned: u64 = self
             .cache
             .resident()
             .filter(|(i, _)| self.in_view[*i] || self.drawn[*i])
             .map(|(_, e)| e.bytes)
             .sum();
-        let budget = self
-            .cfg
+        self.cfg
             .memory_budget_bytes
             .saturating_sub(pinned)
-            .saturating_sub(self.partial_bytes());
-        // The link as the planner needs it (issue 19 item 4): the estimator's forecast as
-        // pieces, the bytes still to arrive for requests in flight first, and the round trip
-        // shared by the requests that run at once.
-        let in_flight_bytes: u64 = self
-            .state
+            .saturating_sub(self.partial_bytes())
+    }
+
+    /// Bytes still to arrive for the requests in flight: the link forecast spends them first.
+    fn in_flight_bytes(&self) -> u64 {
+        self.state
             .iter()
             .enumerate()
             .filter_map(|(i, s)| {
@@ -343,27 +450,18 @@ impl StreamClient {
                     .unwrap_or(self.catalog.tiles[i].variants[d.level.index()].bytes);
                 Some(size.saturating_sub(d.bytes.len() as u64))
             })
-            .sum();
-        let link = LinkForecast {
-            pieces: self.bw.forecast(self.cfg.plan.horizon_s),
-            in_flight_bytes,
-        };
-        let step = PlanStepConfig {
-            concurrency: self.cfg.max_concurrent,
-            ..self.cfg.plan
-        };
-        let (cands, plan) = plan_visible_link(
-            &self.catalog,
-            pose.pos,
-            &firsts,
-            &step,
-            &link,
-            |i| self.cache.level(i),
-            budget,
-        );
-        // Overload: the missing tiles (in view: due now) do not fit by their deadlines even at
-        // Low. Then the prefetches are asked at Low (coverage before quality), and with
-        // `set_aside_late` and trusted deadlines the ones Moore-Hodgson sets aside go last.
+            .sum()
+    }
+
+    /// The overload rules. When the missing tiles (in view: due now) do not fit by their
+    /// deadlines even at Low, the prefetches are asked at Low (coverage before quality), and with
+    /// `set_aside_late` and trusted deadlines the ones Moore-Hodgson sets aside go last.
+    fn overload(
+        &mut self,
+        firsts: &[(usize, f64)],
+        link: &LinkForecast,
+        step: &PlanStepConfig,
+    ) -> Overload {
         let dues = |holes: bool| -> Vec<(f64, u64, usize)> {
             firsts
                 .iter()
@@ -380,90 +478,50 @@ impl StreamClient {
         // Prefetches alone for the Low rule (every predictor); holes in view too for setting
         // aside (trusted deadlines only).
         let overload = self.cfg.low_under_overload
-            && !set_aside(&mut dues(false), &link, &step, slack).is_empty();
+            && !set_aside(&mut dues(false), link, step, slack).is_empty();
         let aside = if self.cfg.set_aside_late && self.deadlines.trusted() {
-            set_aside(&mut dues(true), &link, &step, slack)
+            set_aside(&mut dues(true), link, step, slack)
         } else {
             vec![]
         };
-        let set_aside = !aside.is_empty();
-        let mut aside_mask = vec![false; self.info.len()];
+        let mut late = vec![false; self.info.len()];
         for &i in &aside {
-            aside_mask[i] = true;
+            late[i] = true;
         }
-        if overload || set_aside {
+        let at_low = overload || !aside.is_empty();
+        if at_low {
             self.stats.overload_plans += 1;
         }
-        let at_low = overload || set_aside;
-        let frustum = Frustum::new(pose, &self.cfg.plan.intrinsics);
-        let mut wanted: Vec<Want> = vec![];
-        let mut seen = HashSet::new();
-        for f in &plan.fetches {
-            let c = &cands[f.candidate];
-            // Under overload a missing prefetch comes at Low, as the overload test assumed.
-            let asked = if at_low && !self.in_view[c.tile] && self.cache.level(c.tile).is_none() {
-                Level::Low
-            } else {
-                f.level
-            };
-            let Some(level) = self.usable_level(c.tile, asked) else {
+        Overload { at_low, late }
+    }
+
+    /// App. C.5 fallback (and blend, when the prediction is uncertain): the tiles within the
+    /// radius at Medium, nearest first, while the memory budget holds them.
+    fn radius_wants(&self, pose: &ViewPose, budget: u64, frustum: &Frustum, wants: &mut Wants) {
+        let mut room = budget;
+        let near = radius_tiles(&self.catalog, pose.pos, self.cfg.fallback_radius_m);
+        let n = near.len().max(1) as f64;
+        for (k, i) in near.into_iter().enumerate() {
+            if wants.seen.contains(&i) || !self.usable(i) || self.cache.level(i).is_some() {
+                continue;
+            }
+            let Some(level) = self.usable_level(i, Level::Medium) else {
                 continue;
             };
-            let level = self.resume_level(c.tile, level);
-            // The predicted first visibility, not the planner's deadline (at least `urgent_s`):
-            // the wants are requested in this order.
-            if seen.insert(c.tile) {
-                let mut w = self.want(c.tile, level, first[c.tile], &frustum);
-                w.late = set_aside && aside_mask[c.tile];
-                wanted.push(w);
+            let bytes = self.catalog.tiles[i].variants[level.index()].bytes;
+            if bytes > room {
+                break;
             }
+            room -= bytes;
+            let deadline = self.cfg.fallback_s * k as f64 / n;
+            wants.push(self.want(i, level, deadline, frustum), false);
         }
-        // Downloads in flight go on while their tile is in view or predicted within the
-        // horizon (a prefetch is not aborted because one plan left it out).
-        for (i, level) in flying {
-            if first[i].is_finite() && self.usable(i) && seen.insert(i) {
-                wanted.push(self.want(i, level, first[i], &frustum));
-            }
-        }
-        // Every tile of the view set is needed whatever the plan says.
-        for i in self.view.clone() {
-            if self.usable(i)
-                && self.cache.level(i).is_none()
-                && !seen.contains(&i)
-                && let Some(level) = self.usable_level(i, Level::Low)
-            {
-                seen.insert(i);
-                let mut w = self.want(i, level, 0.0, &frustum);
-                w.late = set_aside && aside_mask[i];
-                wanted.push(w);
-            }
-        }
-        // App. C.5 fallback (and blend, when the prediction is uncertain): the tiles within the
-        // radius at Medium, nearest first, while the memory budget holds them.
-        if (fallback || uncertain) && self.cfg.fallback_radius_m > 0.0 {
-            let mut room = budget;
-            let near = radius_tiles(&self.catalog, pose.pos, self.cfg.fallback_radius_m);
-            let n = near.len().max(1) as f64;
-            for (k, i) in near.into_iter().enumerate() {
-                if seen.contains(&i) || !self.usable(i) || self.cache.level(i).is_some() {
-                    continue;
-                }
-                let Some(level) = self.usable_level(i, Level::Medium) else {
-                    continue;
-                };
-                let bytes = self.catalog.tiles[i].variants[level.index()].bytes;
-                if bytes > room {
-                    break;
-                }
-                room -= bytes;
-                seen.insert(i);
-                let deadline = self.cfg.fallback_s * k as f64 / n;
-                wanted.push(self.want(i, level, deadline, &frustum));
-            }
-        }
-        // Request order (`want_group`); within a group, tiles in view by priority and
-        // prefetches by deadline.
-        let predicting = !predicted.is_empty();
+    }
+
+    /// The request order (`want_group`); within a group, tiles in view by priority and
+    /// prefetches by deadline. Layered: a layer is drawn only over its ancestors' layers, so
+    /// coarser levels first (the sort is stable: the order above holds within a level).
+    fn ordered(&self, mut wanted: Vec<Want>, predicting: bool) -> Vec<Want> {
         let group = |w: &Want| want_group(w, self.cache.level(w.tile).is_some(), predicting);
         wanted.sort_by(|a, b| {
             group(a).cmp(&group(b)).then(if a.in_view {
@@ -472,15 +530,13 @@ impl StreamClient {
                 a.deadline.total_cmp(&b.deadline)
             })
         });
-        // Layered: a layer is drawn only over its ancestors' layers, so coarser levels first
-        // (the sort is stable: the order above holds within a level).
         if self.layered {
             wanted.sort_by_key(|w| {
                 let g = group(w);
                 (g.0, g.1, self.info[w.tile].key.level)
             });
         }
-        self.wanted = wanted;
+        wanted
     }
 
     /// The level to fetch `tile` at when the plan chose `level`: a paused download of another
