@@ -6,12 +6,12 @@ use super::context::Ctx;
 use super::cut::{CutTile, record};
 use super::issues::Issue;
 use super::metadata::Schema;
-use super::subtree_file::{availability, check_views, parse_subtree, table_column};
+use super::subtree_file::{Views, availability, check_views, parse_subtree, table_column};
 use super::tileset::{Parent, content_file};
 use super::volume::{Volume, parse_box};
 use serde_json::Value;
 use splat2tiles_tiles::tiling::load::expand_template;
-use splat2tiles_tiles::tiling::subtree::tile_count;
+use splat2tiles_tiles::tiling::subtree::{SubtreeJson, tile_count};
 use splat2tiles_tiles::tiling::{Scheme, TileKey};
 use std::collections::{HashMap, HashSet};
 
@@ -210,6 +210,41 @@ fn tiling_params(
     Some((scheme, sl, al, subtrees_uri))
 }
 
+/// One implicit tileset's walk: what its root fixes, and what the walk has seen so far.
+struct Walk<'s> {
+    scheme: Scheme,
+    /// Subtree levels.
+    sl: u32,
+    /// Available levels.
+    al: u32,
+    subtrees_uri: String,
+    /// Content templates with their JSON paths.
+    templates: Vec<(String, String)>,
+    /// The root tile's JSON path.
+    path: String,
+    volume: Option<Volume>,
+    at: Parent,
+    schema: &'s Schema,
+    /// Geometric error per walked tile (a child's may not exceed its parent's).
+    errors: HashMap<TileKey, f64>,
+    /// Index in `Ctx::cut` per walked tile.
+    walked: HashMap<TileKey, usize>,
+}
+
+/// One subtree's availabilities, expanded to bits.
+struct Available {
+    tiles: Vec<bool>,
+    layers: Vec<Option<Vec<bool>>>,
+    children: Option<Vec<bool>>,
+}
+
+/// The implicit tile metadata of one subtree: bounding boxes and geometric errors per row.
+struct TileTables {
+    table: u32,
+    boxes: Option<Vec<f64>>,
+    errors: Option<Vec<f64>>,
+}
+
 /// Validates an implicit root tile and walks its subtrees; `at` holds the root tile's own
 /// geometric error, world transform and refinement, and its parent's place in the walk.
 pub(crate) fn validate(
@@ -221,22 +256,24 @@ pub(crate) fn validate(
     at: Parent,
     schema: &Schema,
 ) {
-    let (world, root_error) = (at.world, at.error);
     let ip = format!("{path}/implicitTiling");
     let templates = root_rules(ctx, tile, path, volume);
     let Some((scheme, sl, al, subtrees_uri)) = tiling_params(ctx, it, &ip, &templates) else {
         return;
     };
-    let octree = scheme == Scheme::Octree;
-    let arity = scheme.arity();
-    let n_tiles = tile_count(arity, sl) as usize;
-    let n_children = arity.pow(sl) as usize;
-    let dims = scheme.dims();
-    let tile_class_box = "TILE_BOUNDING_BOX";
-    let tile_class_err = "TILE_GEOMETRIC_ERROR";
-
-    let mut errors: HashMap<TileKey, f64> = HashMap::new();
-    let mut walked: HashMap<TileKey, usize> = HashMap::new();
+    let mut walk = Walk {
+        scheme,
+        sl,
+        al,
+        subtrees_uri,
+        templates,
+        path: path.to_string(),
+        volume,
+        at,
+        schema,
+        errors: HashMap::new(),
+        walked: HashMap::new(),
+    };
     let mut queue = vec![(TileKey::ROOT, true)];
     let mut seen = HashSet::new();
     while let Some((root, is_root)) = queue.pop() {
@@ -250,9 +287,47 @@ pub(crate) fn validate(
             ));
             break;
         }
-        let uri = expand_template(&subtrees_uri, root);
-        let Some(file) = ctx.resolve(&uri, &format!("{path}/implicitTiling/subtrees/uri")) else {
-            continue;
+        for child in walk.subtree(ctx, root, is_root) {
+            queue.push((child, false));
+        }
+    }
+}
+
+impl Walk<'_> {
+    /// Tiles in one subtree.
+    fn n_tiles(&self) -> usize {
+        tile_count(self.scheme.arity(), self.sl) as usize
+    }
+
+    /// Level (relative to the subtree root) and Morton index of a subtree's tile `idx`.
+    fn key_of(&self, idx: usize) -> (u32, u64) {
+        let arity = self.scheme.arity();
+        let mut rl = 0u32;
+        while tile_count(arity, rl + 1) as usize <= idx {
+            rl += 1;
+        }
+        let m = (idx - tile_count(arity, rl) as usize) as u64;
+        (rl, m)
+    }
+
+    /// The absolute key of Morton index `m` at relative level `rl` below subtree `root`.
+    fn abs(&self, root: TileKey, rl: u32, m: u64) -> TileKey {
+        let (x, y, z) = self.scheme.decode(m);
+        TileKey {
+            level: root.level + rl,
+            x: (root.x << rl) + x,
+            y: (root.y << rl) + y,
+            z: (root.z << rl) + z,
+        }
+    }
+
+    /// Validates the subtree rooted at `root` and its available tiles; returns the child
+    /// subtrees it marks available.
+    fn subtree(&mut self, ctx: &mut Ctx<'_>, root: TileKey, is_root: bool) -> Vec<TileKey> {
+        let uri = expand_template(&self.subtrees_uri, root);
+        let Some(file) = ctx.resolve(&uri, &format!("{}/implicitTiling/subtrees/uri", self.path))
+        else {
+            return vec![];
         };
         if !ctx.exists(&file) {
             if is_root {
@@ -263,13 +338,13 @@ pub(crate) fn validate(
                     "its parent subtree marks this child subtree available, but there is no file",
                 ));
             }
-            continue;
+            return vec![];
         }
         let Some(bytes) = ctx.read(&file, &uri) else {
-            continue;
+            return vec![];
         };
         let Some((j, bin)) = parse_subtree(ctx, &bytes, &uri) else {
-            continue;
+            return vec![];
         };
         let dir_rel = std::path::Path::new(&uri)
             .parent()
@@ -277,65 +352,114 @@ pub(crate) fn validate(
             .unwrap_or_default();
         let views = check_views(ctx, &j, bin, &uri, &dir_rel);
         let sp = format!("{uri}#");
-        let Some(tiles) = availability(
+        let Some(avail) = self.availabilities(ctx, &j, &views, &sp) else {
+            return vec![];
+        };
+        self.tile_rules(ctx, root, &avail, &sp);
+        let children = self.child_rules(ctx, root, &avail, &uri, &sp);
+
+        // Property tables.
+        let available: Vec<usize> = avail
+            .tiles
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| **b)
+            .map(|(i, _)| i)
+            .collect();
+        let mut tables = TileTables {
+            table: j.tile_metadata.unwrap_or(0),
+            boxes: None,
+            errors: None,
+        };
+        if let Some(t) = j.tile_metadata {
+            let semantics = ["TILE_BOUNDING_BOX", "TILE_GEOMETRIC_ERROR"];
+            let cols = table_column(
+                ctx,
+                &j,
+                &views,
+                self.schema,
+                t,
+                available.len(),
+                &sp,
+                &semantics,
+            );
+            // Columns of the wrong shape were reported by the schema checks; ignore them here.
+            tables.boxes = cols[0].clone().filter(|b| b.len() == available.len() * 12);
+            tables.errors = cols[1].clone().filter(|e| e.len() == available.len());
+        }
+        for (c, t) in j.content_metadata.iter().flatten().enumerate() {
+            let rows = avail
+                .layers
+                .get(c)
+                .and_then(|l| l.as_ref())
+                .map_or(0, |l| l.iter().filter(|b| **b).count());
+            table_column(ctx, &j, &views, self.schema, *t, rows, &sp, &[]);
+        }
+        for (row, &idx) in available.iter().enumerate() {
+            self.tile(ctx, root, (row, idx), &avail, &tables, &uri);
+        }
+        children
+    }
+
+    /// Expands the tile, content and child-subtree availabilities (`None`: the tiles' could not
+    /// be read, so nothing of the subtree is walked).
+    fn availabilities(
+        &self,
+        ctx: &mut Ctx<'_>,
+        j: &SubtreeJson,
+        views: &Views,
+        sp: &str,
+    ) -> Option<Available> {
+        let n_tiles = self.n_tiles();
+        let tiles = availability(
             ctx,
             &j.tile_availability,
             n_tiles,
-            &views,
+            views,
             &format!("{sp}/tileAvailability"),
-        ) else {
-            continue;
-        };
+        )?;
         let mut layers = Vec::new();
         for (c, a) in j.content_availability.iter().enumerate() {
             layers.push(availability(
                 ctx,
                 a,
                 n_tiles,
-                &views,
+                views,
                 &format!("{sp}/contentAvailability/{c}"),
             ));
         }
-        if layers.len() != templates.len() && !(layers.is_empty() && templates.is_empty()) {
+        let templates = self.templates.len();
+        if layers.len() != templates && !(layers.is_empty() && templates == 0) {
             ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
                 format!("{sp}/contentAvailability"),
                 format!(
-                    "{} content availabilities for {} content templates",
+                    "{} content availabilities for {templates} content templates",
                     layers.len(),
-                    templates.len()
                 ),
             ));
         }
         let children = availability(
             ctx,
             &j.child_subtree_availability,
-            n_children,
-            &views,
+            self.scheme.arity().pow(self.sl) as usize,
+            views,
             &format!("{sp}/childSubtreeAvailability"),
         );
+        Some(Available {
+            tiles,
+            layers,
+            children,
+        })
+    }
 
-        // Index helpers: level offset + Morton index.
-        let key_of = |idx: usize| {
-            let mut rl = 0u32;
-            while tile_count(arity, rl + 1) as usize <= idx {
-                rl += 1;
-            }
-            let m = (idx - tile_count(arity, rl) as usize) as u64;
-            (rl, m)
-        };
-        let abs = |rl: u32, m: u64| {
-            let (x, y, z) = scheme.decode(m);
-            TileKey {
-                level: root.level + rl,
-                x: (root.x << rl) + x,
-                y: (root.y << rl) + y,
-                z: (root.z << rl) + z,
-            }
-        };
-        // "If a tile is available, its parent tile MUST be available"; content => tile.
+    /// "If a tile is available, its parent tile MUST be available"; content implies tile; no
+    /// tile at or beyond `availableLevels`.
+    fn tile_rules(&self, ctx: &mut Ctx<'_>, root: TileKey, avail: &Available, sp: &str) {
+        let (arity, dims, al) = (self.scheme.arity(), self.scheme.dims(), self.al);
+        let tiles = &avail.tiles;
         let mut bad_parent = Vec::new();
         for (idx, _) in tiles.iter().enumerate().filter(|(_, b)| **b) {
-            let (rl, m) = key_of(idx);
+            let (rl, m) = self.key_of(idx);
             if rl > 0 && !tiles[tile_count(arity, rl - 1) as usize + (m >> dims) as usize] {
                 bad_parent.push(idx);
             }
@@ -359,13 +483,9 @@ pub(crate) fn validate(
                 ),
             ));
         }
-        for (c, layer) in layers.iter().enumerate() {
+        for (c, layer) in avail.layers.iter().enumerate() {
             let Some(layer) = layer else { continue };
-            let orphans = layer
-                .iter()
-                .zip(&tiles)
-                .filter(|(c, t)| **c && !**t)
-                .count();
+            let orphans = layer.iter().zip(tiles).filter(|(c, t)| **c && !**t).count();
             if orphans > 0 {
                 ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
                     format!("{sp}/contentAvailability/{c}"),
@@ -373,147 +493,150 @@ pub(crate) fn validate(
                 ));
             }
         }
-        if let Some(children) = &children {
-            let first_last = tile_count(arity, sl - 1) as usize;
-            for (m, &set) in children.iter().enumerate() {
-                let parent_ok = tiles[first_last + (m >> dims)];
-                let key = abs(sl, m as u64);
-                if set && !parent_ok {
-                    ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
-                        format!("{sp}/childSubtreeAvailability"),
-                        format!("child subtree {m} is available but its parent tile is not"),
-                    ));
-                } else if set && key.level >= al {
-                    ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
-                        format!("{sp}/childSubtreeAvailability"),
+    }
+
+    /// The child subtrees' rules (parent tile available, within `availableLevels`, no file left
+    /// unreferenced); returns the available children to walk.
+    fn child_rules(
+        &self,
+        ctx: &mut Ctx<'_>,
+        root: TileKey,
+        avail: &Available,
+        uri: &str,
+        sp: &str,
+    ) -> Vec<TileKey> {
+        let mut next = Vec::new();
+        let Some(children) = &avail.children else {
+            return next;
+        };
+        let (dims, al) = (self.scheme.dims(), self.al);
+        let first_last = tile_count(self.scheme.arity(), self.sl - 1) as usize;
+        for (m, &set) in children.iter().enumerate() {
+            let parent_ok = avail.tiles[first_last + (m >> dims)];
+            let key = self.abs(root, self.sl, m as u64);
+            if set && !parent_ok {
+                ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                    format!("{sp}/childSubtreeAvailability"),
+                    format!("child subtree {m} is available but its parent tile is not"),
+                ));
+            } else if set && key.level >= al {
+                ctx.push(Issue::SUBTREE_AVAILABILITY_INCONSISTENT(
+                    format!("{sp}/childSubtreeAvailability"),
+                    format!(
+                        "child subtree {m} starts at level {} but availableLevels is {al}",
+                        key.level
+                    ),
+                ));
+            } else if set {
+                next.push(key);
+            } else if parent_ok && key.level < al {
+                let child_uri = expand_template(&self.subtrees_uri, key);
+                if ctx.lookup(&child_uri).is_some_and(|f| f.is_file()) {
+                    ctx.push(Issue::SUBTREE_FILE_UNREFERENCED(
+                        child_uri,
                         format!(
-                            "child subtree {m} starts at level {} but availableLevels is {al}",
-                            key.level
+                            "{uri} marks this child subtree unavailable, so it is never loaded"
                         ),
                     ));
-                } else if set {
-                    queue.push((key, false));
-                } else if parent_ok && key.level < al {
-                    let child_uri = expand_template(&subtrees_uri, key);
-                    if ctx.lookup(&child_uri).is_some_and(|f| f.is_file()) {
-                        ctx.push(Issue::SUBTREE_FILE_UNREFERENCED(
-                            child_uri,
-                            format!(
-                                "{uri} marks this child subtree unavailable, so it is never loaded"
-                            ),
-                        ));
-                    }
                 }
             }
         }
+        next
+    }
 
-        // Property tables.
-        let available: Vec<usize> = tiles
-            .iter()
-            .enumerate()
-            .filter(|(_, b)| **b)
-            .map(|(i, _)| i)
-            .collect();
-        let mut boxes = None;
-        let mut tile_errors = None;
-        if let Some(t) = j.tile_metadata {
-            let cols = table_column(
-                ctx,
-                &j,
-                &views,
-                schema,
-                t,
-                available.len(),
-                &sp,
-                &[tile_class_box, tile_class_err],
-            );
-            // Columns of the wrong shape were reported by the schema checks; ignore them here.
-            boxes = cols[0].clone().filter(|b| b.len() == available.len() * 12);
-            tile_errors = cols[1].clone().filter(|e| e.len() == available.len());
-        }
-        for (c, t) in j.content_metadata.iter().flatten().enumerate() {
-            let rows = layers
-                .get(c)
-                .and_then(|l| l.as_ref())
-                .map_or(0, |l| l.iter().filter(|b| **b).count());
-            table_column(ctx, &j, &views, schema, *t, rows, &sp, &[]);
-        }
-
-        // Per available tile: error, volume, contents.
-        for (row, &idx) in available.iter().enumerate() {
-            let (rl, m) = key_of(idx);
-            let key = abs(rl, m);
-            let error = match &tile_errors {
-                Some(e) => {
-                    let v = e[row];
-                    if !(v >= 0.0 && v.is_finite()) {
-                        ctx.push(Issue::METADATA_VALUE_INVALID(
-                            format!("{sp}/propertyTables/{}", j.tile_metadata.unwrap_or(0)),
-                            format!("TILE_GEOMETRIC_ERROR of tile index {idx} is {v} (must be finite and >= 0)"),
-                        ));
-                    }
-                    Some(v)
+    /// One available tile (`row` in the tile tables, `idx` in the subtree): its geometric error
+    /// and volume, its place in the cut, its contents and their quality variants.
+    fn tile(
+        &mut self,
+        ctx: &mut Ctx<'_>,
+        root: TileKey,
+        (row, idx): (usize, usize),
+        avail: &Available,
+        tables: &TileTables,
+        uri: &str,
+    ) {
+        let sp = format!("{uri}#");
+        let (rl, m) = self.key_of(idx);
+        let key = self.abs(root, rl, m);
+        let error = match &tables.errors {
+            Some(e) => {
+                let v = e[row];
+                if !(v >= 0.0 && v.is_finite()) {
+                    ctx.push(Issue::METADATA_VALUE_INVALID(
+                        format!("{sp}/propertyTables/{}", tables.table),
+                        format!("TILE_GEOMETRIC_ERROR of tile index {idx} is {v} (must be finite and >= 0)"),
+                    ));
                 }
-                None => root_error.map(|e| e / f64::powi(2.0, key.level as i32)),
-            };
-            if let (Some(e), Some(parent)) = (error, key.parent().and_then(|p| errors.get(&p)))
-                && e > *parent
-            {
-                ctx.push(Issue::TILE_GEOMETRIC_ERRORS_INCONSISTENT(
-                    format!("{sp}/tileMetadata"),
-                    format!("tile {}/{}/{}/{}: geometric error {e} is larger than its parent's {parent}", key.level, key.x, key.y, key.z),
-                ));
+                Some(v)
             }
-            if let Some(e) = error {
-                errors.insert(key, e);
-            }
-            let tile_volume = match &boxes {
-                Some(b) => match parse_box(&b[row * 12..row * 12 + 12]) {
-                    Ok(v) => Some(v),
-                    Err(why) => {
-                        ctx.push(Issue::METADATA_VALUE_INVALID(
-                            format!("{sp}/propertyTables/{}", j.tile_metadata.unwrap_or(0)),
-                            format!("TILE_BOUNDING_BOX of tile index {idx}: {why}"),
-                        ));
-                        None
-                    }
-                },
-                None => volume.map(|v| v.subdivide(octree, key.level, key.x, key.y, key.z)),
-            };
-            let parent = match key.parent() {
-                None => at.cut,
-                Some(p) => walked.get(&p).copied(),
-            };
-            let cut = CutTile {
-                path: format!("{uri}#tile {}/{}/{}/{}", key.level, key.x, key.y, key.z),
-                parent,
-                content: layers.iter().any(|l| l.as_ref().is_some_and(|l| l[idx])),
-                volume: tile_volume,
-                world,
-                error,
-                replace: at.replace,
-            };
-            if let Some(i) = record(ctx, cut) {
-                walked.insert(key, i);
-            }
-            for (c, layer) in layers.iter().enumerate() {
-                if !layer.as_ref().is_some_and(|l| l[idx]) {
-                    continue;
+            None => self.at.error.map(|e| e / f64::powi(2.0, key.level as i32)),
+        };
+        if let (Some(e), Some(parent)) = (error, key.parent().and_then(|p| self.errors.get(&p)))
+            && e > *parent
+        {
+            ctx.push(Issue::TILE_GEOMETRIC_ERRORS_INCONSISTENT(
+                format!("{sp}/tileMetadata"),
+                format!(
+                    "tile {}/{}/{}/{}: geometric error {e} is larger than its parent's {parent}",
+                    key.level, key.x, key.y, key.z
+                ),
+            ));
+        }
+        if let Some(e) = error {
+            self.errors.insert(key, e);
+        }
+        let octree = self.scheme == Scheme::Octree;
+        let tile_volume = match &tables.boxes {
+            Some(b) => match parse_box(&b[row * 12..row * 12 + 12]) {
+                Ok(v) => Some(v),
+                Err(why) => {
+                    ctx.push(Issue::METADATA_VALUE_INVALID(
+                        format!("{sp}/propertyTables/{}", tables.table),
+                        format!("TILE_BOUNDING_BOX of tile index {idx}: {why}"),
+                    ));
+                    None
                 }
-                let Some((tp, t)) = templates.get(c) else {
-                    continue;
-                };
-                let curi = expand_template(t, key);
-                content_file(ctx, &curi, tp, tile_volume, world);
-                // The tile's other quality variants, declared in the tileset metadata.
-                if c == 0 {
-                    for (name, vt) in ctx.variant_templates.clone() {
-                        if &vt != t {
-                            let vuri = expand_template(&vt, key);
-                            let vp =
-                                format!("tileset.json#/metadata/properties/variantUris ({name})");
-                            content_file(ctx, &vuri, &vp, tile_volume, world);
-                        }
+            },
+            None => self
+                .volume
+                .map(|v| v.subdivide(octree, key.level, key.x, key.y, key.z)),
+        };
+        let parent = match key.parent() {
+            None => self.at.cut,
+            Some(p) => self.walked.get(&p).copied(),
+        };
+        let world = self.at.world;
+        let cut = CutTile {
+            path: format!("{uri}#tile {}/{}/{}/{}", key.level, key.x, key.y, key.z),
+            parent,
+            content: avail
+                .layers
+                .iter()
+                .any(|l| l.as_ref().is_some_and(|l| l[idx])),
+            volume: tile_volume,
+            world,
+            error,
+            replace: self.at.replace,
+        };
+        if let Some(i) = record(ctx, cut) {
+            self.walked.insert(key, i);
+        }
+        for (c, layer) in avail.layers.iter().enumerate() {
+            if !layer.as_ref().is_some_and(|l| l[idx]) {
+                continue;
+            }
+            let Some((tp, t)) = self.templates.get(c) else {
+                continue;
+            };
+            let curi = expand_template(t, key);
+            content_file(ctx, &curi, tp, tile_volume, world);
+            // The tile's other quality variants, declared in the tileset metadata.
+            if c == 0 {
+                for (name, vt) in ctx.variant_templates.clone() {
+                    if &vt != t {
+                        let vuri = expand_template(&vt, key);
+                        let vp = format!("tileset.json#/metadata/properties/variantUris ({name})");
+                        content_file(ctx, &vuri, &vp, tile_volume, world);
                     }
                 }
             }

@@ -112,119 +112,7 @@ pub(crate) fn validate(ctx: &mut Ctx<'_>, file: &Path) {
         if key == TileKey::ROOT {
             continue;
         }
-        let ext = format!("{}#/meshes/*/primitives/*/extensions/{EXTENSION}", c.name);
-        let layer = match &c.layer {
-            Err(why @ GlbError::Invalid { path, .. }) if path.contains("/sparse") => {
-                ctx.push(Issue::LAYER_SPARSE_INVALID(
-                    format!("{}#{path}", c.name),
-                    why.to_string(),
-                ));
-                continue;
-            }
-            Err(why) => {
-                ctx.push(Issue::LAYER_EXTENSION_INVALID(
-                    c.name.clone(),
-                    why.to_string(),
-                ));
-                continue;
-            }
-            Ok(None) => {
-                ctx.push(Issue::LAYER_EXTENSION_INVALID(
-                    c.name.clone(),
-                    format!("a content of a layered tileset without {EXTENSION}"),
-                ));
-                continue;
-            }
-            Ok(Some(l)) => l,
-        };
-        if layer.level != key.level {
-            ctx.push(Issue::LAYER_LEVEL_MISMATCH(
-                format!("{ext}/level"),
-                format!("level {} on a tile of level {}", layer.level, key.level),
-            ));
-        }
-        let Some(deltas) = &layer.parent_opacity_delta else {
-            ctx.push(Issue::LAYER_EXTENSION_INVALID(
-                ext,
-                "an enhancement layer needs parentOpacityDelta",
-            ));
-            continue;
-        };
-        let apath = format!(
-            "{}#{}",
-            c.name,
-            layer.delta_accessor_path.as_deref().unwrap_or("")
-        );
-        let parent = key.parent().expect("not the root");
-        let Some(pc) = contents.get(&parent) else {
-            ctx.push(Issue::LAYER_PARENT_MISSING(
-                c.name.clone(),
-                format!(
-                    "parent tile {}/{}/{}/{} has no readable content to adjust",
-                    parent.level, parent.x, parent.y, parent.z
-                ),
-            ));
-            continue;
-        };
-        if deltas.len() as u64 != pc.splats {
-            ctx.push(Issue::LAYER_DELTA_COUNT_MISMATCH(
-                format!("{apath}/count"),
-                format!(
-                    "{} deltas but the parent layer {} holds {} splats",
-                    deltas.len(),
-                    pc.name,
-                    pc.splats
-                ),
-            ));
-            continue;
-        }
-        if !delta_values_ok(ctx, &apath, deltas) {
-            continue;
-        }
-        let mut carried = vec![(parent, deltas)];
-        for (n, a) in layer.ancestor_opacity_deltas.iter().enumerate() {
-            let epath = format!("{ext}/ancestorOpacityDeltas/{n}");
-            let apath = format!("{}#{}", c.name, a.accessor_path);
-            if u64::from(a.level) + 1 >= u64::from(key.level) {
-                ctx.push(Issue::LAYER_ANCESTOR_INVALID(
-                    format!("{epath}/level"),
-                    format!(
-                        "ancestor level {} on a layer of level {}: must be below {} (the parent's deltas go in parentOpacityDelta)",
-                        a.level,
-                        key.level,
-                        key.level.saturating_sub(1)
-                    ),
-                ));
-                continue;
-            }
-            let anc = key.ancestor(a.level);
-            let Some(ac) = contents.get(&anc) else {
-                ctx.push(Issue::LAYER_ANCESTOR_INVALID(
-                    format!("{epath}/level"),
-                    format!(
-                        "ancestor tile {}/{}/{}/{} has no readable content to adjust",
-                        anc.level, anc.x, anc.y, anc.z
-                    ),
-                ));
-                continue;
-            };
-            if a.deltas.len() as u64 != ac.splats {
-                ctx.push(Issue::LAYER_DELTA_COUNT_MISMATCH(
-                    format!("{apath}/count"),
-                    format!(
-                        "{} deltas but the ancestor layer {} holds {} splats",
-                        a.deltas.len(),
-                        ac.name,
-                        ac.splats
-                    ),
-                ));
-                continue;
-            }
-            if delta_values_ok(ctx, &apath, &a.deltas) {
-                carried.push((anc, &a.deltas));
-            }
-        }
-        for (target, d) in carried {
+        for (target, d) in layer_deltas(ctx, key, c, &contents) {
             let s = sums.entry(target).or_insert_with(|| vec![0.0; d.len()]);
             for (a, d) in s.iter_mut().zip(d) {
                 *a += d;
@@ -232,44 +120,175 @@ pub(crate) fn validate(ctx: &mut Ctx<'_>, file: &Path) {
         }
     }
     for (parent, s) in sums {
-        if let Some((i, v)) = s
-            .iter()
-            .enumerate()
-            .find(|(_, v)| **v < -1.0 - DELTA_SUM_TOLERANCE)
-        {
-            ctx.push(Issue::LAYER_DELTA_SUM_OUT_OF_RANGE(
-                contents[&parent].name.clone(),
-                format!("the deltas its descendant layers give splat {i} add up to {v} (below -1): it would be faded below zero"),
+        delta_sum_rules(ctx, &contents[&parent], &s);
+    }
+}
+
+/// The enhancement layer `c` on tile `key`: its extension, level and deltas checked; returns
+/// the deltas that pass, each with the tile it adjusts (the parent, then ancestors).
+fn layer_deltas<'c>(
+    ctx: &mut Ctx<'_>,
+    key: TileKey,
+    c: &'c Content,
+    contents: &BTreeMap<TileKey, Content>,
+) -> Vec<(TileKey, &'c [f32])> {
+    let ext = format!("{}#/meshes/*/primitives/*/extensions/{EXTENSION}", c.name);
+    let layer = match &c.layer {
+        Err(why @ GlbError::Invalid { path, .. }) if path.contains("/sparse") => {
+            ctx.push(Issue::LAYER_SPARSE_INVALID(
+                format!("{}#{path}", c.name),
+                why.to_string(),
             ));
+            return vec![];
         }
-        // Positive sums: with every layer drawn, o * (1 + sum) above 1 is capped (drawn at 1).
-        if s.iter().any(|v| *v > 0.0) {
-            let c = &contents[&parent];
-            let Some(tile) = std::fs::read(&c.path)
-                .ok()
-                .and_then(|b| splat2tiles_tiles::encode::read_tile_glb(&b).ok())
-            else {
-                continue;
-            };
-            let over: Vec<(usize, f32)> = tile
-                .splats
-                .opacities
-                .iter()
-                .zip(&s)
-                .map(|(o, d)| o * (1.0 + d))
-                .enumerate()
-                .filter(|(_, a)| *a > 1.0 + DELTA_SUM_TOLERANCE)
-                .collect();
-            if let Some(&(i, a)) = over.first() {
-                ctx.push(Issue::LAYER_OPACITY_ABOVE_ONE(
-                    c.name.clone(),
-                    format!(
-                        "{} splats reach an opacity above 1 with every descendant layer drawn (capped at 1), the first splat {i} at {a}",
-                        over.len()
-                    ),
-                ));
-            }
+        Err(why) => {
+            ctx.push(Issue::LAYER_EXTENSION_INVALID(
+                c.name.clone(),
+                why.to_string(),
+            ));
+            return vec![];
         }
+        Ok(None) => {
+            ctx.push(Issue::LAYER_EXTENSION_INVALID(
+                c.name.clone(),
+                format!("a content of a layered tileset without {EXTENSION}"),
+            ));
+            return vec![];
+        }
+        Ok(Some(l)) => l,
+    };
+    if layer.level != key.level {
+        ctx.push(Issue::LAYER_LEVEL_MISMATCH(
+            format!("{ext}/level"),
+            format!("level {} on a tile of level {}", layer.level, key.level),
+        ));
+    }
+    let Some(deltas) = &layer.parent_opacity_delta else {
+        ctx.push(Issue::LAYER_EXTENSION_INVALID(
+            ext,
+            "an enhancement layer needs parentOpacityDelta",
+        ));
+        return vec![];
+    };
+    let apath = format!(
+        "{}#{}",
+        c.name,
+        layer.delta_accessor_path.as_deref().unwrap_or("")
+    );
+    let Some(parent) = key.parent() else {
+        return vec![];
+    };
+    let Some(pc) = contents.get(&parent) else {
+        ctx.push(Issue::LAYER_PARENT_MISSING(
+            c.name.clone(),
+            format!(
+                "parent tile {}/{}/{}/{} has no readable content to adjust",
+                parent.level, parent.x, parent.y, parent.z
+            ),
+        ));
+        return vec![];
+    };
+    if deltas.len() as u64 != pc.splats {
+        ctx.push(Issue::LAYER_DELTA_COUNT_MISMATCH(
+            format!("{apath}/count"),
+            format!(
+                "{} deltas but the parent layer {} holds {} splats",
+                deltas.len(),
+                pc.name,
+                pc.splats
+            ),
+        ));
+        return vec![];
+    }
+    if !delta_values_ok(ctx, &apath, deltas) {
+        return vec![];
+    }
+    let mut carried = vec![(parent, deltas.as_slice())];
+    for (n, a) in layer.ancestor_opacity_deltas.iter().enumerate() {
+        let epath = format!("{ext}/ancestorOpacityDeltas/{n}");
+        let apath = format!("{}#{}", c.name, a.accessor_path);
+        if u64::from(a.level) + 1 >= u64::from(key.level) {
+            ctx.push(Issue::LAYER_ANCESTOR_INVALID(
+                format!("{epath}/level"),
+                format!(
+                    "ancestor level {} on a layer of level {}: must be below {} (the parent's deltas go in parentOpacityDelta)",
+                    a.level,
+                    key.level,
+                    key.level.saturating_sub(1)
+                ),
+            ));
+            continue;
+        }
+        let anc = key.ancestor(a.level);
+        let Some(ac) = contents.get(&anc) else {
+            ctx.push(Issue::LAYER_ANCESTOR_INVALID(
+                format!("{epath}/level"),
+                format!(
+                    "ancestor tile {}/{}/{}/{} has no readable content to adjust",
+                    anc.level, anc.x, anc.y, anc.z
+                ),
+            ));
+            continue;
+        };
+        if a.deltas.len() as u64 != ac.splats {
+            ctx.push(Issue::LAYER_DELTA_COUNT_MISMATCH(
+                format!("{apath}/count"),
+                format!(
+                    "{} deltas but the ancestor layer {} holds {} splats",
+                    a.deltas.len(),
+                    ac.name,
+                    ac.splats
+                ),
+            ));
+            continue;
+        }
+        if delta_values_ok(ctx, &apath, &a.deltas) {
+            carried.push((anc, &a.deltas));
+        }
+    }
+    carried
+}
+
+/// The summed deltas `s` that content `c`'s descendant layers give its splats: none may fade a
+/// splat below zero, and (with every layer drawn) none should raise one above an opacity of 1.
+fn delta_sum_rules(ctx: &mut Ctx<'_>, c: &Content, s: &[f32]) {
+    if let Some((i, v)) = s
+        .iter()
+        .enumerate()
+        .find(|(_, v)| **v < -1.0 - DELTA_SUM_TOLERANCE)
+    {
+        ctx.push(Issue::LAYER_DELTA_SUM_OUT_OF_RANGE(
+            c.name.clone(),
+            format!("the deltas its descendant layers give splat {i} add up to {v} (below -1): it would be faded below zero"),
+        ));
+    }
+    // Positive sums: with every layer drawn, o * (1 + sum) above 1 is capped (drawn at 1).
+    if !s.iter().any(|v| *v > 0.0) {
+        return;
+    }
+    let Some(tile) = std::fs::read(&c.path)
+        .ok()
+        .and_then(|b| splat2tiles_tiles::encode::read_tile_glb(&b).ok())
+    else {
+        return;
+    };
+    let over: Vec<(usize, f32)> = tile
+        .splats
+        .opacities
+        .iter()
+        .zip(s)
+        .map(|(o, d)| o * (1.0 + d))
+        .enumerate()
+        .filter(|(_, a)| *a > 1.0 + DELTA_SUM_TOLERANCE)
+        .collect();
+    if let Some(&(i, a)) = over.first() {
+        ctx.push(Issue::LAYER_OPACITY_ABOVE_ONE(
+            c.name.clone(),
+            format!(
+                "{} splats reach an opacity above 1 with every descendant layer drawn (capped at 1), the first splat {i} at {a}",
+                over.len()
+            ),
+        ));
     }
 }
 

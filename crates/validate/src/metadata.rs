@@ -173,119 +173,128 @@ pub(crate) fn validate_schema(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Schem
                     format!("property name '{pname}' is not an identifier"),
                 ));
             }
-            let mut prop = Prop::default();
-            match p.get("type").and_then(Value::as_str) {
-                Some(t) if TYPES.contains(&t) => prop.kind = t.to_string(),
-                Some(t) => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
-                    format!("{pp}/type"),
-                    format!("type '{t}' is not one of {TYPES:?}"),
-                )),
-                None => ctx.push(Issue::PROPERTY_MISSING(
-                    pp.clone(),
-                    "property 'type' is required",
-                )),
-            }
-            let numeric = matches!(
-                prop.kind.as_str(),
-                "SCALAR" | "VEC2" | "VEC3" | "VEC4" | "MAT2" | "MAT3" | "MAT4"
-            );
-            match p.get("componentType").and_then(Value::as_str) {
-                _ if prop.kind.is_empty() => {}
-                Some(c) if COMPONENTS.contains(&c) && numeric => prop.component = Some(c.into()),
-                Some(c) if COMPONENTS.contains(&c) => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
-                    format!("{pp}/componentType"),
-                    format!("componentType '{c}' is not allowed on type {}", prop.kind),
-                )),
-                Some(c) => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
-                    format!("{pp}/componentType"),
-                    format!("componentType '{c}' is not one of {COMPONENTS:?}"),
-                )),
-                None if numeric => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
-                    pp.clone(),
-                    format!("type {} requires a componentType", prop.kind),
-                )),
-                None => {}
-            }
-            match p.get("enumType") {
-                None if prop.kind == "ENUM" => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
-                    pp.clone(),
-                    "type ENUM requires enumType",
-                )),
-                Some(Value::String(e)) if prop.kind == "ENUM" => {
-                    if !schema.enums.contains_key(e) {
-                        ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
-                            format!("{pp}/enumType"),
-                            format!("enum '{e}' is not defined in the schema's enums"),
-                        ));
-                    }
-                    prop.enum_type = Some(e.clone());
-                }
-                Some(_) if prop.kind == "ENUM" => ctx.push(Issue::TYPE_MISMATCH(
-                    format!("{pp}/enumType"),
-                    "enumType must be a string",
-                )),
-                Some(_) => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
-                    format!("{pp}/enumType"),
-                    "enumType is only allowed on type ENUM",
-                )),
-                None => {}
-            }
-            prop.required = p.get("required").and_then(Value::as_bool).unwrap_or(false);
-            prop.normalized = p
-                .get("normalized")
-                .and_then(Value::as_bool)
-                .unwrap_or(false);
-            for (key, slot) in [
-                ("offset", &mut prop.offset),
-                ("scale", &mut prop.scale),
-                ("min", &mut prop.min),
-                ("max", &mut prop.max),
-                ("noData", &mut prop.no_data),
-            ] {
-                *slot = p.get(key).cloned();
-            }
-            prop.array = p.get("array").and_then(Value::as_bool).unwrap_or(false);
-            if let Some(c) = p.get("count") {
-                match c.as_u64() {
-                    Some(n) if n >= 2 && prop.array => prop.count = Some(n),
-                    Some(_) if !prop.array => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
-                        format!("{pp}/count"),
-                        "count is only allowed when array is true",
-                    )),
-                    _ => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
-                        format!("{pp}/count"),
-                        "count must be an integer >= 2",
-                    )),
-                }
-            }
-            if let Some(s) = p.get("semantic").and_then(Value::as_str) {
-                prop.semantic = Some(s.to_string());
-                if let Some(shape) = semantic_shape(s) {
-                    let float = matches!(prop.component.as_deref(), Some("FLOAT32" | "FLOAT64"));
-                    let ok = prop.kind == "SCALAR"
-                        && float
-                        && match shape {
-                            Some(n) => prop.array && prop.count == Some(n),
-                            None => !prop.array,
-                        };
-                    if !ok {
-                        let want = match shape {
-                            Some(n) => format!("a SCALAR FLOAT32/FLOAT64 array of count {n}"),
-                            None => "a single SCALAR FLOAT32/FLOAT64".to_string(),
-                        };
-                        ctx.push(Issue::METADATA_SEMANTIC_INVALID(
-                            format!("{pp}/semantic"),
-                            format!("semantic {s} requires {want}"),
-                        ));
-                    }
-                }
-            }
+            let prop = class_property(ctx, p, &pp, &schema.enums);
             super::entity::check_definition(ctx, &prop, &pp);
             props.insert(pname.clone(), prop);
         }
         schema.classes.insert(cname.clone(), props);
     }
     schema
+}
+
+/// One class property's definition (`type`, `componentType`, `enumType` against the schema's
+/// `enums`, `count`, `semantic`), read into a `Prop`.
+fn class_property(
+    ctx: &mut Ctx<'_>,
+    p: &Value,
+    pp: &str,
+    enums: &HashMap<String, Vec<String>>,
+) -> Prop {
+    let mut prop = Prop::default();
+    match p.get("type").and_then(Value::as_str) {
+        Some(t) if TYPES.contains(&t) => prop.kind = t.to_string(),
+        Some(t) => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+            format!("{pp}/type"),
+            format!("type '{t}' is not one of {TYPES:?}"),
+        )),
+        None => ctx.push(Issue::PROPERTY_MISSING(pp, "property 'type' is required")),
+    }
+    let numeric = matches!(
+        prop.kind.as_str(),
+        "SCALAR" | "VEC2" | "VEC3" | "VEC4" | "MAT2" | "MAT3" | "MAT4"
+    );
+    match p.get("componentType").and_then(Value::as_str) {
+        _ if prop.kind.is_empty() => {}
+        Some(c) if COMPONENTS.contains(&c) && numeric => prop.component = Some(c.into()),
+        Some(c) if COMPONENTS.contains(&c) => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+            format!("{pp}/componentType"),
+            format!("componentType '{c}' is not allowed on type {}", prop.kind),
+        )),
+        Some(c) => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+            format!("{pp}/componentType"),
+            format!("componentType '{c}' is not one of {COMPONENTS:?}"),
+        )),
+        None if numeric => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+            pp,
+            format!("type {} requires a componentType", prop.kind),
+        )),
+        None => {}
+    }
+    match p.get("enumType") {
+        None if prop.kind == "ENUM" => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+            pp,
+            "type ENUM requires enumType",
+        )),
+        Some(Value::String(e)) if prop.kind == "ENUM" => {
+            if !enums.contains_key(e) {
+                ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+                    format!("{pp}/enumType"),
+                    format!("enum '{e}' is not defined in the schema's enums"),
+                ));
+            }
+            prop.enum_type = Some(e.clone());
+        }
+        Some(_) if prop.kind == "ENUM" => ctx.push(Issue::TYPE_MISMATCH(
+            format!("{pp}/enumType"),
+            "enumType must be a string",
+        )),
+        Some(_) => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+            format!("{pp}/enumType"),
+            "enumType is only allowed on type ENUM",
+        )),
+        None => {}
+    }
+    prop.required = p.get("required").and_then(Value::as_bool).unwrap_or(false);
+    prop.normalized = p
+        .get("normalized")
+        .and_then(Value::as_bool)
+        .unwrap_or(false);
+    for (key, slot) in [
+        ("offset", &mut prop.offset),
+        ("scale", &mut prop.scale),
+        ("min", &mut prop.min),
+        ("max", &mut prop.max),
+        ("noData", &mut prop.no_data),
+    ] {
+        *slot = p.get(key).cloned();
+    }
+    prop.array = p.get("array").and_then(Value::as_bool).unwrap_or(false);
+    if let Some(c) = p.get("count") {
+        match c.as_u64() {
+            Some(n) if n >= 2 && prop.array => prop.count = Some(n),
+            Some(_) if !prop.array => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+                format!("{pp}/count"),
+                "count is only allowed when array is true",
+            )),
+            _ => ctx.push(Issue::CLASS_PROPERTY_TYPE_ERROR(
+                format!("{pp}/count"),
+                "count must be an integer >= 2",
+            )),
+        }
+    }
+    if let Some(s) = p.get("semantic").and_then(Value::as_str) {
+        prop.semantic = Some(s.to_string());
+        if let Some(shape) = semantic_shape(s) {
+            let float = matches!(prop.component.as_deref(), Some("FLOAT32" | "FLOAT64"));
+            let ok = prop.kind == "SCALAR"
+                && float
+                && match shape {
+                    Some(n) => prop.array && prop.count == Some(n),
+                    None => !prop.array,
+                };
+            if !ok {
+                let want = match shape {
+                    Some(n) => format!("a SCALAR FLOAT32/FLOAT64 array of count {n}"),
+                    None => "a single SCALAR FLOAT32/FLOAT64".to_string(),
+                };
+                ctx.push(Issue::METADATA_SEMANTIC_INVALID(
+                    format!("{pp}/semantic"),
+                    format!("semantic {s} requires {want}"),
+                ));
+            }
+        }
+    }
+    prop
 }
 
 /// Decodes `n` numbers of a numeric component type from little-endian bytes.

@@ -9,8 +9,8 @@ use std::collections::BTreeMap;
 
 use glam::{DMat3, DMat4, DQuat, DVec3};
 use splat2tiles_tiles::encode::gltf::{
-    AccessorType, ComponentType, Gltf, KHR_GAUSSIAN_SPLATTING, KHR_GAUSSIAN_SPLATTING_SPZ_2,
-    KhrGaussianSplatting, MODE_DEFAULT, MODE_POINTS, Primitive,
+    Accessor, AccessorType, BufferView, ComponentType, Gltf, KHR_GAUSSIAN_SPLATTING,
+    KHR_GAUSSIAN_SPLATTING_SPZ_2, KhrGaussianSplatting, MODE_DEFAULT, MODE_POINTS, Primitive,
 };
 
 const SPLAT: &str = "KHR_gaussian_splatting:";
@@ -260,6 +260,95 @@ fn check_attribute_set(
     }
 }
 
+/// Whether attribute `attr` may have element type `n` of component type `comp` (normalized
+/// `nz`; `quantized`: `KHR_mesh_quantization` is used).
+fn type_allowed(
+    attr: &str,
+    n: AccessorType,
+    comp: ComponentType,
+    nz: bool,
+    quantized: bool,
+) -> bool {
+    use AccessorType as T;
+    use ComponentType as C;
+    match attr {
+        "POSITION" => n == T::Vec3 && (comp == C::F32 || (quantized && comp != C::U32)),
+        ROTATION => n == T::Vec4 && (comp == C::F32 || (nz && matches!(comp, C::I8 | C::I16))),
+        SCALE => n == T::Vec3 && (comp == C::F32 || matches!(comp, C::U8 | C::U16)),
+        OPACITY => n == T::Scalar && (comp == C::F32 || (nz && matches!(comp, C::U8 | C::U16))),
+        "COLOR_0" => {
+            matches!(n, T::Vec3 | T::Vec4)
+                && (comp == C::F32 || (nz && matches!(comp, C::U8 | C::U16)))
+        }
+        a if a.starts_with("KHR_gaussian_splatting:SH_") => n == T::Vec3 && comp == C::F32 && !nz,
+        _ => true,
+    }
+}
+
+/// The accessor's place in its bufferView (`ap`: the accessor's issue path): stride at least an
+/// element, offsets aligned to the component and to 4 bytes, every element inside the view;
+/// returns the start in the buffer and the stride.
+fn view_layout(
+    ctx: &mut Ctx<'_>,
+    ap: &str,
+    acc: &Accessor,
+    view: &BufferView,
+    bv: u32,
+    attr: &str,
+    comp: ComponentType,
+) -> Option<(u64, usize)> {
+    let elem = comp.size() * acc.kind.components();
+    let stride = view.byte_stride.map_or(elem, |s| s as usize);
+    if stride < elem {
+        ctx.push(Issue::ACCESSOR_OUT_OF_BOUNDS(
+            ap.to_string(),
+            format!("byteStride {stride} is smaller than the {elem}-byte element"),
+        ));
+        return None;
+    }
+    let start = view.byte_offset + acc.byte_offset;
+    if !start.is_multiple_of(comp.size() as u64)
+        || !acc.byte_offset.is_multiple_of(comp.size() as u64)
+    {
+        ctx.push(Issue::ACCESSOR_ALIGNMENT_INVALID(
+            format!("{ap}/byteOffset"),
+            format!(
+                "offset {start} in the buffer is not a multiple of the {}-byte component",
+                comp.size()
+            ),
+        ));
+        return None;
+    }
+    if !start.is_multiple_of(4) || !stride.is_multiple_of(4) {
+        ctx.push(Issue::ACCESSOR_ALIGNMENT_INVALID(
+            format!("{ap}/byteOffset"),
+            format!(
+                "vertex attribute {attr} starts at buffer offset {start} with stride {stride}: both must be multiples of 4"
+            ),
+        ));
+        return None;
+    }
+    let need = if acc.count == 0 {
+        Some(0)
+    } else {
+        (acc.count - 1)
+            .checked_mul(stride as u64)
+            .and_then(|x| x.checked_add(elem as u64))
+            .and_then(|x| x.checked_add(acc.byte_offset))
+    };
+    if need.is_none_or(|need| need > view.byte_length) {
+        ctx.push(Issue::ACCESSOR_OUT_OF_BOUNDS(
+            ap.to_string(),
+            format!(
+                "{} elements of {elem} bytes (stride {stride}) from byteOffset {} do not fit the {}-byte bufferView {bv}",
+                acc.count, acc.byte_offset, view.byte_length
+            ),
+        ));
+        return None;
+    }
+    Some((start, stride))
+}
+
 /// Each attribute's accessor: type allowed for the attribute, counts agree, bytes inside the
 /// bufferView and aligned, min/max on POSITION; returns the readable ones (`None`: no
 /// bufferView, implicit zeros).
@@ -310,23 +399,8 @@ fn check_accessors<'a>(
             ));
             continue;
         };
-        use AccessorType as T;
-        use ComponentType as C;
         let (n, nz) = (acc.kind, acc.normalized);
-        let allowed = match attr.as_str() {
-            "POSITION" => n == T::Vec3 && (comp == C::F32 || (quantized && comp != C::U32)),
-            ROTATION => n == T::Vec4 && (comp == C::F32 || (nz && matches!(comp, C::I8 | C::I16))),
-            SCALE => n == T::Vec3 && (comp == C::F32 || matches!(comp, C::U8 | C::U16)),
-            OPACITY => n == T::Scalar && (comp == C::F32 || (nz && matches!(comp, C::U8 | C::U16))),
-            "COLOR_0" => {
-                matches!(n, T::Vec3 | T::Vec4)
-                    && (comp == C::F32 || (nz && matches!(comp, C::U8 | C::U16)))
-            }
-            a if a.starts_with("KHR_gaussian_splatting:SH_") => {
-                n == T::Vec3 && comp == C::F32 && !nz
-            }
-            _ => true,
-        };
+        let allowed = type_allowed(attr, n, comp, nz, quantized);
         if !allowed {
             ctx.push(Issue::ACCESSOR_TYPE_INVALID(
                 at(&ap),
@@ -369,53 +443,9 @@ fn check_accessors<'a>(
             ));
             continue;
         }
-        let elem = comp.size() * n.components();
-        let stride = view.byte_stride.map_or(elem, |s| s as usize);
-        if stride < elem {
-            ctx.push(Issue::ACCESSOR_OUT_OF_BOUNDS(
-                at(&ap),
-                format!("byteStride {stride} is smaller than the {elem}-byte element"),
-            ));
+        let Some((start, stride)) = view_layout(ctx, &at(&ap), acc, view, bv, attr, comp) else {
             continue;
-        }
-        let start = view.byte_offset + acc.byte_offset;
-        if start % comp.size() as u64 != 0 || acc.byte_offset % comp.size() as u64 != 0 {
-            ctx.push(Issue::ACCESSOR_ALIGNMENT_INVALID(
-                at(&format!("{ap}/byteOffset")),
-                format!(
-                    "offset {start} in the buffer is not a multiple of the {}-byte component",
-                    comp.size()
-                ),
-            ));
-            continue;
-        }
-        if start % 4 != 0 || stride % 4 != 0 {
-            ctx.push(Issue::ACCESSOR_ALIGNMENT_INVALID(
-                at(&format!("{ap}/byteOffset")),
-                format!(
-                    "vertex attribute {attr} starts at buffer offset {start} with stride {stride}: both must be multiples of 4"
-                ),
-            ));
-            continue;
-        }
-        let need = if acc.count == 0 {
-            Some(0)
-        } else {
-            (acc.count - 1)
-                .checked_mul(stride as u64)
-                .and_then(|x| x.checked_add(elem as u64))
-                .and_then(|x| x.checked_add(acc.byte_offset))
         };
-        if need.is_none_or(|need| need > view.byte_length) {
-            ctx.push(Issue::ACCESSOR_OUT_OF_BOUNDS(
-                at(&ap),
-                format!(
-                    "{} elements of {elem} bytes (stride {stride}) from byteOffset {} do not fit the {}-byte bufferView {bv}",
-                    acc.count, acc.byte_offset, view.byte_length
-                ),
-            ));
-            continue;
-        }
         let Some(Some(buf)) = buffers.get(view.buffer as usize) else {
             continue;
         };
