@@ -67,11 +67,113 @@ pub fn merge_parts(
     let scheme = layout.scheme;
     let opts = plan.options(memory_limit, progress);
     let degree = plan.file.input.sh_degree;
-    let codec = Codec::new(degree);
     let octree = scheme == Scheme::Octree;
     let max_level = layout.depth();
 
-    // Every part file, checked against the plan, in part order.
+    let (files, radius) = read_parts(&plan, plan_path, parts, opts.lod.enabled)?;
+    let staging = Staging::prepare(output)?;
+    let dir = staging.path().to_path_buf();
+    let relocate = |e: ConvertError| e.relocated(&dir, output);
+    let mut report = MergeReport::default();
+    for (_, part_dir) in &files {
+        link_tree(&part_dir.join("tiles"), &dir.join("tiles"), &mut report).map_err(relocate)?;
+    }
+
+    // The tree: every part's leaves, then every parent with content.
+    let mut leaves: HashMap<TileKey, TreeTile> = HashMap::new();
+    for (f, _) in &files {
+        for t in &f.leaves {
+            let k = arr_key(t.key, max_level, octree).expect("checked");
+            leaves.insert(k, t.leaf());
+        }
+    }
+    let mut conv = ConvertReport {
+        sh_degree: degree,
+        up_axis: plan.file.options.up_axis.clone(),
+        ..Default::default()
+    };
+    conv.levels = leaves.keys().map(|k| k.level + 1).max().unwrap_or(1);
+    conv.splats_out = leaves.values().map(|t| t.splat_count as usize).sum();
+    let mut tree = build_tree(leaves);
+    let unit_roots: Vec<(TileKey, u32)> = files
+        .iter()
+        .flat_map(|(f, _)| f.units.iter())
+        .map(|u| {
+            (
+                arr_key(u.key, max_level, octree).expect("checked"),
+                u.deepest,
+            )
+        })
+        .collect();
+    let mut top_keys: HashSet<TileKey> = HashSet::new();
+    if let Some(r) = radius.filter(|_| opts.lod.enabled) {
+        let cx = RegionCtx {
+            layout,
+            opts: &opts,
+            dir: &dir,
+            nn_step: 1,
+            write_leaves: true,
+            must_split: None,
+        };
+        let parents =
+            top_levels(&cx, &files, &unit_roots, r, degree, &mut report).map_err(relocate)?;
+        for (k, p) in &parents.1 {
+            if p.content.is_some() {
+                top_keys.insert(*k);
+            }
+        }
+        let mut all = parents.0;
+        all.extend(parents.1);
+        apply_parents(&mut tree, all, &mut conv);
+    }
+    finish_tree(&mut tree);
+    report.tiles = tree.len();
+    if opts.variants.deferred_utility() {
+        merge_utilities(
+            &mut tree,
+            &top_keys,
+            &unit_roots,
+            &dir,
+            scheme,
+            &opts.variants,
+        )
+        .map_err(relocate)?;
+    }
+    let subtree_levels = opts.subtree_levels_for(scheme, conv.levels);
+    write_subtrees(&tree, scheme, subtree_levels, &dir).map_err(relocate)?;
+    let tileset = tileset_json(
+        &tree,
+        layout,
+        conv.levels,
+        subtree_levels,
+        &conv,
+        &plan.file.input.name,
+        &opts.variants,
+    );
+    write_tileset_json(&tileset, &dir).map_err(relocate)?;
+    report.bytes = super::part::folder_bytes(&dir);
+    report.notes = staging.commit()?;
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// The part files with their folders, in part order.
+type PartFiles = Vec<(PartFile, PathBuf)>;
+
+/// LOD parents by key.
+type Parents = BTreeMap<TileKey, WrittenParent>;
+
+/// Every part file of `parts`, checked against the plan, in part order, and the leaf radius
+/// they were built with (the same in every part with units; needed with `lod`).
+fn read_parts(
+    plan: &Plan,
+    plan_path: &Path,
+    parts: &[PathBuf],
+    lod: bool,
+) -> Result<(PartFiles, Option<f64>), ConvertError> {
+    let n = plan.file.parts;
+    let (scheme, max_level) = (plan.layout.scheme, plan.layout.depth());
+    let octree = scheme == Scheme::Octree;
     let mut files: Vec<Option<(PartFile, PathBuf)>> = (0..n).map(|_| None).collect();
     for dir in parts {
         let path = dir.join(PART_FILE);
@@ -133,7 +235,7 @@ pub fn merge_parts(
         .find(|(f, _)| !f.units.is_empty())
         .and_then(|(f, _)| f.leaf_radius)
         .map(|r| r.0);
-    if opts.lod.enabled {
+    if lod {
         for (f, dir) in &files {
             if !f.units.is_empty()
                 && f.leaf_radius.map(|r| r.0.to_bits()) != radius.map(f64::to_bits)
@@ -147,136 +249,85 @@ pub fn merge_parts(
         }
     }
 
-    if opts.lod.enabled && radius.is_none() {
+    if lod && radius.is_none() {
         return Err(bad(plan_path, None, "no part records a leaf radius"));
     }
-    let staging = Staging::prepare(output)?;
-    let dir = staging.path().to_path_buf();
-    let relocate = |e: ConvertError| e.relocated(&dir, output);
-    let mut report = MergeReport::default();
-    for (_, part_dir) in &files {
-        link_tree(&part_dir.join("tiles"), &dir.join("tiles"), &mut report).map_err(relocate)?;
-    }
+    Ok((files, radius))
+}
 
-    // The tree: every part's leaves, then every parent with content.
-    let mut leaves: HashMap<TileKey, TreeTile> = HashMap::new();
-    for (f, _) in &files {
-        for t in &f.leaves {
-            let k = arr_key(t.key, max_level, octree).expect("checked");
-            leaves.insert(k, t.leaf());
+/// The levels above the units, built from the units' contents (`ROOTS_FILE` of each part) as
+/// the single-machine top stage builds them; returns the parts' parents and the new ones.
+fn top_levels(
+    cx: &RegionCtx<'_>,
+    files: &[(PartFile, PathBuf)],
+    unit_roots: &[(TileKey, u32)],
+    r: f64,
+    degree: u8,
+    report: &mut MergeReport,
+) -> Result<(Parents, Parents), ConvertError> {
+    let (max_level, octree) = (cx.layout.depth(), cx.layout.scheme == Scheme::Octree);
+    let codec = Codec::new(degree);
+    let spill = cx.dir.join(SPILL_DIR);
+    std::fs::create_dir_all(&spill).map_err(io_err(&spill, "creating folder"))?;
+    let store = ContentStore::create(spill.join("contents.bin"), codec)?;
+    for (f, part_dir) in files {
+        load_roots(
+            f,
+            &part_dir.join(ROOTS_FILE),
+            codec,
+            max_level,
+            octree,
+            &store,
+        )?;
+    }
+    let roots: Vec<RootContent> = unit_roots
+        .iter()
+        .map(|&(key, deepest)| RootContent { key, deepest })
+        .collect();
+    let top = super::top::build_top(&roots, &store, degree, r, cx, &|_| false)?;
+    drop(store);
+    report.top_tiles = top.len();
+    let mut parents: BTreeMap<TileKey, WrittenParent> = BTreeMap::new();
+    for (f, _) in files {
+        for t in &f.parents {
+            parents.insert(
+                arr_key(t.key, max_level, octree).expect("checked"),
+                t.parent(),
+            );
         }
     }
-    let mut conv = ConvertReport {
-        sh_degree: degree,
-        up_axis: plan.file.options.up_axis.clone(),
-        ..Default::default()
-    };
-    conv.levels = leaves.keys().map(|k| k.level + 1).max().unwrap_or(1);
-    conv.splats_out = leaves.values().map(|t| t.splat_count as usize).sum();
-    let mut tree = build_tree(leaves);
-    let unit_roots: Vec<(TileKey, u32)> = files
+    std::fs::remove_dir_all(&spill).map_err(io_err(&spill, "removing spill files"))?;
+    Ok((parents, top))
+}
+
+/// Utilities of the tiles the parts could not measure: the tiles above them and unit roots that
+/// are leaves (viewed at their parent's error, known only now).
+fn merge_utilities(
+    tree: &mut BTreeMap<TileKey, TreeTile>,
+    top_keys: &HashSet<TileKey>,
+    unit_roots: &[(TileKey, u32)],
+    dir: &Path,
+    scheme: Scheme,
+    variants: &crate::variants::VariantOptions,
+) -> Result<(), ConvertError> {
+    let tiles: Vec<_> = tree
         .iter()
-        .flat_map(|(f, _)| f.units.iter())
-        .map(|u| {
-            (
-                arr_key(u.key, max_level, octree).expect("checked"),
-                u.deepest,
-            )
+        .filter(|(k, t)| {
+            top_keys.contains(k) || (t.is_leaf && unit_roots.iter().any(|(u, _)| u == *k))
+        })
+        .filter_map(|(k, t)| {
+            let curve = t.facts.as_ref()?.utility_curve.as_ref();
+            Some((*k, view_error(tree, *k), curve))
         })
         .collect();
-    let mut top_keys: HashSet<TileKey> = HashSet::new();
-    if let Some(r) = radius.filter(|_| opts.lod.enabled) {
-        let spill = dir.join(SPILL_DIR);
-        std::fs::create_dir_all(&spill)
-            .map_err(io_err(&spill, "creating folder"))
-            .map_err(relocate)?;
-        let store = ContentStore::create(spill.join("contents.bin"), codec).map_err(relocate)?;
-        for (f, part_dir) in &files {
-            load_roots(
-                f,
-                &part_dir.join(ROOTS_FILE),
-                codec,
-                max_level,
-                octree,
-                &store,
-            )?;
-        }
-        let roots: Vec<RootContent> = unit_roots
-            .iter()
-            .map(|&(key, deepest)| RootContent { key, deepest })
-            .collect();
-        let cx = RegionCtx {
-            layout,
-            opts: &opts,
-            dir: &dir,
-            nn_step: 1,
-            write_leaves: true,
-            must_split: None,
-        };
-        let top =
-            super::top::build_top(&roots, &store, degree, r, &cx, &|_| false).map_err(relocate)?;
-        drop(store);
-        report.top_tiles = top.len();
-        let mut parents: BTreeMap<TileKey, WrittenParent> = BTreeMap::new();
-        for (f, _) in &files {
-            for t in &f.parents {
-                parents.insert(
-                    arr_key(t.key, max_level, octree).expect("checked"),
-                    t.parent(),
-                );
-            }
-        }
-        for (k, p) in top {
-            if p.content.is_some() {
-                top_keys.insert(k);
-            }
-            parents.insert(k, p);
-        }
-        apply_parents(&mut tree, parents, &mut conv);
-        std::fs::remove_dir_all(&spill)
-            .map_err(io_err(&spill, "removing spill files"))
-            .map_err(relocate)?;
-    }
-    finish_tree(&mut tree);
-    report.tiles = tree.len();
-    if opts.variants.deferred_utility() {
-        // The parts measured their tiles; left: the tiles above them and unit roots that are
-        // leaves (viewed at their parent's error, known only now).
-        let tiles: Vec<_> = tree
-            .iter()
-            .filter(|(k, t)| {
-                top_keys.contains(k) || (t.is_leaf && unit_roots.iter().any(|(u, _)| u == *k))
-            })
-            .filter_map(|(k, t)| {
-                let curve = t.facts.as_ref()?.utility_curve.as_ref();
-                Some((*k, view_error(&tree, *k), curve))
-            })
-            .collect();
-        let us = crate::variants::measure::measure_utilities(&dir, scheme, &tiles, &opts.variants)
-            .map_err(|e| relocate(e.into()))?;
-        let keys: Vec<TileKey> = tiles.iter().map(|t| t.0).collect();
-        for (k, u) in keys.iter().zip(us) {
-            if let Some(f) = tree.get_mut(k).and_then(|t| t.facts.as_mut()) {
-                f.variant_utility = u;
-            }
+    let us = crate::variants::measure::measure_utilities(dir, scheme, &tiles, variants)?;
+    let keys: Vec<TileKey> = tiles.iter().map(|t| t.0).collect();
+    for (k, u) in keys.iter().zip(us) {
+        if let Some(f) = tree.get_mut(k).and_then(|t| t.facts.as_mut()) {
+            f.variant_utility = u;
         }
     }
-    let subtree_levels = opts.subtree_levels_for(scheme, conv.levels);
-    write_subtrees(&tree, scheme, subtree_levels, &dir).map_err(relocate)?;
-    let tileset = tileset_json(
-        &tree,
-        layout,
-        conv.levels,
-        subtree_levels,
-        &conv,
-        &plan.file.input.name,
-        &opts.variants,
-    );
-    write_tileset_json(&tileset, &dir).map_err(relocate)?;
-    report.bytes = super::part::folder_bytes(&dir);
-    report.notes = staging.commit()?;
-    report.seconds = start.elapsed().as_secs_f64();
-    Ok(report)
+    Ok(())
 }
 
 /// Puts the units' contents of one part (`roots.bin`, in the order of its units) into `store`.

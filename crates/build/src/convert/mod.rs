@@ -249,40 +249,9 @@ fn run(
         });
     }
     let groups = if counts.finite <= budget.cap {
-        // The whole scene is one region in memory: the splats kept by the frame pass, or the
-        // scene already read (moved, not copied, when every splat is finite).
-        let s = match input {
-            Input::Chunked(_) => held,
-            Input::Memory(scene) if counts.dropped == 0 => scene.splats,
-            Input::Memory(scene) => {
-                let finite: Vec<usize> = (0..scene.splats.len())
-                    .filter(|&i| scene.splats.is_finite(i))
-                    .collect();
-                scene.splats.select(&finite)
-            }
-        };
-        if let Some(req) = &opts.partition {
-            let unit: Vec<[f64; 3]> = s.positions.par_iter().map(|p| layout.unit(*p)).collect();
-            let world: Vec<glam::DVec3> = s
-                .positions
-                .par_iter()
-                .map(|p| layout.to_tileset(*p))
-                .collect();
-            let plan = crate::partition::plan::split_plan(
-                req,
-                layout.scheme,
-                layout.depth(),
-                &unit,
-                &world,
-                opts.max_splats_per_tile as u64,
-            )
-            .map_err(|why| ConvertError::Partition {
-                file: name.to_string(),
-                why,
-            })?;
-            split_plan = Some(plan);
-        }
-        vec![spill::whole(s, counts.finite)]
+        let (group, plan) = whole_scene(input, held, &counts, &layout, opts, name)?;
+        split_plan = plan;
+        vec![group]
     } else {
         drop(held);
         let groups = spiller.split(&input, counts.finite).map_err(relocate)?;
@@ -328,61 +297,20 @@ fn run(
     report
         .stage_seconds
         .push(("leaves", start.elapsed().as_secs_f64()));
-    report.levels = leaves.keys().map(|k| k.level + 1).max().unwrap_or(1);
-    report.content_tiles = leaves.len();
-    report.contents = leaves
-        .iter()
-        .filter_map(|(k, t)| t.facts.clone().map(|f| (*k, f)))
-        .collect();
-    report.contents.sort_by_key(|(k, _)| *k);
-    report.splats_out = leaves.values().map(|t| t.splat_count as usize).sum();
-    report.bytes = leaves.values().map(|t| t.bytes).sum();
+    report_leaves(&leaves, &mut report);
     let mut tree = build_tree(leaves);
 
     // Region stage, pass 2, and the top stage: LOD parents.
     if opts.lod.enabled {
-        let t0 = Instant::now();
-        let r = opts.lod.radius.unwrap_or_else(|| {
-            default_radius(
-                &mut spacing,
-                layout.tile_edge(report.levels.saturating_sub(1)),
-                layout.tile_edge(0),
-            )
-        });
-        let lod_bar =
-            crate::progress::begin(&opts.progress, "building LOD", Some(built.len() as u64));
-        let mut parents = std::collections::BTreeMap::new();
-        let mut roots = Vec::new();
-        let spill = dir.join(SPILL_DIR);
-        std::fs::create_dir_all(&spill)
-            .map_err(io_err(&spill, "creating folder"))
+        let lod = Lod {
+            cx: &cx,
+            format: &format,
+            codec,
+            degree,
+            start,
+        };
+        lod.build(built, &mut spacing, &mut tree, &mut report)
             .map_err(relocate)?;
-        let store =
-            store::ContentStore::create(spill.join("contents.bin"), codec).map_err(relocate)?;
-        read_ahead(
-            built,
-            |g| region::load_group(g, &format),
-            |loaded| region::build_parents(loaded, r, &store, &cx),
-            |(p, rc)| {
-                parents.extend(p);
-                roots.extend(rc);
-                lod_bar.advance(1);
-            },
-        )
-        .map_err(relocate)?;
-        lod_bar.finish();
-        report
-            .stage_seconds
-            .push(("parents", start.elapsed().as_secs_f64()));
-        parents
-            .extend(top::build_top(&roots, &store, degree, r, &cx, &|_| false).map_err(relocate)?);
-        drop(store);
-        report
-            .stage_seconds
-            .push(("top", start.elapsed().as_secs_f64()));
-        apply_parents(&mut tree, parents, &mut report);
-        report.lod_radius = r;
-        report.lod_seconds = t0.elapsed().as_secs_f64();
     } else {
         drop(built);
     }
@@ -410,26 +338,7 @@ fn run(
     }
 
     // Tileset stage.
-    let subtree_levels = opts.subtree_levels_for(layout.scheme, report.levels);
-    let (subtrees, subtree_bytes) =
-        write_subtrees(&tree, layout.scheme, subtree_levels, &dir).map_err(relocate)?;
-    report.subtrees = subtrees;
-    report.bytes += subtree_bytes;
-    let tileset = tileset_json(
-        &tree,
-        &layout,
-        report.levels,
-        subtree_levels,
-        &report,
-        name,
-        &opts.variants,
-    );
-    let mut tileset = tileset;
-    if opts.layers {
-        tileset.root.refine = Some("ADD".into());
-    }
-    report.bytes += write_tileset_json(&tileset, &dir).map_err(relocate)?;
-
+    write_tileset(&tree, &layout, opts, &dir, &mut report, name).map_err(relocate)?;
     report.notes = staging.commit()?;
     report
         .stage_seconds
@@ -440,6 +349,159 @@ fn run(
     report.partition = split_plan;
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// What the leaves put on the report: levels, content tiles and their facts, splats, bytes.
+fn report_leaves(leaves: &HashMap<TileKey, TreeTile>, report: &mut ConvertReport) {
+    report.levels = leaves.keys().map(|k| k.level + 1).max().unwrap_or(1);
+    report.content_tiles = leaves.len();
+    report.contents = leaves
+        .iter()
+        .filter_map(|(k, t)| t.facts.clone().map(|f| (*k, f)))
+        .collect();
+    report.contents.sort_by_key(|(k, _)| *k);
+    report.splats_out = leaves.values().map(|t| t.splat_count as usize).sum();
+    report.bytes = leaves.values().map(|t| t.bytes).sum();
+}
+
+/// The whole scene as one region in memory: the splats kept by the frame pass, or the scene
+/// already read (moved, not copied, when every splat is finite); with `--partition`, the split
+/// plan over them.
+fn whole_scene(
+    input: Input,
+    held: Splats,
+    counts: &Counts,
+    layout: &Layout,
+    opts: &ConvertOptions,
+    name: &str,
+) -> Result<(spill::Group, Option<crate::partition::plan::SplitPlan>), ConvertError> {
+    let s = match input {
+        Input::Chunked(_) => held,
+        Input::Memory(scene) if counts.dropped == 0 => scene.splats,
+        Input::Memory(scene) => {
+            let finite: Vec<usize> = (0..scene.splats.len())
+                .filter(|&i| scene.splats.is_finite(i))
+                .collect();
+            scene.splats.select(&finite)
+        }
+    };
+    let mut split_plan = None;
+    if let Some(req) = &opts.partition {
+        let unit: Vec<[f64; 3]> = s.positions.par_iter().map(|p| layout.unit(*p)).collect();
+        let world: Vec<glam::DVec3> = s
+            .positions
+            .par_iter()
+            .map(|p| layout.to_tileset(*p))
+            .collect();
+        let plan = crate::partition::plan::split_plan(
+            req,
+            layout.scheme,
+            layout.depth(),
+            &unit,
+            &world,
+            opts.max_splats_per_tile as u64,
+        )
+        .map_err(|why| ConvertError::Partition {
+            file: name.to_string(),
+            why,
+        })?;
+        split_plan = Some(plan);
+    }
+    Ok((spill::whole(s, counts.finite), split_plan))
+}
+
+/// The LOD stages: parents of each group's leaves (region pass 2), then the top levels above
+/// the regions.
+struct Lod<'a> {
+    cx: &'a RegionCtx<'a>,
+    format: &'a SpillFormat,
+    codec: Codec,
+    degree: u8,
+    /// When the conversion started (the report's stage times count from it).
+    start: Instant,
+}
+
+impl Lod<'_> {
+    /// Builds every LOD parent and puts it in `tree`.
+    fn build(
+        &self,
+        built: Vec<GroupLeaves>,
+        spacing: &mut [f64],
+        tree: &mut std::collections::BTreeMap<TileKey, TreeTile>,
+        report: &mut ConvertReport,
+    ) -> Result<(), ConvertError> {
+        let (cx, opts) = (self.cx, self.cx.opts);
+        let t0 = Instant::now();
+        let r = opts.lod.radius.unwrap_or_else(|| {
+            default_radius(
+                spacing,
+                cx.layout.tile_edge(report.levels.saturating_sub(1)),
+                cx.layout.tile_edge(0),
+            )
+        });
+        let lod_bar =
+            crate::progress::begin(&opts.progress, "building LOD", Some(built.len() as u64));
+        let mut parents = std::collections::BTreeMap::new();
+        let mut roots = Vec::new();
+        let spill = cx.dir.join(SPILL_DIR);
+        std::fs::create_dir_all(&spill).map_err(io_err(&spill, "creating folder"))?;
+        let store = store::ContentStore::create(spill.join("contents.bin"), self.codec)?;
+        read_ahead(
+            built,
+            |g| region::load_group(g, self.format),
+            |loaded| region::build_parents(loaded, r, &store, cx),
+            |(p, rc)| {
+                parents.extend(p);
+                roots.extend(rc);
+                lod_bar.advance(1);
+            },
+        )?;
+        lod_bar.finish();
+        report
+            .stage_seconds
+            .push(("parents", self.start.elapsed().as_secs_f64()));
+        parents.extend(top::build_top(&roots, &store, self.degree, r, cx, &|_| {
+            false
+        })?);
+        drop(store);
+        report
+            .stage_seconds
+            .push(("top", self.start.elapsed().as_secs_f64()));
+        apply_parents(tree, parents, report);
+        report.lod_radius = r;
+        report.lod_seconds = t0.elapsed().as_secs_f64();
+        Ok(())
+    }
+}
+
+/// Writes the subtrees, then `tileset.json` (which describes the report so far), into `dir`;
+/// their count and bytes go on the report.
+fn write_tileset(
+    tree: &std::collections::BTreeMap<TileKey, TreeTile>,
+    layout: &Layout,
+    opts: &ConvertOptions,
+    dir: &Path,
+    report: &mut ConvertReport,
+    name: &str,
+) -> Result<(), ConvertError> {
+    let subtree_levels = opts.subtree_levels_for(layout.scheme, report.levels);
+    let (subtrees, subtree_bytes) = write_subtrees(tree, layout.scheme, subtree_levels, dir)?;
+    report.subtrees = subtrees;
+    report.bytes += subtree_bytes;
+    let mut tileset = tileset_json(
+        tree,
+        layout,
+        report.levels,
+        subtree_levels,
+        report,
+        name,
+        &opts.variants,
+    );
+    if opts.layers {
+        tileset.root.refine = Some("ADD".into());
+    }
+    report.bytes += write_tileset_json(&tileset, dir)?;
+    Ok(())
 }
 
 /// The frame pass: every splat once, for the non-finite policy, the bounds and the

@@ -237,22 +237,8 @@ pub fn convert_part(
 ) -> Result<PartReport, ConvertError> {
     let start = Instant::now();
     let plan = Plan::load(plan_path)?;
-    if part >= plan.file.parts {
-        return Err(bad(
-            plan_path,
-            None,
-            format!(
-                "part {part}: the plan has parts 0 to {}",
-                plan.file.parts - 1
-            ),
-        ));
-    }
     let opts = plan.options(memory_limit, progress);
-    let r = match (phase, opts.lod.enabled, opts.lod.radius) {
-        (PartPhase::Build, true, Some(r)) => Some(r),
-        (PartPhase::Build, true, None) => Some(radius_from_samples(&plan, samples)?),
-        _ => None,
-    };
+    let r = leaf_radius(&plan, plan_path, part, phase, &opts, samples)?;
     let input = open_input(input_path, memory_limit)?;
     plan.check_input(input_path, &input)?;
     let name = input_path.display().to_string();
@@ -326,13 +312,7 @@ pub fn convert_part(
             deepest,
             spacing: spacing.into_iter().map(F).collect(),
         };
-        let json = serde_json::to_vec(&file).expect("samples serialise");
-        remove_spill(&dir).map_err(relocate)?;
-        let path = dir.join(SAMPLES_FILE);
-        std::fs::write(&path, &json)
-            .map_err(io_err(&path, "writing"))
-            .map_err(relocate)?;
-        report.bytes = json.len() as u64;
+        report.bytes = write_part_json(&dir, SAMPLES_FILE, &file).map_err(relocate)?;
         report.notes = staging.commit()?;
         report.seconds = start.elapsed().as_secs_f64();
         return Ok(report);
@@ -348,77 +328,18 @@ pub fn convert_part(
         .collect();
     report.content_tiles = leaves.len();
     let mut tree = build_tree(leaves.into_iter().collect());
-    // The deepest leaf level below each unit.
-    let mut unit_deepest: HashMap<TileKey, u32> = HashMap::new();
-    for k in tree.iter().filter(|(_, t)| t.is_leaf).map(|(k, _)| *k) {
-        let mut a = Some(k);
-        while let Some(u) = a {
-            if unit_set.contains(&u) {
-                let e = unit_deepest.entry(u).or_insert(k.level);
-                *e = (*e).max(k.level);
-                break;
-            }
-            a = u.parent();
-        }
-    }
+    let unit_deepest = unit_deepest(&tree, &unit_set);
     let mut parent_recs = Vec::new();
-    let mut unit_out = Vec::with_capacity(units.len());
+    let unit_out;
     if let Some(r) = r {
-        let spill = dir.join(SPILL_DIR);
-        std::fs::create_dir_all(&spill)
-            .map_err(io_err(&spill, "creating folder"))
-            .map_err(relocate)?;
-        let codec = Codec::new(degree);
-        let store = ContentStore::create(spill.join("contents.bin"), codec).map_err(relocate)?;
-        let mut parents: BTreeMap<TileKey, WrittenParent> = BTreeMap::new();
-        let mut roots: Vec<RootContent> = Vec::new();
-        read_ahead(
-            built,
-            |g| region::load_group(g, &format),
-            |loaded| region::build_parents(loaded, r, &store, &cx),
-            |(p, rc)| {
-                parents.extend(p);
-                roots.extend(rc);
-            },
-        )
-        .map_err(relocate)?;
-        let in_unit = |k: TileKey| unit_set.contains(&k);
-        parents.extend(
-            super::top::build_top(&roots, &store, degree, r, &cx, &in_unit).map_err(relocate)?,
-        );
-        // The units' contents, in order, for the levels the merge builds above them.
-        let path = dir.join(super::part::ROOTS_FILE);
-        let f = std::fs::File::create(&path)
-            .map_err(io_err(&path, "creating"))
-            .map_err(relocate)?;
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
-        for &u in &units {
-            let Some(dp) = unit_deepest.get(&u).copied() else {
-                continue;
-            };
-            let (s, radius) = store.get(u).map_err(relocate)?.ok_or_else(|| {
-                relocate(bad(
-                    &path,
-                    None,
-                    format!("unit {u:?} has no stored content"),
-                ))
-            })?;
-            codec
-                .write_all(&s, &vec![0u64; s.len()], &mut w)
-                .map_err(io_err(&path, "writing"))
-                .map_err(relocate)?;
-            unit_out.push(UnitOut {
-                key: key_arr(u),
-                deepest: dp,
-                content: s.len() as u64,
-                radius: F(radius),
-            });
-        }
-        w.into_inner()
-            .map_err(|e| e.into_error())
-            .map_err(io_err(&path, "writing"))
-            .map_err(relocate)?;
-        drop(store);
+        let units = Units {
+            keys: &units,
+            set: &unit_set,
+            deepest: &unit_deepest,
+        };
+        let (parents, out) =
+            part_parents(&cx, built, &format, r, degree, &units).map_err(relocate)?;
+        unit_out = out;
         for (k, p) in &parents {
             if let Some((facts, lo, hi)) = &p.content {
                 parent_recs.push(TileRec::new(*k, *lo, *hi, p.error, facts));
@@ -429,16 +350,19 @@ pub fn convert_part(
         report.content_tiles += sink.contents.len();
     } else {
         drop(built);
-        for &u in &units {
-            if let Some(dp) = unit_deepest.get(&u).copied() {
-                unit_out.push(UnitOut {
+        // Without LOD the units carry no content.
+        unit_out = units
+            .iter()
+            .filter_map(|&u| {
+                let dp = unit_deepest.get(&u).copied()?;
+                Some(UnitOut {
                     key: key_arr(u),
                     deepest: dp,
                     content: 0,
                     radius: F(0.0),
-                });
-            }
-        }
+                })
+            })
+            .collect();
     }
     remove_spill(&dir).map_err(relocate)?;
 
@@ -447,23 +371,8 @@ pub fn convert_part(
     // measures it).
     if opts.variants.deferred_utility() {
         finish_tree(&mut tree);
-        let tiles: Vec<(TileKey, f64, Option<LossCurve>)> = leaf_recs
-            .iter()
-            .chain(&parent_recs)
-            .map(|t| (key_of(t.key), t.utility_curve.as_ref()))
-            .filter(|(k, _)| !(unit_set.contains(k) && tree[k].is_leaf))
-            .map(|(k, c)| (k, view_error(&tree, k), c.and_then(CurveRec::curve)))
-            .collect();
-        let refs: Vec<_> = tiles.iter().map(|(k, e, c)| (*k, *e, c.as_ref())).collect();
-        let us =
-            crate::variants::measure::measure_utilities(&dir, layout.scheme, &refs, &opts.variants)
-                .map_err(|e| relocate(e.into()))?;
-        let by_key: HashMap<TileKey, [f32; 4]> = tiles.iter().map(|t| t.0).zip(us).collect();
-        for t in leaf_recs.iter_mut().chain(parent_recs.iter_mut()) {
-            if let Some(u) = by_key.get(&key_of(t.key)) {
-                t.variant_utility = u.map(|u| F(u as f64));
-            }
-        }
+        let recs = (&mut leaf_recs[..], &mut parent_recs[..]);
+        part_utilities(&tree, recs, &unit_set, &dir, layout.scheme, &opts).map_err(relocate)?;
     }
     let file = PartFile {
         splat2tiles_part: PART_VERSION,
@@ -474,15 +383,159 @@ pub fn convert_part(
         leaves: leaf_recs,
         parents: parent_recs,
     };
-    let json = serde_json::to_vec(&file).expect("part file serialises");
-    let path = dir.join(PART_FILE);
-    std::fs::write(&path, &json)
-        .map_err(io_err(&path, "writing"))
-        .map_err(relocate)?;
+    write_part_json(&dir, PART_FILE, &file).map_err(relocate)?;
     report.bytes = folder_bytes(&dir);
     report.notes = staging.commit()?;
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// The leaf radius the build phase of `part` uses (from the plan or every part's samples;
+/// `None` in the samples phase or without LOD), once `part` is checked against the plan.
+fn leaf_radius(
+    plan: &Plan,
+    plan_path: &Path,
+    part: usize,
+    phase: PartPhase,
+    opts: &super::ConvertOptions,
+    samples: &[PathBuf],
+) -> Result<Option<f64>, ConvertError> {
+    if part >= plan.file.parts {
+        return Err(bad(
+            plan_path,
+            None,
+            format!(
+                "part {part}: the plan has parts 0 to {}",
+                plan.file.parts - 1
+            ),
+        ));
+    }
+    Ok(match (phase, opts.lod.enabled, opts.lod.radius) {
+        (PartPhase::Build, true, Some(r)) => Some(r),
+        (PartPhase::Build, true, None) => Some(radius_from_samples(plan, samples)?),
+        _ => None,
+    })
+}
+
+/// Writes `value` as JSON to `dir/name`; returns its bytes.
+fn write_part_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> Result<u64, ConvertError> {
+    let json = serde_json::to_vec(value).expect("part records serialise");
+    remove_spill(dir)?;
+    let path = dir.join(name);
+    std::fs::write(&path, &json).map_err(io_err(&path, "writing"))?;
+    Ok(json.len() as u64)
+}
+
+/// The deepest leaf level below each unit of the part.
+fn unit_deepest(
+    tree: &BTreeMap<TileKey, TreeTile>,
+    unit_set: &HashSet<TileKey>,
+) -> HashMap<TileKey, u32> {
+    let mut deepest: HashMap<TileKey, u32> = HashMap::new();
+    for k in tree.iter().filter(|(_, t)| t.is_leaf).map(|(k, _)| *k) {
+        let mut a = Some(k);
+        while let Some(u) = a {
+            if unit_set.contains(&u) {
+                let e = deepest.entry(u).or_insert(k.level);
+                *e = (*e).max(k.level);
+                break;
+            }
+            a = u.parent();
+        }
+    }
+    deepest
+}
+
+/// The part's units: in plan order, as a set, and the deepest leaf level below each.
+struct Units<'a> {
+    keys: &'a [TileKey],
+    set: &'a HashSet<TileKey>,
+    deepest: &'a HashMap<TileKey, u32>,
+}
+
+/// The LOD parents of the part's groups up to its units (leaf radius `r`), and the units'
+/// contents written in order to `ROOTS_FILE` for the levels the merge builds above them.
+fn part_parents(
+    cx: &RegionCtx<'_>,
+    built: Vec<GroupLeaves>,
+    format: &SpillFormat,
+    r: f64,
+    degree: u8,
+    units: &Units<'_>,
+) -> Result<(BTreeMap<TileKey, WrittenParent>, Vec<UnitOut>), ConvertError> {
+    let spill = cx.dir.join(SPILL_DIR);
+    std::fs::create_dir_all(&spill).map_err(io_err(&spill, "creating folder"))?;
+    let codec = Codec::new(degree);
+    let store = ContentStore::create(spill.join("contents.bin"), codec)?;
+    let mut parents: BTreeMap<TileKey, WrittenParent> = BTreeMap::new();
+    let mut roots: Vec<RootContent> = Vec::new();
+    read_ahead(
+        built,
+        |g| region::load_group(g, format),
+        |loaded| region::build_parents(loaded, r, &store, cx),
+        |(p, rc)| {
+            parents.extend(p);
+            roots.extend(rc);
+        },
+    )?;
+    let in_unit = |k: TileKey| units.set.contains(&k);
+    parents.extend(super::top::build_top(
+        &roots, &store, degree, r, cx, &in_unit,
+    )?);
+    let path = cx.dir.join(ROOTS_FILE);
+    let f = std::fs::File::create(&path).map_err(io_err(&path, "creating"))?;
+    let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+    let mut unit_out = Vec::with_capacity(units.keys.len());
+    for &u in units.keys {
+        let Some(dp) = units.deepest.get(&u).copied() else {
+            continue;
+        };
+        let (s, radius) = store
+            .get(u)?
+            .ok_or_else(|| bad(&path, None, format!("unit {u:?} has no stored content")))?;
+        codec
+            .write_all(&s, &vec![0u64; s.len()], &mut w)
+            .map_err(io_err(&path, "writing"))?;
+        unit_out.push(UnitOut {
+            key: key_arr(u),
+            deepest: dp,
+            content: s.len() as u64,
+            radius: F(radius),
+        });
+    }
+    w.into_inner()
+        .map_err(|e| e.into_error())
+        .map_err(io_err(&path, "writing"))?;
+    Ok((parents, unit_out))
+}
+
+/// Utilities measured at the tiles' final switching distances: final inside the part for
+/// every tile but a unit root that is a leaf (its parent is above the part; the merge
+/// measures it).
+fn part_utilities(
+    tree: &BTreeMap<TileKey, TreeTile>,
+    (leaf_recs, parent_recs): (&mut [TileRec], &mut [TileRec]),
+    unit_set: &HashSet<TileKey>,
+    dir: &Path,
+    scheme: splat2tiles_tiles::tiling::Scheme,
+    opts: &super::ConvertOptions,
+) -> Result<(), ConvertError> {
+    let tiles: Vec<(TileKey, f64, Option<LossCurve>)> = leaf_recs
+        .iter()
+        .chain(parent_recs.iter())
+        .map(|t| (key_of(t.key), t.utility_curve.as_ref()))
+        .filter(|(k, _)| !(unit_set.contains(k) && tree[k].is_leaf))
+        .map(|(k, c)| (k, view_error(tree, k), c.and_then(CurveRec::curve)))
+        .collect();
+    let refs: Vec<_> = tiles.iter().map(|(k, e, c)| (*k, *e, c.as_ref())).collect();
+    let us = crate::variants::measure::measure_utilities(dir, scheme, &refs, &opts.variants)?;
+    let by_key: HashMap<TileKey, [f32; 4]> = tiles.iter().map(|t| t.0).zip(us).collect();
+    for t in leaf_recs.iter_mut().chain(parent_recs.iter_mut()) {
+        if let Some(u) = by_key.get(&key_of(t.key)) {
+            t.variant_utility = u.map(|u| F(u as f64));
+        }
+    }
+    Ok(())
 }
 
 /// A key of a part file this process wrote.
