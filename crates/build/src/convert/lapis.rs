@@ -19,6 +19,7 @@ use crate::output::Staging;
 use crate::variants::{Variant, content_uri};
 use splat2tiles_core::frame::geo::Geodetic;
 use splat2tiles_core::frame::{UpAxis, source_to_tileset};
+use splat2tiles_core::splat::Splats;
 use splat2tiles_io::{self as io, Scene};
 use splat2tiles_tiles::layers::build::LayerError;
 use splat2tiles_tiles::layers::glb::add_layer_v2;
@@ -138,6 +139,300 @@ fn cell_distance(u: [f64; 3], k: TileKey, octree: bool) -> f64 {
     (u[0] - c[0]).powi(2) + (u[1] - c[1]).powi(2) + dz * dz
 }
 
+/// The levels read: each level's opacities (coarse to fine) and the last (finest) scene.
+struct Levels {
+    opacities: Vec<Vec<f32>>,
+    last: Scene,
+}
+
+impl Levels {
+    /// Reads `inputs` in order. Only the previous level's scene is kept while reading (for the
+    /// prefix rule); of the others, their opacities.
+    fn read(inputs: &[PathBuf], memory_limit: u64) -> Result<Levels, ConvertError> {
+        let mut opacities: Vec<Vec<f32>> = Vec::with_capacity(inputs.len());
+        let mut prev: Option<Scene> = None;
+        for (k, f) in inputs.iter().enumerate() {
+            let s = io::read_path_limited(f, memory_limit)?;
+            if let Some(i) = (0..s.splats.len()).find(|&i| !s.splats.is_finite(i)) {
+                return Err(refuse(
+                    f,
+                    format!(
+                        "splat {i} ({}) has a NaN or infinite value: an imported level cannot drop splats (later levels index them)",
+                        s.locator.describe(i)
+                    ),
+                ));
+            }
+            if let Some(p) = &prev {
+                check_prefix(p, &s, &inputs[k - 1], f)?;
+            }
+            opacities.push(s.splats.opacities.clone());
+            prev = Some(s);
+        }
+        let (Some(last), Some(last_file)) = (prev, inputs.last()) else {
+            return Err(ConvertError::Empty {
+                file: "import-lapisgs".into(),
+                why: ": no level files given".into(),
+            });
+        };
+        if last.splats.is_empty() {
+            return Err(ConvertError::Empty {
+                file: last_file.display().to_string(),
+                why: String::new(),
+            });
+        }
+        Ok(Levels { opacities, last })
+    }
+
+    /// Splats of each level.
+    fn counts(&self) -> Vec<usize> {
+        self.opacities.iter().map(Vec::len).collect()
+    }
+}
+
+/// Where each splat goes: its own level's cell, the tiles' contents, and placeholders.
+struct Cells {
+    /// Each splat's own level (the first level that has it).
+    own: Vec<usize>,
+    /// Splats of each tile with content.
+    contents: BTreeMap<TileKey, Vec<usize>>,
+    /// Each splat's tile.
+    home: Vec<TileKey>,
+    /// A parent without content gets one copy (opacity 0) of a child's splat.
+    placeholders: BTreeMap<TileKey, usize>,
+    /// Index of every splat in its tile's content.
+    index: Vec<usize>,
+    /// Layers of each level under each tile, for deltas whose own cell has no layer.
+    below: HashMap<(TileKey, u32), Vec<TileKey>>,
+}
+
+impl Cells {
+    fn new(layout: &Layout, s: &Splats, counts: &[usize]) -> Cells {
+        let n = s.len();
+        let own: Vec<usize> = (0..n)
+            .map(|i| {
+                counts
+                    .iter()
+                    .position(|&c| i < c)
+                    .expect("i < the last count")
+            })
+            .collect();
+        let mut contents: BTreeMap<TileKey, Vec<usize>> = BTreeMap::new();
+        let mut home: Vec<TileKey> = Vec::with_capacity(n);
+        for (i, (p, &l)) in s.positions.iter().zip(&own).enumerate() {
+            let k = cell(layout, *p, l as u32);
+            contents.entry(k).or_default().push(i);
+            home.push(k);
+        }
+        let mut placeholders: BTreeMap<TileKey, usize> = BTreeMap::new();
+        for level in 1..counts.len() as u32 {
+            let keys: Vec<TileKey> = contents
+                .keys()
+                .chain(placeholders.keys())
+                .filter(|k| k.level == level)
+                .copied()
+                .collect();
+            for k in keys {
+                let p = k.parent().expect("level > 0");
+                if !contents.contains_key(&p) && !placeholders.contains_key(&p) {
+                    let from = contents
+                        .get(&k)
+                        .map(|v| v[0])
+                        .unwrap_or_else(|| placeholders[&k]);
+                    placeholders.insert(p, from);
+                }
+            }
+        }
+        // Placeholders come after nothing: they are alone in their tile.
+        let mut index = vec![0usize; n];
+        for ids in contents.values() {
+            for (j, &i) in ids.iter().enumerate() {
+                index[i] = j;
+            }
+        }
+        let mut below: HashMap<(TileKey, u32), Vec<TileKey>> = HashMap::new();
+        for k in contents.keys().chain(placeholders.keys()) {
+            for l in 0..k.level {
+                below.entry((k.ancestor(l), k.level)).or_default().push(*k);
+            }
+        }
+        Cells {
+            own,
+            contents,
+            home,
+            placeholders,
+            index,
+            below,
+        }
+    }
+
+    /// Splats in tile `k` (a placeholder's one, or none).
+    fn tile_len(&self, k: &TileKey) -> usize {
+        self.contents
+            .get(k)
+            .map_or_else(|| usize::from(self.placeholders.contains_key(k)), Vec::len)
+    }
+
+    /// Whether tile `k` has a layer.
+    fn has(&self, k: &TileKey) -> bool {
+        self.contents.contains_key(k) || self.placeholders.contains_key(k)
+    }
+
+    /// Every tile with a layer.
+    fn keys(&self) -> Vec<TileKey> {
+        self.contents
+            .keys()
+            .chain(self.placeholders.keys())
+            .copied()
+            .collect()
+    }
+}
+
+/// Opacity deltas per carrying layer, per ancestor level, dense over that ancestor's splats.
+type Carried = BTreeMap<TileKey, BTreeMap<u32, Vec<f32>>>;
+
+/// The deltas: each opacity change between consecutive levels, relative to the splat's stored
+/// opacity, carried by the layer of the level that changes it (or the nearest one below).
+fn carry_deltas(
+    layout: &Layout,
+    cells: &Cells,
+    levels: &Levels,
+    report: &mut LapisReport,
+) -> Carried {
+    let (s, opacities) = (&levels.last.splats, &levels.opacities);
+    let octree = layout.scheme == splat2tiles_tiles::tiling::Scheme::Octree;
+    let mut carried = Carried::new();
+    for k in 1..opacities.len() {
+        for i in 0..opacities[k - 1].len() {
+            let (o_prev, o_k) = (opacities[k - 1][i], opacities[k][i]);
+            if o_prev == o_k {
+                continue;
+            }
+            let stored = opacities[cells.own[i]][i];
+            if stored <= 0.0 {
+                report.dropped += 1;
+                continue;
+            }
+            let h = cells.home[i];
+            let mut target = cell(layout, s.positions[i], k as u32);
+            if !cells.has(&target) {
+                let u = layout.unit(s.positions[i]);
+                let Some(t) = cells.below.get(&(h, k as u32)).and_then(|v| {
+                    v.iter().copied().min_by(|a, b| {
+                        cell_distance(u, *a, octree).total_cmp(&cell_distance(u, *b, octree))
+                    })
+                }) else {
+                    report.dropped += 1;
+                    continue;
+                };
+                target = t;
+                report.rerouted += 1;
+            }
+            let d = ((f64::from(o_k) - f64::from(o_prev)) / f64::from(stored)) as f32;
+            let len = cells.tile_len(&h);
+            carried
+                .entry(target)
+                .or_default()
+                .entry(h.level)
+                .or_insert_with(|| vec![0.0; len])[cells.index[i]] += d;
+            report.deltas += 1;
+        }
+    }
+    carried
+}
+
+/// Geometric error of a level-k layer: the 3-sigma radius (median over level k+1's new splats)
+/// of the detail that refining brings, and at least twice level k+1's error (LapisGS trains
+/// each level at half the resolution of the next, so each level is refined twice as far away
+/// as the next one).
+fn level_errors(s: &Splats, counts: &[usize]) -> Vec<f64> {
+    let levels = counts.len();
+    let mut level_error = vec![0.0f64; levels];
+    for (k, e) in level_error.iter_mut().enumerate().take(levels - 1) {
+        let mut r: Vec<f32> = (counts[k]..counts[k + 1])
+            .map(|i| 3.0 * s.scales[i].iter().fold(0.0f32, |m, &v| m.max(v)))
+            .collect();
+        r.sort_by(f32::total_cmp);
+        *e = r.get(r.len() / 2).map_or(0.0, |&v| f64::from(v)).max(1e-9);
+    }
+    for k in (0..levels.saturating_sub(2)).rev() {
+        level_error[k] = level_error[k].max(2.0 * level_error[k + 1]);
+    }
+    level_error
+}
+
+/// Writes every layer's glb into `dir` (its splats at their own level's opacity, then the
+/// layer extension with its deltas); returns the finished tree.
+fn write_layers(
+    layout: &Layout,
+    cells: &Cells,
+    levels: &Levels,
+    carried: &Carried,
+    dir: &Path,
+    opts: &ConvertOptions,
+) -> Result<BTreeMap<TileKey, TreeTile>, ConvertError> {
+    let (s, opacities) = (&levels.last.splats, &levels.opacities);
+    let level_error = level_errors(s, &levels.counts());
+    let mut tiles: HashMap<TileKey, TreeTile> = HashMap::new();
+    let keys = cells.keys();
+    let parents: std::collections::HashSet<TileKey> =
+        keys.iter().filter_map(|k| k.parent()).collect();
+    for k in keys {
+        let tile = match cells.contents.get(&k) {
+            Some(ids) => {
+                let mut t = s.select(ids);
+                for (j, &i) in ids.iter().enumerate() {
+                    t.opacities[j] = opacities[cells.own[i]][i];
+                }
+                t
+            }
+            None => {
+                let mut t = s.select(&[cells.placeholders[&k]]);
+                t.opacities[0] = 0.0;
+                t
+            }
+        };
+        let (lo, hi, mut facts) = region::write_centred(layout, k, &tile, dir, opts, false)?;
+        let path = dir.join(content_uri(layout.scheme, k, Variant::Best));
+        let bytes = std::fs::read(&path).map_err(io_err(&path, "reading"))?;
+        let mut parent = None;
+        let mut anc: Vec<(u32, &[f32])> = vec![];
+        if let Some(p) = k.parent() {
+            parent = Some(vec![0.0f32; cells.tile_len(&p)]);
+            if let Some(c) = carried.get(&k) {
+                for (&j, d) in c {
+                    if j + 1 == k.level {
+                        parent = Some(d.clone());
+                    } else {
+                        anc.push((j, d));
+                    }
+                }
+            }
+        }
+        let layered = add_layer_v2(&bytes, k.level, parent.as_deref(), &anc).map_err(|source| {
+            LayerError::Glb {
+                path: path.clone(),
+                source,
+            }
+        })?;
+        std::fs::write(&path, &layered).map_err(io_err(&path, "writing"))?;
+        let size = layered.len() as u64;
+        let old = facts.variant_bytes[Variant::Best.index()] as u64;
+        facts.variant_bytes[Variant::Best.index()] = u32::try_from(size).map_err(|_| {
+            LayerError::Unsupported(format!("tile {k:?}: layered content over 4 GiB"))
+        })?;
+        facts.bytes = (facts.bytes + size).saturating_sub(old);
+        let mut t = TreeTile::leaf(lo, hi, facts);
+        if parents.contains(&k) {
+            t.is_leaf = false;
+            t.error = level_error[k.level as usize];
+        }
+        tiles.insert(k, t);
+    }
+    let mut tree = build_tree(tiles);
+    finish_tree(&mut tree);
+    Ok(tree)
+}
+
 /// Imports LapisGS levels `inputs` (coarse to fine) into a layered tileset at `output`
 /// (atomically: nothing is left there on error). Uses `opts`' frame (up axis, heading, origin),
 /// scheme, subtree levels, memory limit and variants (Best only).
@@ -153,42 +448,11 @@ pub fn import_lapisgs(
         )
         .into());
     }
-    let Some(last_file) = inputs.last() else {
-        return Err(ConvertError::Empty {
-            file: "import-lapisgs".into(),
-            why: ": no level files given".into(),
-        });
-    };
-    // Only the previous level's scene is kept while reading (for the prefix rule); of the
-    // others, their opacities.
-    let mut opacities: Vec<Vec<f32>> = Vec::with_capacity(inputs.len());
-    let mut prev: Option<Scene> = None;
-    for (k, f) in inputs.iter().enumerate() {
-        let s = io::read_path_limited(f, opts.memory_limit)?;
-        if let Some(i) = (0..s.splats.len()).find(|&i| !s.splats.is_finite(i)) {
-            return Err(refuse(
-                f,
-                format!(
-                    "splat {i} ({}) has a NaN or infinite value: an imported level cannot drop splats (later levels index them)",
-                    s.locator.describe(i)
-                ),
-            ));
-        }
-        if let Some(p) = &prev {
-            check_prefix(p, &s, &inputs[k - 1], f)?;
-        }
-        opacities.push(s.splats.opacities.clone());
-        prev = Some(s);
-    }
-    let levels = opacities.len();
-    let last = prev.expect("at least one level");
-    if last.splats.is_empty() {
-        return Err(ConvertError::Empty {
-            file: last_file.display().to_string(),
-            why: String::new(),
-        });
-    }
-    let counts: Vec<usize> = opacities.iter().map(Vec::len).collect();
+    let read = Levels::read(inputs, opts.memory_limit)?;
+    let last_file = inputs.last().expect("Levels::read refuses no inputs");
+    let counts = read.counts();
+    let levels = counts.len();
+    let last = &read.last;
     let up = opts.up_axis.unwrap_or_else(|| {
         last.format
             .default_up_axis()
@@ -214,203 +478,28 @@ pub fn import_lapisgs(
             ),
         ));
     }
-    let octree = layout.scheme == splat2tiles_tiles::tiling::Scheme::Octree;
     let s = &last.splats;
     let n = s.len();
-    // Each splat's own level, its tile, and its stored opacity (in its own level's file).
-    let own: Vec<usize> = (0..n)
-        .map(|i| {
-            counts
-                .iter()
-                .position(|&c| i < c)
-                .expect("i < the last count")
-        })
-        .collect();
-    let mut contents: BTreeMap<TileKey, Vec<usize>> = BTreeMap::new();
-    let mut home: Vec<TileKey> = Vec::with_capacity(n);
-    for (i, (p, &l)) in s.positions.iter().zip(&own).enumerate() {
-        let k = cell(&layout, *p, l as u32);
-        contents.entry(k).or_default().push(i);
-        home.push(k);
-    }
-    // Placeholders: a parent without content gets one copy (opacity 0) of a child's splat.
-    let mut placeholders: BTreeMap<TileKey, usize> = BTreeMap::new();
-    for level in 1..levels as u32 {
-        let keys: Vec<TileKey> = contents
-            .keys()
-            .chain(placeholders.keys())
-            .filter(|k| k.level == level)
-            .copied()
-            .collect();
-        for k in keys {
-            let p = k.parent().expect("level > 0");
-            if !contents.contains_key(&p) && !placeholders.contains_key(&p) {
-                let from = contents
-                    .get(&k)
-                    .map(|v| v[0])
-                    .unwrap_or_else(|| placeholders[&k]);
-                placeholders.insert(p, from);
-            }
-        }
-    }
-    // Index of every splat in its tile's content (placeholders come after nothing: they are
-    // alone in their tile).
-    let mut index = vec![0usize; n];
-    for ids in contents.values() {
-        for (j, &i) in ids.iter().enumerate() {
-            index[i] = j;
-        }
-    }
-    let tile_len = |k: &TileKey| {
-        contents
-            .get(k)
-            .map_or_else(|| usize::from(placeholders.contains_key(k)), Vec::len)
-    };
-    let has = |k: &TileKey| contents.contains_key(k) || placeholders.contains_key(k);
-    // Layers of each level under each tile, for deltas whose own cell has no layer.
-    let mut below: HashMap<(TileKey, u32), Vec<TileKey>> = HashMap::new();
-    for k in contents.keys().chain(placeholders.keys()) {
-        for l in 0..k.level {
-            below.entry((k.ancestor(l), k.level)).or_default().push(*k);
-        }
-    }
-    // Deltas: per carrying layer, per ancestor level, dense over that ancestor's splats.
-    let mut carried: BTreeMap<TileKey, BTreeMap<u32, Vec<f32>>> = BTreeMap::new();
+    let cells = Cells::new(&layout, s, &counts);
     let mut report = LapisReport {
         level_splats: counts.clone(),
         scheme: layout.scheme.as_str().to_string(),
-        placeholders: placeholders.len(),
+        placeholders: cells.placeholders.len(),
         ..Default::default()
     };
-    for k in 1..levels {
-        for i in 0..counts[k - 1] {
-            let (o_prev, o_k) = (opacities[k - 1][i], opacities[k][i]);
-            if o_prev == o_k {
-                continue;
-            }
-            let stored = opacities[own[i]][i];
-            if stored <= 0.0 {
-                report.dropped += 1;
-                continue;
-            }
-            let h = home[i];
-            let mut target = cell(&layout, s.positions[i], k as u32);
-            if !has(&target) {
-                let u = layout.unit(s.positions[i]);
-                let Some(t) = below.get(&(h, k as u32)).and_then(|v| {
-                    v.iter().copied().min_by(|a, b| {
-                        cell_distance(u, *a, octree).total_cmp(&cell_distance(u, *b, octree))
-                    })
-                }) else {
-                    report.dropped += 1;
-                    continue;
-                };
-                target = t;
-                report.rerouted += 1;
-            }
-            let d = ((f64::from(o_k) - f64::from(o_prev)) / f64::from(stored)) as f32;
-            let len = tile_len(&h);
-            carried
-                .entry(target)
-                .or_default()
-                .entry(h.level)
-                .or_insert_with(|| vec![0.0; len])[index[i]] += d;
-            report.deltas += 1;
-        }
-    }
+    let carried = carry_deltas(&layout, &cells, &read, &mut report);
 
     let staging = Staging::prepare(output)?;
     let dir = staging.path().to_path_buf();
     let relocate = |e: ConvertError| e.relocated(&dir, output);
-    let result = (|| -> Result<(BTreeMap<TileKey, TreeTile>, u32), ConvertError> {
-        // Geometric error of a level-k layer: the 3-sigma radius (median over level k+1's new
-        // splats) of the detail that refining brings, and at least twice level k+1's error.
-        let mut level_error = vec![0.0f64; levels];
-        for (k, e) in level_error.iter_mut().enumerate().take(levels - 1) {
-            let mut r: Vec<f32> = (counts[k]..counts[k + 1])
-                .map(|i| 3.0 * s.scales[i].iter().fold(0.0f32, |m, &v| m.max(v)))
-                .collect();
-            r.sort_by(f32::total_cmp);
-            *e = r.get(r.len() / 2).map_or(0.0, |&v| f64::from(v)).max(1e-9);
-        }
-        // At least twice the next level's: LapisGS trains each level at half the resolution
-        // of the next, so each level is refined twice as far away as the next one.
-        for k in (0..levels.saturating_sub(2)).rev() {
-            level_error[k] = level_error[k].max(2.0 * level_error[k + 1]);
-        }
-        let mut tiles: HashMap<TileKey, TreeTile> = HashMap::new();
-        let keys: Vec<TileKey> = contents
-            .keys()
-            .chain(placeholders.keys())
-            .copied()
-            .collect();
-        let parents: std::collections::HashSet<TileKey> =
-            keys.iter().filter_map(|k| k.parent()).collect();
-        for k in keys {
-            let tile = match contents.get(&k) {
-                Some(ids) => {
-                    let mut t = s.select(ids);
-                    for (j, &i) in ids.iter().enumerate() {
-                        t.opacities[j] = opacities[own[i]][i];
-                    }
-                    t
-                }
-                None => {
-                    let mut t = s.select(&[placeholders[&k]]);
-                    t.opacities[0] = 0.0;
-                    t
-                }
-            };
-            let (lo, hi, mut facts) = region::write_centred(&layout, k, &tile, &dir, opts, false)?;
-            let path = dir.join(content_uri(layout.scheme, k, Variant::Best));
-            let bytes = std::fs::read(&path).map_err(io_err(&path, "reading"))?;
-            let mut parent = None;
-            let mut anc: Vec<(u32, &[f32])> = vec![];
-            if let Some(p) = k.parent() {
-                parent = Some(vec![0.0f32; tile_len(&p)]);
-                if let Some(c) = carried.get(&k) {
-                    for (&j, d) in c {
-                        if j + 1 == k.level {
-                            parent = Some(d.clone());
-                        } else {
-                            anc.push((j, d));
-                        }
-                    }
-                }
-            }
-            let layered =
-                add_layer_v2(&bytes, k.level, parent.as_deref(), &anc).map_err(|source| {
-                    LayerError::Glb {
-                        path: path.clone(),
-                        source,
-                    }
-                })?;
-            std::fs::write(&path, &layered).map_err(io_err(&path, "writing"))?;
-            let size = layered.len() as u64;
-            let old = facts.variant_bytes[Variant::Best.index()] as u64;
-            facts.variant_bytes[Variant::Best.index()] = u32::try_from(size).map_err(|_| {
-                LayerError::Unsupported(format!("tile {k:?}: layered content over 4 GiB"))
-            })?;
-            facts.bytes = (facts.bytes + size).saturating_sub(old);
-            let mut t = TreeTile::leaf(lo, hi, facts);
-            if parents.contains(&k) {
-                t.is_leaf = false;
-                t.error = level_error[k.level as usize];
-            }
-            tiles.insert(k, t);
-        }
-        let mut tree = build_tree(tiles);
-        finish_tree(&mut tree);
-        let subtree_levels = opts.subtree_levels_for(layout.scheme, levels as u32);
-        Ok((tree, subtree_levels))
-    })();
-    let (tree, subtree_levels) = result.map_err(relocate)?;
+    let tree = write_layers(&layout, &cells, &read, &carried, &dir, opts).map_err(relocate)?;
+    let subtree_levels = opts.subtree_levels_for(layout.scheme, levels as u32);
     let (_, subtree_bytes) =
         write_subtrees(&tree, layout.scheme, subtree_levels, &dir).map_err(relocate)?;
     let content_bytes: u64 = tree.values().map(|t| t.bytes).sum();
     let convert_report = ConvertReport {
         splats_in: n,
-        splats_out: n + placeholders.len(),
+        splats_out: n + cells.placeholders.len(),
         sh_degree: s.sh_degree,
         up_axis: up.to_string(),
         scheme: report.scheme.clone(),
