@@ -280,6 +280,10 @@ fn put_f32(bin: &mut [u8], at: usize, v: f32) {
 /// accessor byteOffsets, quantised rotation / scale / opacity, a partial SH degree 2, no SH0
 /// (COLOR_0 fallback), a TRS node under a parent.
 #[test]
+#[expect(
+    clippy::too_many_lines,
+    reason = "one glb written by hand, field by field, then read back"
+)]
 fn reads_strided_quantised_layouts() {
     let n = 3usize;
     // Interleaved element: pos f32x3 (0), rot i16x4 norm (12), scale u8x3 (20), pad, opacity

@@ -28,6 +28,10 @@ fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
         .unwrap_or(default)
 }
 
+#[expect(
+    clippy::too_many_lines,
+    reason = "a measurement run by hand: one straight script that prints its table"
+)]
 fn main() {
     let sizes: Vec<usize> = std::env::var("LOD_CITY_SIZES")
         .unwrap_or_else(|_| "5000000".into())

@@ -495,49 +495,15 @@ impl SplatRenderer {
         moved || turned
     }
 
-    /// Renders one frame into `target` (cleared to the background) and returns its stats.
-    pub fn render(
+    /// Writes the tile table for `camera` (each tile's camera-relative rows, fade and SH degree;
+    /// f64 on the CPU), growing the texture when more rows are needed.
+    fn upload_tile_table(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        target: &wgpu::TextureView,
         camera: &Camera,
         now_s: f64,
-    ) -> FrameStats {
-        let mut stats = FrameStats::default();
-        // 1. Tiles whose fade-out ended leave the sorted set.
-        let mut i = 0;
-        while i < self.dying.len() {
-            if self.alpha(&self.dying[i], now_s) <= 0.0 {
-                let t = self.dying.swap_remove(i);
-                self.generation += 1;
-                self.pending_free.push((self.generation, t.runs, t.row));
-            } else {
-                i += 1;
-            }
-        }
-        stats.fading =
-            !self.dying.is_empty() || self.tiles.values().any(|t| self.fade_in(t, now_s) < 1.0);
-        // 2. Newest order from the worker; then a new sort when needed.
-        let blocking = self.cfg.blocking_sort || cfg!(target_arch = "wasm32");
-        if let Some(r) = self.sorter.poll(blocking) {
-            self.apply_result(queue, device, r);
-            stats.sorted = true;
-        }
-        if camera.width > 0
-            && camera.height > 0
-            && self.needs_sort(camera)
-            && !self.sorter.in_flight
-        {
-            let job = self.make_job(camera);
-            self.last_sort_cam = Some((camera.center(), camera.rotation().z_axis));
-            self.sorter.submit(job);
-            if let Some(r) = self.sorter.poll(blocking) {
-                self.apply_result(queue, device, r);
-                stats.sorted = true;
-            }
-        }
-        // 3. Tile table for this camera (f64 on the CPU, camera-relative).
+    ) {
         let rows_needed = self.next_row.div_ceil(TILES_PER_ROW).max(1);
         if rows_needed > self.table_rows {
             let max_rows = device.limits().max_texture_dimension_2d.max(1);
@@ -582,22 +548,10 @@ impl SplatRenderer {
             },
         );
         self.table_scratch = table;
-        let (w, h) = (camera.width as f64, camera.height as f64);
-        let (fx, fy) = (camera.fx, camera.fy);
-        let ext_x = 0.3 * w / (2.0 * fx);
-        let ext_y = 0.3 * h / (2.0 * fy);
-        let u = FrameUniform {
-            viewport: [w as f32, h as f32, 0.0, 0.0],
-            focal: [fx as f32, fy as f32, camera.cx as f32, camera.cy as f32],
-            lim: [
-                (-camera.cx / fx - ext_x) as f32,
-                ((w - camera.cx) / fx + ext_x) as f32,
-                (-camera.cy / fy - ext_y) as f32,
-                ((h - camera.cy) / fy + ext_y) as f32,
-            ],
-            params: [NEAR_Z as f32, 3.0, MAX_FOOTPRINT_PX, 0.0],
-        };
-        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&u));
+    }
+
+    /// Creates the bind group when the textures changed since the last one.
+    fn ensure_bind_group(&mut self, device: &wgpu::Device) {
         if self.bind_group.is_none() {
             let view = |t: &wgpu::Texture, d| {
                 t.create_view(&wgpu::TextureViewDescriptor {
@@ -639,6 +593,69 @@ impl SplatRenderer {
                 ],
             }));
         }
+    }
+
+    /// Renders one frame into `target` (cleared to the background) and returns its stats.
+    pub fn render(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target: &wgpu::TextureView,
+        camera: &Camera,
+        now_s: f64,
+    ) -> FrameStats {
+        let mut stats = FrameStats::default();
+        // 1. Tiles whose fade-out ended leave the sorted set.
+        let mut i = 0;
+        while i < self.dying.len() {
+            if self.alpha(&self.dying[i], now_s) <= 0.0 {
+                let t = self.dying.swap_remove(i);
+                self.generation += 1;
+                self.pending_free.push((self.generation, t.runs, t.row));
+            } else {
+                i += 1;
+            }
+        }
+        stats.fading =
+            !self.dying.is_empty() || self.tiles.values().any(|t| self.fade_in(t, now_s) < 1.0);
+        // 2. Newest order from the worker; then a new sort when needed.
+        let blocking = self.cfg.blocking_sort || cfg!(target_arch = "wasm32");
+        if let Some(r) = self.sorter.poll(blocking) {
+            self.apply_result(queue, device, r);
+            stats.sorted = true;
+        }
+        if camera.width > 0
+            && camera.height > 0
+            && self.needs_sort(camera)
+            && !self.sorter.in_flight
+        {
+            let job = self.make_job(camera);
+            self.last_sort_cam = Some((camera.center(), camera.rotation().z_axis));
+            self.sorter.submit(job);
+            if let Some(r) = self.sorter.poll(blocking) {
+                self.apply_result(queue, device, r);
+                stats.sorted = true;
+            }
+        }
+        // 3. Tile table for this camera (f64 on the CPU, camera-relative).
+        self.upload_tile_table(device, queue, camera, now_s);
+        let (w, h) = (camera.width as f64, camera.height as f64);
+        let (fx, fy) = (camera.fx, camera.fy);
+        let ext_x = 0.3 * w / (2.0 * fx);
+        let ext_y = 0.3 * h / (2.0 * fy);
+        let u = FrameUniform {
+            viewport: [w as f32, h as f32, 0.0, 0.0],
+            focal: [fx as f32, fy as f32, camera.cx as f32, camera.cy as f32],
+            lim: [
+                (-camera.cx / fx - ext_x) as f32,
+                ((w - camera.cx) / fx + ext_x) as f32,
+                (-camera.cy / fy - ext_y) as f32,
+                ((h - camera.cy) / fy + ext_y) as f32,
+            ],
+            params: [NEAR_Z as f32, 3.0, MAX_FOOTPRINT_PX, 0.0],
+        };
+        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&u));
+        self.ensure_bind_group(device);
         // 4. Draw.
         let bg = self.cfg.background.map(|v| v as f64);
         let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {

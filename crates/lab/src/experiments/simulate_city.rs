@@ -359,6 +359,221 @@ fn networks(args: &SimulateArgs, until: f64) -> anyhow::Result<Vec<(String, NetM
     Ok(out)
 }
 
+/// Table 4's inputs besides the traces: the city, the Low bytes per tile (for the warm-up),
+/// the traces' names, the trace plotted and the traces TGQ is measured on.
+struct Table4<'a> {
+    dir: &'a Path,
+    low_bytes: &'a HashMap<TileKey, u64>,
+    names: &'a [String],
+    plot_trace: usize,
+    tgq_traces: Vec<usize>,
+}
+
+/// Table 4's sums per predictor, the plotted series and the quality samples rendered.
+struct Table4Out {
+    rows: Vec<Row4>,
+    plot_q: Vec<Series>,
+    plot_b: Vec<Series>,
+    samples: usize,
+}
+
+impl Table4<'_> {
+    /// Every predictor on every trace at 10 Mbps with the DP planner.
+    fn run(&self, truth: &mut Truth, scored: &mut [Scored]) -> anyhow::Result<Table4Out> {
+        let mut out = Table4Out {
+            rows: (0..PREDICTORS.len()).map(|_| Row4::default()).collect(),
+            plot_q: vec![],
+            plot_b: vec![],
+            samples: 0,
+        };
+        for (ti, sc) in scored.iter_mut().enumerate() {
+            let t_trace = Instant::now();
+            for (pi, p) in PREDICTORS.iter().enumerate() {
+                self.one(truth, sc, ti, p, pi, &mut out)?;
+            }
+            sc.refs.clear();
+            eprintln!(
+                "simulate: city table 4 trace {ti} ({}) in {:.1} s",
+                self.names[ti],
+                t_trace.elapsed().as_secs_f64()
+            );
+        }
+        Ok(out)
+    }
+
+    /// Predictor `p` (row `pi`) on trace `ti`: its cache hits, waste and bytes; quality over
+    /// time on the plotted trace, TGQ on the TGQ traces.
+    fn one(
+        &self,
+        truth: &mut Truth,
+        sc: &mut Scored,
+        ti: usize,
+        p: &str,
+        pi: usize,
+        out: &mut Table4Out,
+    ) -> anyhow::Result<()> {
+        let net10 = NetModel::constant(10.0, 0.04);
+        let t_s = Instant::now();
+        let log = session(self.dir, &sc.trace, p, Planner::Dp, &net10, BUDGET);
+        let session_s = t_s.elapsed().as_secs_f64();
+        let held = held_tiles(&log);
+        let vs = tick_views(&log, sc.needed.iter().map(Vec::as_slice), &held);
+        // Warm from the time the link needs for the first cut at Low (the same for every
+        // predictor and planner).
+        let warm_at = link_warm_up(
+            &vs,
+            |k| self.low_bytes.get(k).copied().unwrap_or(0),
+            net10.rate(0.0),
+            net10.rtt_s,
+        );
+        let c = cache_hits_with(&vs, WarmUp::At(warm_at));
+        let w = wasted(&downloads(&log), &vs);
+        drop(vs);
+        eprintln!(
+            "simulate: city {p} on {}: session {session_s:.1} s",
+            self.names[ti]
+        );
+        let r = &mut out.rows[pi];
+        add_ratio(&mut r.chr.initial, c.initial);
+        add_ratio(&mut r.chr.first, c.first);
+        add_ratio(&mut r.chr.reentry, c.reentry);
+        add_ratio(&mut r.chr.warm, c.warm);
+        r.waste.tiles += w.tiles;
+        r.waste.bytes += w.bytes;
+        r.waste.wasted_tiles += w.wasted_tiles;
+        r.waste.wasted_bytes += w.wasted_bytes;
+        r.mb += log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
+        r.evictions += log.evictions;
+        r.sessions += 1;
+        if ti == self.plot_trace && p != "oracle, mirrored" {
+            let t0 = log.ticks.first().map_or(0.0, |t| t.t);
+            let mut q = vec![];
+            let mut next = t0;
+            let t_q = Instant::now();
+            for k in 0..log.ticks.len() {
+                if log.ticks[k].t + 1e-9 >= next {
+                    next += 1.0 / QUALITY_HZ;
+                    q.push((log.ticks[k].t - t0, quality(truth, sc, &log, k)?));
+                }
+            }
+            eprintln!(
+                "simulate: city {p}: {} quality samples in {:.1} s",
+                q.len(),
+                t_q.elapsed().as_secs_f64()
+            );
+            out.samples += q.len();
+            out.plot_q.push((p.to_string(), q));
+            out.plot_b.push((
+                p.to_string(),
+                log.ticks
+                    .iter()
+                    .map(|t| (t.t - t0, t.bytes_down as f64 / 1e6))
+                    .collect(),
+            ));
+        }
+        if self.tgq_traces.contains(&ti) {
+            let t_q = Instant::now();
+            let (cold, later, n) = tgq(truth, sc, &log)?;
+            eprintln!(
+                "simulate: city {p} TGQ on {}: cold {cold:?}, events {later:?} ({n} samples in {:.1} s)",
+                self.names[ti],
+                t_q.elapsed().as_secs_f64()
+            );
+            out.samples += n;
+            let r = &mut out.rows[pi];
+            r.tgq_cold.push(cold);
+            r.tgq.extend(later);
+        }
+        Ok(())
+    }
+}
+
+/// Table 5: the planners in the client loop (linear predictor) on the first trace of each
+/// kind, shorter, over every network.
+fn table5(
+    args: &SimulateArgs,
+    dir: &Path,
+    scored: &[Scored],
+    util: &HashMap<TileKey, [f32; 4]>,
+) -> anyhow::Result<String> {
+    let mut md = String::new();
+    let nets = networks(args, TABLE5_S)?;
+    let short: Vec<Scored> = [0, PER_KIND, 2 * PER_KIND]
+        .iter()
+        .filter_map(|&i| scored.get(i))
+        .map(|sc| {
+            let trace = truncated(&sc.trace, TABLE5_S);
+            Scored {
+                needed: sc.needed[..trace.poses.len()].to_vec(),
+                trace,
+                refs: HashMap::new(),
+            }
+        })
+        .collect();
+    let short_names: Vec<String> = short.iter().map(|s| label(&s.trace)).collect();
+    let _ = writeln!(
+        md,
+        "### TileSplat Table 5 on the city (planners in the client loop, linear predictor)\n\nUtility = sum over first-time entries of the utility (the tiles' measured SSIM utilities) of the level held at the entry, 0 when missed; Avg. quality = utility per entry; Miss = first-time entries not held; Util/MB = utility per MB received. Sums over {} (first {TABLE5_S} s each).\n\n| network | method | utility | avg. quality | miss | MB | util/MB |\n|---|---|---:|---:|---:|---:|---:|",
+        short_names.join(", ")
+    );
+    for (nname, net) in &nets {
+        for planner in Planner::ALL {
+            let (mut u, mut r, mut mb) = (0.0, Ratio::default(), 0.0);
+            for sc in &short {
+                let log = session(dir, &sc.trace, "linear", planner, net, BUDGET);
+                let (su, sr) = entry_utility(&log, &sc.needed, util);
+                u += su;
+                add_ratio(&mut r, sr);
+                mb += log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
+            }
+            let _ = writeln!(
+                md,
+                "| {nname} | {} | {u:.1} | {:.3} | {:.1}% | {mb:.1} | {:.2} |",
+                planner.name(),
+                u / r.n.max(1) as f64,
+                100.0 * (1.0 - r.rate().unwrap_or(0.0)),
+                u / mb.max(1e-9)
+            );
+        }
+        eprintln!("simulate: city table 5 {nname} done");
+    }
+    Ok(md)
+}
+
+/// SGSS Table 3: bytes streamed on dolly traces at 200 Mbps against the full download.
+fn table3(args: &SimulateArgs, dir: &Path, city: &BuiltCity) -> String {
+    let mut md = String::new();
+    let (lo2, hi2) = city.grid.extent();
+    let (lo, hi) = (
+        DVec3::new(lo2.x, lo2.y, 0.0),
+        DVec3::new(hi2.x, hi2.y, 20.0),
+    );
+    let full = city.variant_bytes[0] as f64 / 1e6;
+    let _ = writeln!(
+        md,
+        "\n### SGSS Table 3 on the city: bytes on 20 s dolly traces (200 Mbps)\n\nFull = every tile at Best ({full:.1} MB). Streamed = body bytes received in 20 s, memory budget {} MiB (holds the city; with {} MiB the oracle's evictions re-download tiles).\n\n| dolly seed | full download | reactive | linear | oracle |\n|---|---:|---:|---:|---:|",
+        TABLE3_BUDGET >> 20,
+        BUDGET >> 20
+    );
+    let net200 = NetModel::constant(200.0, 0.04);
+    for seed in 0..3u64 {
+        let tr = trace::dolly("stream-city", lo, hi, args.seed + seed, "test");
+        let mut cells = vec![];
+        for p in ["reactive", "linear", "oracle"] {
+            let log = session(dir, &tr, p, Planner::Dp, &net200, TABLE3_BUDGET);
+            let mb = log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
+            cells.push(format!("{mb:.2} MB ({:.1}%)", 100.0 * mb / full));
+        }
+        let _ = writeln!(
+            md,
+            "| {} | {full:.1} MB | {} |",
+            args.seed + seed,
+            cells.join(" | ")
+        );
+    }
+    md
+}
+
 /// Runs the city experiment; returns its markdown.
 pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
     let start = Instant::now();
@@ -409,10 +624,6 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
         names.join(", ")
     );
     // Table 4.
-    let net10 = NetModel::constant(10.0, 0.04);
-    let mut rows: Vec<Row4> = (0..PREDICTORS.len()).map(|_| Row4::default()).collect();
-    let mut plot_q: Vec<Series> = vec![];
-    let mut plot_b: Vec<Series> = vec![];
     let plot_trace = scored
         .iter()
         .position(|s| s.trace.header("kind") == Some("street_walk"))
@@ -427,89 +638,20 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
         })
         .collect();
     let tgq_names: Vec<String> = tgq_traces.iter().map(|&i| names[i].clone()).collect();
-    let mut samples = 0usize;
     let pname = names[plot_trace].clone();
-    for (ti, sc) in scored.iter_mut().enumerate() {
-        let t_trace = Instant::now();
-        for (pi, p) in PREDICTORS.iter().enumerate() {
-            let t_s = Instant::now();
-            let log = session(&dir, &sc.trace, p, Planner::Dp, &net10, BUDGET);
-            let session_s = t_s.elapsed().as_secs_f64();
-            let held = held_tiles(&log);
-            let vs = tick_views(&log, sc.needed.iter().map(Vec::as_slice), &held);
-            // Warm from the time the link needs for the first cut at Low (the same for every
-            // predictor and planner).
-            let warm_at = link_warm_up(
-                &vs,
-                |k| low_bytes.get(k).copied().unwrap_or(0),
-                net10.rate(0.0),
-                net10.rtt_s,
-            );
-            let c = cache_hits_with(&vs, WarmUp::At(warm_at));
-            let w = wasted(&downloads(&log), &vs);
-            drop(vs);
-            eprintln!(
-                "simulate: city {p} on {}: session {session_s:.1} s",
-                names[ti]
-            );
-            let r = &mut rows[pi];
-            add_ratio(&mut r.chr.initial, c.initial);
-            add_ratio(&mut r.chr.first, c.first);
-            add_ratio(&mut r.chr.reentry, c.reentry);
-            add_ratio(&mut r.chr.warm, c.warm);
-            r.waste.tiles += w.tiles;
-            r.waste.bytes += w.bytes;
-            r.waste.wasted_tiles += w.wasted_tiles;
-            r.waste.wasted_bytes += w.wasted_bytes;
-            r.mb += log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
-            r.evictions += log.evictions;
-            r.sessions += 1;
-            if ti == plot_trace && *p != "oracle, mirrored" {
-                let t0 = log.ticks.first().map_or(0.0, |t| t.t);
-                let mut q = vec![];
-                let mut next = t0;
-                let t_q = Instant::now();
-                for k in 0..log.ticks.len() {
-                    if log.ticks[k].t + 1e-9 >= next {
-                        next += 1.0 / QUALITY_HZ;
-                        q.push((log.ticks[k].t - t0, quality(&mut truth, sc, &log, k)?));
-                    }
-                }
-                eprintln!(
-                    "simulate: city {p}: {} quality samples in {:.1} s",
-                    q.len(),
-                    t_q.elapsed().as_secs_f64()
-                );
-                samples += q.len();
-                plot_q.push((p.to_string(), q));
-                plot_b.push((
-                    p.to_string(),
-                    log.ticks
-                        .iter()
-                        .map(|t| (t.t - t0, t.bytes_down as f64 / 1e6))
-                        .collect(),
-                ));
-            }
-            if tgq_traces.contains(&ti) {
-                let t_q = Instant::now();
-                let (cold, later, n) = tgq(&mut truth, sc, &log)?;
-                eprintln!(
-                    "simulate: city {p} TGQ on {}: cold {cold:?}, events {later:?} ({n} samples in {:.1} s)",
-                    names[ti],
-                    t_q.elapsed().as_secs_f64()
-                );
-                samples += n;
-                r.tgq_cold.push(cold);
-                r.tgq.extend(later);
-            }
-        }
-        sc.refs.clear();
-        eprintln!(
-            "simulate: city table 4 trace {ti} ({}) in {:.1} s",
-            names[ti],
-            t_trace.elapsed().as_secs_f64()
-        );
-    }
+    let t4 = Table4 {
+        dir: &dir,
+        low_bytes: &low_bytes,
+        names: &names,
+        plot_trace,
+        tgq_traces,
+    };
+    let Table4Out {
+        rows,
+        plot_q,
+        plot_b,
+        samples,
+    } = t4.run(&mut truth, &mut scored)?;
     let _ = writeln!(
         md,
         "### TileSplat Table 4 on the city (10 Mbps, DC-DP)\n\nCHR over first-time entries into the needed cut (`sim::score`: the whole tileset's cut at the client's viewport), the cold start (entries of the first non-empty cut) and re-entries apart; after warm-up = the first-time entries after the time the link needs to carry the first cut at Low plus one round trip (`sim::score::link_warm_up`; until then the link still carries the first view, whatever the predictor; the same time for every predictor, where the earlier rule, the first tick whose whole needed cut was held, moved with a client that leaves holes in view unrepaired); TGQ per new-region event (>= 30% unseen tiles, or a 45 deg turn in 1 s; merged within 3 s) on {} (rendering costs about 1 s a sample here): seconds to SSIM >= {GOOD} at {QW}x{QH} against the needed cut at Best, sampled at {TGQ_HZ} Hz from the event until reached, the next event or {TGQ_WINDOW_S} s (not reached: counted as {TGQ_WINDOW_S} s); the cold start (the first tick's event) apart; WD = completed downloads of tiles in no needed cut from their end on. Sums over the {} traces.\n\n| predictor | CHR first-time | after warm-up | cold start | re-entries | TGQ (s) | TGQ cold start (s) | WD tiles | WD bytes | MB | evictions |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
@@ -551,76 +693,8 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
         md,
         "\nPlots: `docs/city_quality.svg` (SSIM at {QUALITY_HZ} Hz), `docs/city_bytes.svg` ({pname}, 10 Mbps). Quality samples rendered: {samples}.\n"
     );
-    // Table 5: the first trace of each kind, shorter.
-    let nets = networks(args, TABLE5_S)?;
-    let short: Vec<Scored> = [0, PER_KIND, 2 * PER_KIND]
-        .iter()
-        .filter_map(|&i| scored.get(i))
-        .map(|sc| {
-            let trace = truncated(&sc.trace, TABLE5_S);
-            Scored {
-                needed: sc.needed[..trace.poses.len()].to_vec(),
-                trace,
-                refs: HashMap::new(),
-            }
-        })
-        .collect();
-    let short_names: Vec<String> = short.iter().map(|s| label(&s.trace)).collect();
-    let _ = writeln!(
-        md,
-        "### TileSplat Table 5 on the city (planners in the client loop, linear predictor)\n\nUtility = sum over first-time entries of the utility (the tiles' measured SSIM utilities) of the level held at the entry, 0 when missed; Avg. quality = utility per entry; Miss = first-time entries not held; Util/MB = utility per MB received. Sums over {} (first {TABLE5_S} s each).\n\n| network | method | utility | avg. quality | miss | MB | util/MB |\n|---|---|---:|---:|---:|---:|---:|",
-        short_names.join(", ")
-    );
-    for (nname, net) in &nets {
-        for planner in Planner::ALL {
-            let (mut u, mut r, mut mb) = (0.0, Ratio::default(), 0.0);
-            for sc in &short {
-                let log = session(&dir, &sc.trace, "linear", planner, net, BUDGET);
-                let (su, sr) = entry_utility(&log, &sc.needed, &util);
-                u += su;
-                add_ratio(&mut r, sr);
-                mb += log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
-            }
-            let _ = writeln!(
-                md,
-                "| {nname} | {} | {u:.1} | {:.3} | {:.1}% | {mb:.1} | {:.2} |",
-                planner.name(),
-                u / r.n.max(1) as f64,
-                100.0 * (1.0 - r.rate().unwrap_or(0.0)),
-                u / mb.max(1e-9)
-            );
-        }
-        eprintln!("simulate: city table 5 {nname} done");
-    }
-    // SGSS Table 3.
-    let (lo2, hi2) = city.grid.extent();
-    let (lo, hi) = (
-        DVec3::new(lo2.x, lo2.y, 0.0),
-        DVec3::new(hi2.x, hi2.y, 20.0),
-    );
-    let full = city.variant_bytes[0] as f64 / 1e6;
-    let _ = writeln!(
-        md,
-        "\n### SGSS Table 3 on the city: bytes on 20 s dolly traces (200 Mbps)\n\nFull = every tile at Best ({full:.1} MB). Streamed = body bytes received in 20 s, memory budget {} MiB (holds the city; with {} MiB the oracle's evictions re-download tiles).\n\n| dolly seed | full download | reactive | linear | oracle |\n|---|---:|---:|---:|---:|",
-        TABLE3_BUDGET >> 20,
-        BUDGET >> 20
-    );
-    let net200 = NetModel::constant(200.0, 0.04);
-    for seed in 0..3u64 {
-        let tr = trace::dolly("stream-city", lo, hi, args.seed + seed, "test");
-        let mut cells = vec![];
-        for p in ["reactive", "linear", "oracle"] {
-            let log = session(&dir, &tr, p, Planner::Dp, &net200, TABLE3_BUDGET);
-            let mb = log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
-            cells.push(format!("{mb:.2} MB ({:.1}%)", 100.0 * mb / full));
-        }
-        let _ = writeln!(
-            md,
-            "| {} | {full:.1} MB | {} |",
-            args.seed + seed,
-            cells.join(" | ")
-        );
-    }
+    md.push_str(&table5(args, &dir, &scored, &util)?);
+    md.push_str(&table3(args, &dir, &city));
     let _ = writeln!(
         md,
         "\nWall time of the whole experiment: {:.0} s.\n",
