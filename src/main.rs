@@ -23,7 +23,7 @@ enum Command {
     #[command(name = "import-lapisgs")]
     ImportLapisgs(cli::import_lapisgs::ImportLapisArgs),
     /// Merge the parts of a sharded conversion (`convert --plan`) into one tileset.
-    Merge(cli::shard::MergeArgs),
+    Merge(cli::convert::shard::MergeArgs),
     /// Check a tileset (JSON, subtrees, metadata, every KHR_gaussian_splatting glb) and report issues.
     Validate(cli::validate::ValidateArgs),
     /// Render a scene file or a tileset with the CPU reference renderer to a PNG.
@@ -43,7 +43,7 @@ fn main() {
     let code = match args.command {
         Command::Convert(a) => cli::convert::run(a),
         Command::ImportLapisgs(a) => cli::import_lapisgs::run(a),
-        Command::Merge(a) => cli::shard::run_merge(a),
+        Command::Merge(a) => cli::convert::shard::run_merge(a),
         Command::Validate(a) => cli::validate::run(a),
         Command::Render(a) => report(render_cli::run_render(&a)),
         Command::Compare(a) => report(render_cli::run_compare(&a)),

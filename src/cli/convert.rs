@@ -1,6 +1,8 @@
 //! `splat2tiles convert`: arguments, their checks, and the human or JSON summary printed at the
 //! end of a conversion.
 
+pub mod shard;
+
 use super::named;
 use clap::Args;
 use splat2tiles_build::convert::{ConvertOptions, NonFinitePolicy, SchemeChoice, convert};
@@ -35,7 +37,7 @@ pub struct ConvertArgs {
     #[arg(long)]
     pub plan: Option<PathBuf>,
     #[command(flatten)]
-    pub shard: super::shard::ShardArgs,
+    pub shard: shard::ShardArgs,
     /// Most splats per leaf tile.
     #[arg(long, default_value_t = 32_768, value_parser = clap::value_parser!(u64).range(1..=16_777_216))]
     pub max_splats: u64,
@@ -206,7 +208,7 @@ pub fn run(args: ConvertArgs) -> i32 {
         }
     }
     if let Some(plan) = &args.plan {
-        return super::shard::run(&args, plan, &opts);
+        return shard::run(&args, plan, &opts);
     }
     let Some(output) = &args.output else {
         eprintln!("splat2tiles: --output is required");

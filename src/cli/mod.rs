@@ -6,7 +6,6 @@ pub mod import_lapisgs;
 pub mod progress;
 pub mod render;
 pub mod serve;
-pub mod shard;
 pub mod stats;
 pub mod validate;
 

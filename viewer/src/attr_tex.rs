@@ -1,7 +1,16 @@
 //! The renderer's GPU textures: paged attribute texture arrays (one page of `PAGE_SPLATS` splats
 //! per layer, grown by copy) and the per-tile table the vertex shader reads transforms from.
 
-use crate::renderer::{PAGE_ROW, PAGE_SPLATS, TILE_TEXELS, TILES_PER_ROW};
+/// Splats per page (one layer of every attribute texture array).
+pub const PAGE_SPLATS: u32 = 1 << PAGE_BITS;
+/// log2 of [`PAGE_SPLATS`] (the shader splits slot indices with it).
+pub const PAGE_BITS: u32 = 14;
+/// Splats per texture row of a page (pages are 128 x 128 splats).
+pub const PAGE_ROW: u32 = 128;
+/// Tiles per row of the tile table texture.
+pub const TILES_PER_ROW: u32 = 256;
+/// Texels per tile in the tile table.
+pub const TILE_TEXELS: u32 = 5;
 
 /// One attribute texture array: `blocks` texels per splat, stored block-major across the row.
 pub(crate) struct AttrTex {

@@ -3,18 +3,10 @@
 
 use super::context::Ctx;
 use super::issues::Issue;
-use glam::{DMat3, DMat4, DQuat, DVec3};
+use super::splat_primitive::ContentGeom;
+use glam::{DMat4, DQuat, DVec3};
 use splat2tiles_tiles::encode::glb::{GlbError, parse_json, read_glb};
 use splat2tiles_tiles::encode::gltf::{Gltf, KHR_GAUSSIAN_SPLATTING, KHR_MESH_QUANTIZATION};
-
-/// Splat geometry of one content, in the tile frame (after the node matrix and y-up -> z-up).
-#[derive(Debug, Default)]
-pub(crate) struct ContentGeom {
-    /// Splat centres.
-    pub centres: Vec<DVec3>,
-    /// Per splat, the linear part mapping the unit sphere onto its 1-sigma ellipsoid.
-    pub shapes: Option<Vec<DMat3>>,
-}
 
 fn glb_issue(name: &str, e: GlbError) -> Issue {
     match e {

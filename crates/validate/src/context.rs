@@ -3,6 +3,8 @@
 
 use super::issues::Issue;
 use super::uri::{Resolved, resolve_uri};
+use super::volume::Volume;
+use glam::DMat4;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -74,7 +76,7 @@ pub(crate) struct Ctx<'a> {
     pub layered_seen: bool,
     /// The tiles of the tileset document being walked, for the completeness rule
     /// (`cut::check`, run when its walk ends).
-    pub cut: Vec<super::cut::CutTile>,
+    pub cut: Vec<CutTile>,
     /// More tiles than `cut::MAX_TILES` were walked in this document: the rule is skipped.
     pub cut_truncated: bool,
 }
@@ -361,4 +363,24 @@ mod tests {
         );
         assert!(decompress_limited(b"plain", &opts).unwrap().is_none());
     }
+}
+
+/// One tile of the walk, as the rule needs it.
+#[derive(Debug, Clone)]
+pub(crate) struct CutTile {
+    /// Where the tile is, for the report (JSON pointer or subtree tile key).
+    pub path: String,
+    /// Index of the parent tile in the walk's list (`None` for the root).
+    pub parent: Option<usize>,
+    /// The tile has a content (any content: a glb, an external tileset, several contents).
+    pub content: bool,
+    /// Its bounding volume, when valid.
+    pub volume: Option<Volume>,
+    /// Its world transform.
+    pub world: DMat4,
+    /// Its geometric error, when valid.
+    pub error: Option<f64>,
+    /// The tile and every ancestor refine by REPLACE (under ADD an ancestor's content stays
+    /// drawn, so the rule does not judge the subtree).
+    pub replace: bool,
 }

@@ -12,27 +12,8 @@
 use super::context::Ctx;
 use super::issues::Issue;
 use super::volume::Volume;
-use glam::DMat4;
 
-/// One tile of the walk, as the rule needs it.
-#[derive(Debug, Clone)]
-pub(crate) struct CutTile {
-    /// Where the tile is, for the report (JSON pointer or subtree tile key).
-    pub path: String,
-    /// Index of the parent tile in the walk's list (`None` for the root).
-    pub parent: Option<usize>,
-    /// The tile has a content (any content: a glb, an external tileset, several contents).
-    pub content: bool,
-    /// Its bounding volume, when valid.
-    pub volume: Option<Volume>,
-    /// Its world transform.
-    pub world: DMat4,
-    /// Its geometric error, when valid.
-    pub error: Option<f64>,
-    /// The tile and every ancestor refine by REPLACE (under ADD an ancestor's content stays
-    /// drawn, so the rule does not judge the subtree).
-    pub replace: bool,
-}
+pub(crate) use super::context::CutTile;
 
 /// Most tiles one tileset document records for the rule (about 300 MB); past it the rule is
 /// not checked for that document.
@@ -126,7 +107,7 @@ pub(crate) fn check(ctx: &mut Ctx<'_>, tiles: &[CutTile]) {
 mod tests {
     use super::*;
     use crate::ValidateOptions;
-    use glam::DVec3;
+    use glam::{DMat4, DVec3};
 
     fn unit_box(size: f64) -> Option<Volume> {
         Some(Volume::Box {

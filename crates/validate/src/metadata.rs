@@ -1,6 +1,8 @@
 //! 3D Metadata checks (3D Tiles 1.1 "Metadata", 3D Metadata Specification): the schema's classes
 //! and properties, built-in semantics, and reading property-table columns as numbers.
 
+pub(crate) mod entity;
+
 use super::context::Ctx;
 use super::issues::Issue;
 use serde_json::Value;
@@ -120,7 +122,7 @@ pub(crate) fn validate_schema(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Schem
         return schema;
     };
     if let Some(enums) = obj.get("enums") {
-        schema.enums = super::entity::validate_enums(ctx, enums, &format!("{path}/enums"));
+        schema.enums = entity::validate_enums(ctx, enums, &format!("{path}/enums"));
     }
     // "id ... MUST match ^[a-zA-Z_][a-zA-Z0-9_]*$".
     match obj.get("id") {
@@ -174,7 +176,7 @@ pub(crate) fn validate_schema(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Schem
                 ));
             }
             let prop = class_property(ctx, p, &pp, &schema.enums);
-            super::entity::check_definition(ctx, &prop, &pp);
+            entity::check_definition(ctx, &prop, &pp);
             props.insert(pname.clone(), prop);
         }
         schema.classes.insert(cname.clone(), props);

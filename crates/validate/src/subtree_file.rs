@@ -352,7 +352,7 @@ pub(crate) fn table_column(
             ));
             continue;
         }
-        super::entity::table_range(ctx, prop, bytes, t.count, &format!("{pp}/values"));
+        super::metadata::entity::table_range(ctx, prop, bytes, t.count, &format!("{pp}/values"));
         if let Some(k) = semantics
             .iter()
             .position(|s| prop.semantic.as_deref() == Some(*s))

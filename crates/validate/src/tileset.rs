@@ -1,15 +1,17 @@
 //! `tileset.json` rules (3D Tiles 1.1 "Tileset", "Tile", "Bounding volumes", "Geometric error",
 //! "Transforms", "Refinement"): one function per spec object, each continuing after a failure.
 
+mod external;
+mod implicit;
+
 use super::content::validate_glb;
 use super::context::Ctx;
 use super::declarations::declarations;
-use super::entity::entity;
-use super::external::external;
-use super::implicit;
 use super::issues::Issue;
+use super::metadata::entity::entity;
 use super::metadata::{Schema, validate_schema};
 use super::volume::{Volume, parse_box, parse_region, parse_sphere};
+use external::external;
 use glam::{DMat3, DMat4};
 use serde_json::Value;
 
@@ -470,7 +472,7 @@ pub(crate) fn content_file(
 pub(crate) fn containment(
     ctx: &mut Ctx<'_>,
     uri: &str,
-    geom: &super::content::ContentGeom,
+    geom: &super::splat_primitive::ContentGeom,
     volume: &Volume,
     world: &DMat4,
 ) {

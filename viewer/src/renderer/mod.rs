@@ -19,16 +19,7 @@ use crate::sort_job::{Chunk, SortJob, SortResult, Sorter};
 mod pipeline;
 mod upload;
 
-/// Splats per page (one layer of every attribute texture array).
-pub const PAGE_SPLATS: u32 = 1 << PAGE_BITS;
-/// log2 of [`PAGE_SPLATS`] (the shader splits slot indices with it).
-pub const PAGE_BITS: u32 = 14;
-/// Splats per texture row of a page (pages are 128 x 128 splats).
-pub const PAGE_ROW: u32 = 128;
-/// Tiles per row of the tile table texture.
-pub const TILES_PER_ROW: u32 = 256;
-/// Texels per tile in the tile table.
-pub const TILE_TEXELS: u32 = 5;
+pub use crate::attr_tex::{PAGE_BITS, PAGE_ROW, PAGE_SPLATS, TILE_TEXELS, TILES_PER_ROW};
 /// Largest 3-sigma footprint (pixels, crude bound) drawn; bigger splats are dropped so that the
 /// f32 projection cannot overflow.
 pub const MAX_FOOTPRINT_PX: f32 = 1.0e6;
@@ -262,7 +253,7 @@ impl SplatRenderer {
 
     /// Whether tiles inserted from now on fade in over `fade_s` (default) or are drawn at once:
     /// layered tilesets set it off, their layers fade in by blend factor and time ramp
-    /// (`crate::layered`). Removed tiles fade out either way.
+    /// (the `layered` module). Removed tiles fade out either way.
     pub fn set_insert_fade(&mut self, on: bool) {
         self.insert_fade = on;
     }

@@ -536,10 +536,10 @@ fn frame_pass(
         acc.add(s, &keep, a, enu);
         if hold {
             if kept == s.len() as u64 {
-                region::append(&mut held, s);
+                crate::lod::append(&mut held, s);
             } else {
                 let finite: Vec<usize> = (0..s.len()).filter(|&i| keep[i]).collect();
-                region::append(&mut held, &s.select(&finite));
+                crate::lod::append(&mut held, &s.select(&finite));
             }
         }
         Ok(())

@@ -29,11 +29,6 @@ use std::sync::Mutex;
 /// Most leaf splats a sampled splat's nearest neighbour is searched among.
 const NN_SEARCH_CAP: usize = 65_536;
 
-/// Appends every splat of `b` to `a` (same SH degree).
-pub(super) fn append(a: &mut Splats, b: &Splats) {
-    crate::lod::append(a, b);
-}
-
 /// What the region stage needs besides a region's splats.
 pub(super) struct RegionCtx<'a> {
     pub(super) layout: &'a Layout,

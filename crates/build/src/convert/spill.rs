@@ -155,7 +155,7 @@ impl<'a> Spiller<'a> {
         if count <= self.cap {
             let mut s = Splats::new(input.sh_degree());
             input.for_each_finite(self.chunk, |c, _| {
-                super::region::append(&mut s, c);
+                crate::lod::append(&mut s, c);
                 Ok(())
             })?;
             return Ok(vec![whole(s, count)]);

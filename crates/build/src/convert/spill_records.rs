@@ -258,7 +258,7 @@ impl SpillFormat {
         let mut s = Splats::with_capacity(self.degree(), count as usize);
         let mut idx = Vec::with_capacity(count as usize);
         self.for_each_chunk(path, 65_536, |c, i| {
-            super::region::append(&mut s, c);
+            crate::lod::append(&mut s, c);
             idx.extend_from_slice(i);
             Ok(())
         })?;

@@ -9,7 +9,7 @@
 //! sessions (every [`HUMAN_EVERY`]-th), the street walks and the flights. Real networks: the first HSDPA and FCC logs
 //! (`sim::network`), each scaled to a mean of 10 Mbit/s and looped.
 
-use super::simulate::SimulateArgs;
+use super::SimulateArgs;
 use crate::sim::network::{Network, log_files, read_log};
 use crate::sim::score::{Chr, EventRule, Ratio, Truth, WarmUp, Waste, events};
 use crate::sim::score::{cache_hits_with, link_warm_up};

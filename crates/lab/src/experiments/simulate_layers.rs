@@ -10,7 +10,7 @@
 //! and deltas); the same layers with the deltas ignored (a damaged viewer, to show the score
 //! sees the fading); and every layer the pose needs held (what the layered client converges to).
 
-use super::simulate::SimulateArgs;
+use super::SimulateArgs;
 use crate::sim::score::Truth;
 use crate::sim::session::{SessionLog, SessionOptions, run_session};
 use crate::sim::svg::{Series, write_time_plots};

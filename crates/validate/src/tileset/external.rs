@@ -1,9 +1,9 @@
 //! External tilesets (3D Tiles 1.1 "External tilesets"): a content that is itself a tileset JSON
 //! is validated in full, relative to its own folder, with cycle detection and a depth limit.
 
-use super::context::Ctx;
-use super::issues::{Issue, Severity};
-use super::json;
+use crate::context::Ctx;
+use crate::issues::{Issue, Severity};
+use crate::json;
 use glam::DMat4;
 use std::path::Path;
 
@@ -60,7 +60,7 @@ pub(crate) fn external(
     ctx.chain.push(real);
 
     if let Some(v) = json::parse(ctx, bytes, &name) {
-        super::tileset::tileset(ctx, &v, world);
+        super::tileset(ctx, &v, world);
     }
 
     ctx.chain.pop();

@@ -2,13 +2,13 @@
 //! and a walk over every reachable subtree (each file checked by `subtree_file`) that validates
 //! each available tile's content against its volume.
 
-use super::context::Ctx;
-use super::cut::{CutTile, record};
-use super::issues::Issue;
-use super::metadata::Schema;
-use super::subtree_file::{Views, availability, check_views, parse_subtree, table_column};
-use super::tileset::{Parent, content_file};
-use super::volume::{Volume, parse_box};
+use super::{Parent, content_file};
+use crate::context::Ctx;
+use crate::cut::{CutTile, record};
+use crate::issues::Issue;
+use crate::metadata::Schema;
+use crate::subtree_file::{Views, availability, check_views, parse_subtree, table_column};
+use crate::volume::{Volume, parse_box};
 use serde_json::Value;
 use splat2tiles_tiles::tiling::load::expand_template;
 use splat2tiles_tiles::tiling::subtree::{SubtreeJson, tile_count};

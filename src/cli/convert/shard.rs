@@ -1,7 +1,7 @@
 //! Sharded conversion front ends: `convert IN --plan PLAN --parts N` (plan), `convert IN --plan
 //! PLAN --part I [--phase samples] -o PART_I` (a part) and `merge PLAN PART... -o OUT`.
 
-use super::convert::{ConvertArgs, peak_rss_mib};
+use super::{ConvertArgs, peak_rss_mib};
 use clap::Args;
 use splat2tiles_build::convert::{
     ConvertError, ConvertOptions, MAX_PARTS, PartPhase, convert_part, make_plan, merge_parts,
@@ -69,7 +69,7 @@ fn fail(e: ConvertError) -> i32 {
         130
     } else {
         eprintln!("splat2tiles: {e}");
-        super::EXIT_FAILURE
+        crate::cli::EXIT_FAILURE
     }
 }
 
@@ -88,7 +88,7 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
             eprintln!(
                 "splat2tiles: --plan needs --parts N (write the plan) or --part I (build it)"
             );
-            return super::EXIT_FAILURE;
+            return crate::cli::EXIT_FAILURE;
         };
         return match make_plan(&args.input, plan, parts as usize, opts) {
             Ok(r) => {
@@ -119,7 +119,7 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
         .output
         .as_deref()
         .expect("clap requires --output with --part");
-    let progress = super::progress::bars(args.quiet);
+    let progress = crate::cli::progress::bars(args.quiet);
     match convert_part(
         &args.input,
         plan,
@@ -165,7 +165,7 @@ pub fn run_merge(args: MergeArgs) -> i32 {
         .memory_limit
         .unwrap_or_else(MemoryLimit::machine_default)
         .bytes();
-    let progress = super::progress::bars(args.quiet);
+    let progress = crate::cli::progress::bars(args.quiet);
     match merge_parts(&args.plan, &args.parts, &args.output, limit, progress) {
         Ok(r) => {
             notes(&r.notes);

@@ -1,9 +1,9 @@
 //! 3D Metadata values in JSON (3D Metadata "JSON Format", 3D Tiles 1.1 "Metadata"): one check for
 //! every entity (tileset, tile, group, content), enums, and the value rules of class properties.
 
-use super::context::Ctx;
-use super::issues::Issue;
-use super::metadata::{Prop, Schema};
+use super::{Prop, Schema};
+use crate::context::Ctx;
+use crate::issues::Issue;
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 
@@ -425,7 +425,7 @@ pub(crate) fn table_range(ctx: &mut Ctx<'_>, p: &Prop, bytes: &[u8], rows: u64, 
     };
     let Some(nums) = rows
         .checked_mul(per)
-        .and_then(|n| super::metadata::numbers(bytes, comp, n))
+        .and_then(|n| super::numbers(bytes, comp, n))
     else {
         return;
     };
