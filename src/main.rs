@@ -40,6 +40,7 @@ enum Command {
 
 fn main() {
     let args = Cli::parse();
+    cli::stderr_log::install();
     let code = match args.command {
         Command::Convert(a) => cli::convert::run(a),
         Command::ImportLapisgs(a) => cli::import_lapisgs::run(a),

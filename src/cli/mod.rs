@@ -3,6 +3,7 @@
 
 pub mod convert;
 pub mod import_lapisgs;
+pub mod stderr_log;
 pub mod progress;
 pub mod render;
 pub mod serve;

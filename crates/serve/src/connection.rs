@@ -61,7 +61,7 @@ fn refuse(
         Some(&mut body.as_bytes()),
     );
     if !quiet {
-        eprintln!("- - {status} 0 ({msg})");
+        log::info!(target: crate::ACCESS_LOG, "- - {status} 0 ({msg})");
     }
 }
 
@@ -176,7 +176,8 @@ pub fn serve(stream: TcpStream, ticket: &Ticket, mounts: &[Mount], quiet: bool, 
                 Ok(n) => (*n, String::new()),
                 Err(e) => (0, format!(" ({e})")),
             };
-            eprintln!(
+            log::info!(
+                target: crate::ACCESS_LOG,
                 "{} {} {status} {sent}{note}",
                 printable(&head.method),
                 printable(&head.target)

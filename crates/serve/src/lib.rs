@@ -8,6 +8,10 @@
 //! whose ETag differs from the identity file's, so a download resumed with `If-Range` either
 //! continues the same encoded bytes or restarts with a full 200.
 
+/// `log` target of the access log: one line per request (method, target, status, bytes sent),
+/// emitted at `Info` unless `ServeOptions::quiet`; the binary prints them on stderr.
+pub const ACCESS_LOG: &str = "splat2tiles_serve::access";
+
 pub mod admission;
 mod connection;
 pub mod http;
@@ -551,7 +555,7 @@ impl Server {
                 Ok(s) => s,
                 Err(e) => {
                     if !self.opts.quiet {
-                        eprintln!("splat2tiles serve: accept failed: {e}");
+                        log::warn!("serve: accept failed: {e}");
                     }
                     // E.g. out of file descriptors: don't spin.
                     std::thread::sleep(Duration::from_millis(20));

@@ -227,8 +227,8 @@ impl Drop for Staging {
             && let Err(e) = std::fs::remove_dir_all(&self.path)
             && e.kind() != std::io::ErrorKind::NotFound
         {
-            eprintln!(
-                "splat2tiles: warning: could not remove the unfinished output {}: {e}",
+            log::warn!(
+                "could not remove the unfinished output {}: {e}",
                 self.path.display()
             );
         }
