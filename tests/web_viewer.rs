@@ -490,7 +490,7 @@ fn web_vs_reference(
     (s, mean, fin)
 }
 
-/// Renderer parity on a generated city (issue 18): the overview (automatic viewpoint, also with
+/// Renderer parity on a generated city: the overview (automatic viewpoint, also with
 /// maxSse=64: the root's big coarse splats only) and a street view, local and georeferenced, in
 /// the web viewer match `splat2tiles render` of the same camera and tiles (SSIM >= 0.95), and the
 /// camera the viewer's stats report is the view it was given. The overview once more with frames
@@ -576,7 +576,7 @@ fn web_viewer_draws_generated_cities_like_the_reference() {
     }
 }
 
-/// The city walk of `tests/js/city_walk.mjs` (issue 18, item 3; the 50M run is
+/// The city walk of `tests/js/city_walk.mjs` (the 50M run is
 /// `benches/city_walk.rs`) in small: a generated 60,000-splat city, the first 10 s of a real head
 /// trace (EyeNavGS, `../shared/navigation-traces/README.md`) placed as a street-level walk (x20
 /// horizontally, eye 1.7 m above the ground), a 1 MB budget the city's tiles do not fit in. The

@@ -3,11 +3,11 @@
 
 pub mod convert;
 pub mod import_lapisgs;
-pub mod stderr_log;
 pub mod progress;
 pub mod render;
 pub mod serve;
 pub mod stats;
+pub mod stderr_log;
 pub mod validate;
 
 /// Exit code when the command could not do its work (bad input, I/O failure).

@@ -54,7 +54,7 @@ fn camera_specs_resolve() {
     assert_eq!(cam.center(), DVec3::new(0.0, 0.0, -5.0));
     a.camera = Some("look-at:0,0:0,0,0".into());
     assert!(resolve_camera(&a.camera_request(), -DVec3::Y, bounds).is_err());
-    // An explicit up wins over the scene's; geo: places the eye in ECEF (issue 18).
+    // An explicit up wins over the scene's; geo: places the eye in ECEF.
     a.camera = Some("look-at:0,0,-5:0,0,0:1,0,0".into());
     let cam = resolve_camera(&a.camera_request(), -DVec3::Y, bounds).unwrap();
     assert!(

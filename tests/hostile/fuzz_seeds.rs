@@ -1,4 +1,4 @@
-//! The seeds of the fuzz targets added for issue 13 (`limited`, `http_head`, `output_marker`),
+//! The seeds of the fuzz targets for the newer surfaces (`limited`, `http_head`, `output_marker`),
 //! and every prefix of them, through the same entry points: errors, never panics.
 
 use std::path::Path;

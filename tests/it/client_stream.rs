@@ -990,7 +990,7 @@ fn hostile_transport_never_panics_the_client() {
 
 /// The learned predictor (`PredictorKind::Tcn`, committed model) in the client loop: past the
 /// 5 s fallback it plans with the TCN's poses along a moving path, within the memory budget,
-/// and streams the view (issue 20).
+/// and streams the view.
 #[test]
 fn the_tcn_predictor_streams_along_a_path_within_the_budget() {
     let ts = load_tileset(&plant().join("tileset.json")).unwrap();

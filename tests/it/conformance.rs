@@ -934,7 +934,7 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             j.as_object_mut().unwrap().remove("contentMetadata");
         })
     });
-    // URIs, symbolic links (issue 13)
+    // URIs, symbolic links
     m.insert("percent_encoded_folder", |t| {
         std::fs::rename(t.dir.join("tiles"), t.dir.join("my tiles")).unwrap();
         retarget_content(t, "my%20tiles/best/{level}/{x}/{y}/{z}.glb");

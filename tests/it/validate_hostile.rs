@@ -1,4 +1,4 @@
-//! `validate` on hostile tilesets (issue 13): external tileset cycles end with an error (no
+//! `validate` on hostile tilesets: external tileset cycles end with an error (no
 //! hang), symbolic links out of the folder are refused without reading or echoing the target,
 //! percent-encoded URIs resolve, deep explicit trees parse, `--root` admits `../` URIs.
 

@@ -1,4 +1,4 @@
-//! Issue 5's first check: every output of `splat2tiles convert` on the shared scenes, in every
+//! Every output of `splat2tiles convert` on the shared scenes, in every
 //! profile with every quality variant written (and georeferenced), validates with 0 errors and
 //! 0 warnings. Variant files are found through the tileset's `splatVariants` metadata.
 

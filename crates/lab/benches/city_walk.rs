@@ -1,4 +1,4 @@
-//! The browser holding a city (issue 18, item 3; not a test): the web viewer walks a generated city
+//! The browser holding a city (not a test): the web viewer walks a generated city
 //! along a real head trace in headless Chromium, and a full-download peer is given the same city.
 //!
 //! Run: `cargo bench --bench city_walk -- CITY.splat [CITY.splat ...]` (SH0 cities written by

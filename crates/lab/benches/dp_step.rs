@@ -1,4 +1,4 @@
-//! DC-DP accuracy vs solve time over its byte resolution (issue 19, item 4; not a test): the same
+//! DC-DP accuracy vs solve time over its byte resolution (not a test): the same
 //! planning problems solved with 256 to 65,536 (reference) byte bins over a 10 ms link forecast,
 //! each plan executed exactly (continuous time) over the true link, scored by on-time utility and
 //! misses.

@@ -1,4 +1,4 @@
-//! Fidelity per byte against the peers (issue 16, item 4): our four variants, TileSplat's Table 6
+//! Fidelity per byte against the peers: our four variants, TileSplat's Table 6
 //! bit allocation, SPZ v2 (our writer), SPZ v3/v4 and PlayCanvas SOG (splat-transform).
 //!
 //! Each scene (the three shared scenes, `../shared/scenes/README.md`, and the plant with generated

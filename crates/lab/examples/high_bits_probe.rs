@@ -1,5 +1,5 @@
 //! High bit-depth candidates against TileSplat Table 6 Best on the three SH0 scenes, with the
-//! peers bench's views, renders and SSIM (`benches/peers.rs`; issue 16, item 4).
+//! peers bench's views, renders and SSIM (`benches/peers.rs`).
 //!
 //! Run: `PROBE_CANDS="21,12,11,12,11;18,12,10,12,11" cargo run --release --example
 //! high_bits_probe` (each candidate: position, rotation, scale, opacity, SH0 bits; the rest as

@@ -1,6 +1,6 @@
 //! What KHR_meshopt_compression's vertex codec version 1 would save on High and Medium: each
 //! scene as one tile (as the peers bench encodes it), every `EXT_meshopt_compression` stream
-//! decoded to its filtered bytes and encoded again at version 1 (issue 16, item 4; not adopted).
+//! decoded to its filtered bytes and encoded again at version 1 (not adopted).
 //!
 //! Run: `cargo run --release --example meshopt_v1_bytes` (under a minute). Prints B/splat of the
 //! tile's JSON and binary chunk, as stored and gzipped (`gzip -6`), at version 0 (what we write)

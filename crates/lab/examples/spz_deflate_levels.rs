@@ -1,5 +1,5 @@
 //! Low's gzip stream: bytes against time of each deflate level on the Low (SPZ v2) payload of
-//! the shared scenes and the peers bench's generated SH3 scene (issue 16, item 4).
+//! the shared scenes and the peers bench's generated SH3 scene.
 //!
 //! Run: `cargo run --release --example spz_deflate_levels` (about 1 min). Each scene is one tile
 //! as the peers bench encodes it (`variants::LOW_SPZ`); prints B/splat of the gzip member and the

@@ -1,4 +1,4 @@
-//! Mean-only vs uncertainty-aware tile selection with the TCN (issue 20 item 4, TileSplat App.
+//! Mean-only vs uncertainty-aware tile selection with the TCN (TileSplat App.
 //! C.5): the shipped client over the simulated transport, scored by `sim::score` (CHR over
 //! first-time entries, WD, MB), with reactive and linear beside it.
 //!

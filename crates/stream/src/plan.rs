@@ -12,8 +12,8 @@
 //! `U(i,w) = max(U(i-1,w), max_j U(i-1, w - s_ij) + u_ij)` for `w <= cap_i`, and
 //! `max(U(i-1,w), U(i,cap_i))` above it. Answer `U(N, K)`, back-tracked to a fetch list whose
 //! finish times are `C^-1` of the exact work. Unlike a DP over time steps (eq. 18), a download
-//! does not take a whole step: at 10 Mbit/s a 100 ms step capped a plan at 10 downloads a second
-//! (issue 19), while here many small tiles share the link as they would.
+//! does not take a whole step: at 10 Mbit/s a 100 ms step capped a plan at 10 downloads a second,
+//! while here many small tiles share the link as they would.
 //! Memory (eq. 16) enters as a Lagrange multiplier on bytes, found by bisection, only when the
 //! unconstrained optimum exceeds the budget (then the answer is feasible, not proven optimal).
 

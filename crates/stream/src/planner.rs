@@ -187,7 +187,7 @@ pub fn plan_visible_link(
 ) -> (Vec<Candidate>, Plan) {
     // By first visibility: the DP orders candidates by deadline, ties by input order, and every
     // tile due within `urgent_s` gets that deadline; in the caller's tile order a tile entering
-    // in 0.1 s waited behind ones entering in 0.9 s (issue 19: the oracle's late misses).
+    // in 0.1 s waited behind ones entering in 0.9 s (the oracle's late misses).
     let mut order: Vec<(usize, f64)> = firsts.to_vec();
     order.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
     let mut cands = Vec::with_capacity(order.len());

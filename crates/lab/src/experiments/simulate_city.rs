@@ -60,7 +60,7 @@ const QH: u32 = 360;
 /// SSIM counted as good quality.
 const GOOD: f64 = 0.9;
 
-/// The Table 4 predictors; "tcn" is the committed learned model (issue 20); "oracle, mirrored"
+/// The Table 4 predictors; "tcn" is the committed learned model; "oracle, mirrored"
 /// is the oracle of the trace turned 180 degrees about its start: a damaged predictor the setup
 /// must rank below the oracle.
 const PREDICTORS: [&str; 6] = [
@@ -617,7 +617,7 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
     let best_mib = city.variant_bytes[0] as f64 / (1u64 << 20) as f64;
     let _ = writeln!(
         md,
-        "## Streaming city (issue 19)\n\nCity: {} (`sim::stream_city`, seed {}, origin {DEFAULT_ORIGIN}). Client: 1280x720, 50 deg, SSE 16, 4 requests in flight, memory budget {} MiB (the city has {best_mib:.1} MiB of Best), 40 ms RTT, 400 B/request. Traces (test split only, first {TRACE_S} s each): {}.\n",
+        "## Streaming city\n\nCity: {} (`sim::stream_city`, seed {}, origin {DEFAULT_ORIGIN}). Client: 1280x720, 50 deg, SSE 16, 4 requests in flight, memory budget {} MiB (the city has {best_mib:.1} MiB of Best), 40 ms RTT, 400 B/request. Traces (test split only, first {TRACE_S} s each): {}.\n",
         city.summary(),
         spec.seed,
         BUDGET >> 20,

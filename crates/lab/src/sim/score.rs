@@ -2,7 +2,7 @@
 //! tileset, not the client's partial view of it), cache hits over first-time tile entries, the
 //! SSIM of what the client draws against that cut at Best, new-region events, TGQ and waste.
 //!
-//! Definitions (issue 19 item 3; TileSplat sec. 4.4.2):
+//! Definitions (TileSplat sec. 4.4.2):
 //! - **needed cut**: [`splat2tiles_tiles::select::select_cut`] over every available tile at the
 //!   camera's viewport (the client's own rule, given all subtrees).
 //! - **CHR**: a tile *enters* when it is in the needed cut and was not at the previous tick. An

@@ -1,4 +1,4 @@
-//! Issue 19's ordering check on a small generated city (`sim::stream_city`, the shared scenes of
+//! The request-ordering check on a small generated city (`sim::stream_city`, the shared scenes of
 //! `../shared/scenes/README.md` as blocks): the real client over the simulated transport at
 //! 10 Mbit/s along synthetic street walks; cache hits over first-time entries into the needed cut
 //! (`sim::score`, from the whole tileset) must be clearly higher with the oracle than reactive.
@@ -100,9 +100,9 @@ fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
     // The oracle needs no pose history, so it never falls back to reactive (it did for 5 s and
     // scored 192/262 = 0.73 with every miss in those 5 s); what it misses now is the cold start
     // (the link still busy with the first view), nothing later. 238/262 = 0.908 before the
-    // churn fixes of issue 19 (in-flight downloads kept, missing tiles before upgrades,
+    // churn fixes (in-flight downloads kept, missing tiles before upgrades,
     // earliest-deadline-first preemption), 244/262 = 0.931 after, 252/262 = 0.962 with imminent
-    // prefetches before repairs of missed tiles (issue 19, `issue-19-bytes`).
+    // prefetches before repairs of missed tiles.
     assert!(o >= 0.95, "oracle {o:.3} below 0.95");
     assert!(r <= 0.1, "reactive {r:.3} above 0.1");
     let late = why_o.at_s.iter().filter(|&&t| t >= 5.0).count();
@@ -112,7 +112,7 @@ fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
     );
 }
 
-/// The full-city measurement behind BENCHMARKS "Streaming city (issue 19)": why the oracle
+/// The full-city measurement behind BENCHMARKS "Streaming city": why the oracle
 /// misses first-time entries there (`STREAM_CITY_DIR` = a city built by
 /// `cargo run --release --example stream_city -- DIR`; the first street walk and flight of the
 /// test split, 60 s, 10 Mbit/s, 32 MiB and 1 GiB budgets).

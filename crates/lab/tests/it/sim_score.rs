@@ -78,7 +78,7 @@ fn quality_is_one_for_the_cut_at_best_and_drops_with_damage() {
     let coarser = q(&mut truth, &parents);
     let nothing = q(&mut truth, &[]);
     eprintln!("low {low:.4}, parents {coarser:.4}, nothing {nothing:.4}");
-    // Low is close to Best on this SH0 scene at this size (issue 16), but not equal.
+    // Low is close to Best on this SH0 scene at this size, but not equal.
     assert!(low < 1.0 && low > coarser, "Low scored {low}");
     assert!(coarser < 0.99, "parents scored {coarser}");
     assert!(

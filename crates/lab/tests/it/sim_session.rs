@@ -367,7 +367,8 @@ fn churn(log: &SessionLog) -> (u64, u64) {
     (switched, restarted)
 }
 
-/// Issue 19 (the full city's oracle asked for 331 (tile, level) pairs over 169 tiles): on a walk
+/// Downloads are not churned (the full city's oracle once asked for 331 (tile, level) pairs over
+/// 169 tiles): on a walk
 /// whose link cannot carry everything at Best, a started download is finished or paused and
 /// resumed, never dropped for the same tile at another level nor fetched again from byte 0.
 #[test]

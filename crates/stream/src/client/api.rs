@@ -84,14 +84,14 @@ pub struct ClientConfig {
     /// When the link cannot carry the missing tiles (in view: due now; predicted: due at their
     /// first predicted view) by their deadlines even at Low (earliest deadline first over the
     /// forecast), ask the prefetches at Low: coverage before quality, upgrades later (on by
-    /// default; chosen on the validation traces, BENCHMARKS.md issue 19).
+    /// default; chosen on the validation traces, BENCHMARKS.md).
     pub low_under_overload: bool,
     /// Under that overload, and when the predictor's recent deadlines came true
     /// (`deadline_record`), the missing tiles Moore-Hodgson sets aside (the largest ones whose
     /// bytes make others late) are requested after the ones that can still be on time, repairs
     /// of holes in view included: the fewest late entries. On by default since it raised the
     /// oracle on the validation traces and leaves predictors whose deadlines miss untouched
-    /// (BENCHMARKS.md, issue 19, "Moore-Hodgson").
+    /// (BENCHMARKS.md, "Moore-Hodgson").
     pub set_aside_late: bool,
     /// Retries of a failed request before the tile (or subtree) is given up.
     pub max_retries: u32,

@@ -20,7 +20,7 @@ impl StreamClient {
             }
             // Subtree files have their own `max_concurrent` slots: behind tile downloads that
             // kept every slot busy they arrived after the tiles they list entered the view
-            // (issue 19: most of the oracle's misses on the full-city walk were "late").
+            // (most of the oracle's misses on the full-city walk were "late").
             if self.in_flight(false) >= self.cfg.max_concurrent {
                 break;
             }

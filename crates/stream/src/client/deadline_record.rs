@@ -11,7 +11,7 @@ const MIN_OUTCOMES: usize = 16;
 
 /// Share of recent outcomes that must have come true for the client to act on a deadline alone
 /// (set aside a prefetch that cannot be on time behind the ones that can): nine in ten, set
-/// before measuring (issue 19) and not swept on the evaluation traces.
+/// before measuring and not swept on the evaluation traces.
 pub(super) const TRUSTED_SHARE: f64 = 0.9;
 
 /// The predictor's track record on deadlines (see the module docs).

@@ -90,7 +90,7 @@ const KEPT_ERRORS: usize = 32;
 
 /// Time step (s) of the link forecast the client's DP plans over. The DP itself runs over bytes
 /// (`stream::plan`), so the step no longer caps the fetches a plan holds; it only sets how finely
-/// a changing forecast and the deadlines are read (it was the DP's grid until issue 19, where
+/// a changing forecast and the deadlines are read (the DP's grid was once this step:
 /// TileSplat's 0.1 s held a plan to 100 fetches on a 275-tile burst).
 pub const PLAN_STEP_S: f64 = 0.02;
 

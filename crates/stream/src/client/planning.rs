@@ -13,7 +13,7 @@ const PREFETCH_BEFORE_REPAIR_S: f64 = 0.5;
 ///
 /// - Missing tiles in view before prefetches further out, and upgrades last: with upgrades of
 ///   the view ahead of prefetches, tiles due in 1 s waited behind Low -> Best upgrades and were
-///   requested after they entered (issue 19: the oracle's "late" misses on the walk).
+///   requested after they entered (the oracle's "late" misses on the walk).
 /// - An imminent prefetch before the repair of a tile already missed in view: the hole is
 ///   there either way, the prefetch keeps one from opening. On the city's flight 38 (a burst
 ///   that outruns the link) the oracle held 254/404 of the entries after warm-up with repairs

@@ -77,11 +77,11 @@ impl StreamClient {
                 // Earliest deadline first: a want pauses (bytes kept) the in-flight prefetch
                 // due latest, only when that one is due more than PREEMPT_GUARD_S after it.
                 // Pausing the lowest-priority prefetch for every tile in view aborted more than
-                // half the requests (issue 19), and with no preemption between prefetches ones
+                // half the requests, and with no preemption between prefetches ones
                 // due in 8 s held every slot while ones due in 1 s waited.
                 // An upgrade in flight (its tile is drawn at a lower level meanwhile) gives way
                 // to a missing tile first: with upgrades of the view never paused, four Best
-                // upgrades held the link while tiles about to enter waited (issue 19, flight 38).
+                // upgrades held the link while tiles about to enter waited.
                 let flying = |v: &&Want| {
                     self.state[v.tile]
                         .download
@@ -538,7 +538,7 @@ impl StreamClient {
             let pos = self.history.last().map_or(DVec3::ZERO, |p| p.pos);
             // The tile needed again last (Belady with the prediction): tiles no predicted view
             // holds first, farthest first; then the ones predicted latest. By distance alone the
-            // flights evicted tiles prefetched for the road ahead (issue 19: 11-14 of flight
+            // flights evicted tiles prefetched for the road ahead (11-14 of flight
             // 37's misses after warm-up were evicted before they entered).
             let next = next.get_or_insert_with(|| {
                 let mut v = vec![f64::INFINITY; self.info.len()];
