@@ -52,6 +52,7 @@ fn main() {
         Command::Serve(a) => report(cli::serve::run_serve(&a)),
         Command::View(a) => report(cli::serve::run_view(&a)),
     };
+    cli::out::flush();
     std::process::exit(code);
 }
 

@@ -239,10 +239,10 @@ pub fn run(args: ConvertArgs) -> i32 {
                     "variants": variant_summary(&r),
                     "peakRssMiB": peak_rss_mib(),
                 });
-                println!("{v}");
+                outln!("{v}");
             } else if !args.quiet {
                 let tileset = output.join("tileset.json");
-                println!(
+                outln!(
                     "converted {}: {} splats in, {} out (SH degree {}, up axis {})",
                     args.input.display(),
                     r.splats_in,
@@ -251,24 +251,24 @@ pub fn run(args: ConvertArgs) -> i32 {
                     r.up_axis
                 );
                 if r.dropped_non_finite > 0 {
-                    println!(
+                    outln!(
                         "  dropped {} splats with NaN or infinite values",
                         r.dropped_non_finite
                     );
                 }
                 if r.overflowed_scales > 0 {
-                    println!(
+                    outln!(
                         "  ({} of them are finite in the file, but their log-scales are too large for exp())",
                         r.overflowed_scales
                     );
                 }
                 if r.repaired_rotations > 0 {
-                    println!(
+                    outln!(
                         "  replaced {} zero quaternions by the identity",
                         r.repaired_rotations
                     );
                 }
-                println!(
+                outln!(
                     "  {} {} tiles ({} with content) over {} levels, {} subtree files, {:.2} MB, {:.2} s",
                     r.tiles,
                     r.scheme.to_lowercase(),
@@ -279,20 +279,25 @@ pub fn run(args: ConvertArgs) -> i32 {
                     r.seconds
                 );
                 if let Some(p) = &r.partition {
-                    println!(
+                    outln!(
                         "  partition: {} units from {} views (objective {:.4}, basic cuboids {:.4})",
-                        p.units, p.views, p.objective, p.basic_objective
+                        p.units,
+                        p.views,
+                        p.objective,
+                        p.basic_objective
                     );
                 }
                 if r.parent_splats > 0 {
-                    println!(
+                    outln!(
                         "  LOD: {} splats in parent tiles (leaf radius {:.4}, {:.2} s)",
-                        r.parent_splats, r.lod_radius, r.lod_seconds
+                        r.parent_splats,
+                        r.lod_radius,
+                        r.lod_seconds
                     );
                 }
                 if let Some(v) = variant_summary(&r).as_object().filter(|v| v.len() > 1) {
                     for (name, row) in v {
-                        println!(
+                        outln!(
                             "  variant {name:<6}: {:7.2} B/splat, utility mean {} worst {}",
                             row["bytesPerSplat"].as_f64().unwrap_or(0.0),
                             fmt_utility(&row["meanUtility"]),
@@ -300,8 +305,8 @@ pub fn run(args: ConvertArgs) -> i32 {
                         );
                     }
                 }
-                println!("  tileset: {}", tileset.display());
-                println!(
+                outln!("  tileset: {}", tileset.display());
+                outln!(
                     "  look at it: splat2tiles render {} --auto-view 0 -o view.png",
                     tileset.display()
                 );

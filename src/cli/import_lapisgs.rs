@@ -57,9 +57,9 @@ pub fn run(args: ImportLapisArgs) -> i32 {
                     "rerouted": r.rerouted, "dropped": r.dropped,
                     "bytes": r.bytes, "seconds": r.seconds,
                 });
-                println!("{v}");
+                outln!("{v}");
             } else if !args.quiet {
-                println!(
+                outln!(
                     "imported {} LapisGS levels ({} splats per level) into {}",
                     r.level_splats.len(),
                     r.level_splats
@@ -69,13 +69,20 @@ pub fn run(args: ImportLapisArgs) -> i32 {
                         .join(" / "),
                     args.output.display()
                 );
-                println!(
+                outln!(
                     "  {} tiles ({} layers, {} of them zero-opacity placeholders), {} scheme, {} bytes, {:.1} s",
-                    r.tiles, r.content_tiles, r.placeholders, r.scheme, r.bytes, r.seconds
+                    r.tiles,
+                    r.content_tiles,
+                    r.placeholders,
+                    r.scheme,
+                    r.bytes,
+                    r.seconds
                 );
-                println!(
+                outln!(
                     "  {} opacity changes of earlier splats written as deltas ({} by a layer other than the one whose cell holds the splat), {} dropped",
-                    r.deltas, r.rerouted, r.dropped
+                    r.deltas,
+                    r.rerouted,
+                    r.dropped
                 );
             }
             0

@@ -1,6 +1,9 @@
 //! Command-line front ends of the library: argument structs (clap) and one `run` per command,
 //! so that `main.rs` only parses and maps results to exit codes.
 
+#[macro_use]
+pub mod out;
+
 pub mod convert;
 pub mod import_lapisgs;
 pub mod progress;

@@ -183,7 +183,7 @@ pub fn compare_files(a: &Path, b: &Path) -> anyhow::Result<(f64, f64)> {
 /// Runs `compare`: prints SSIM and PSNR (text or JSON) on stdout.
 pub fn run_compare(args: &CompareArgs) -> anyhow::Result<()> {
     let (s, p) = compare_files(&args.a, &args.b)?;
-    println!("{}", format_compare(s, p, args.json));
+    outln!("{}", format_compare(s, p, args.json));
     Ok(())
 }
 

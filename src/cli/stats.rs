@@ -20,7 +20,7 @@ pub struct StatsArgs {
 pub fn run(args: StatsArgs) -> i32 {
     match table(&args) {
         Ok(s) => {
-            print!("{s}");
+            out!("{s}");
             0
         }
         Err(e) => {

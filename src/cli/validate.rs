@@ -55,12 +55,21 @@ pub fn run(args: ValidateArgs) -> i32 {
         }
     };
     if args.json {
-        println!("{}", report.to_json());
+        outln!("{}", report.to_json());
     } else {
-        print!("{}", report.to_text(&args.input.display().to_string()));
+        out!("{}", report.to_text(&args.input.display().to_string()));
     }
+    // The tileset's folder: a report inside it would change the tileset that was checked.
+    let input_dir = if args.input.is_dir() {
+        args.input.clone()
+    } else {
+        args.input
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .map_or_else(|| ".".into(), |p| p.to_path_buf())
+    };
     if let Some(path) = &args.report
-        && let Err(e) = std::fs::write(path, report.to_json())
+        && let Err(e) = super::out::write_file(path, report.to_json().as_bytes(), &input_dir)
     {
         eprintln!("splat2tiles: {}: {e}", path.display());
         return super::EXIT_FAILURE;

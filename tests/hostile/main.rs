@@ -13,9 +13,11 @@ mod inputs;
 mod memory;
 mod output;
 mod plain_clone;
+mod render_output;
 mod serve_soak;
 mod signal;
 mod spill;
+mod stdout;
 
 use std::path::Path;
 use std::process::{Command, Output};

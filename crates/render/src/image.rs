@@ -14,6 +14,16 @@ pub enum ImageError {
         /// Underlying error.
         source: image::ImageError,
     },
+    /// The PNG could not be written where it was asked for (the cause follows as the source).
+    #[error("{path}: {what}")]
+    Io {
+        /// File concerned.
+        path: PathBuf,
+        /// What was being done.
+        what: &'static str,
+        /// Underlying error.
+        source: std::io::Error,
+    },
 }
 
 /// An RGB image of f32 values, row-major from the top-left pixel, channels interleaved.
@@ -68,19 +78,58 @@ impl Image {
         Image::from_rgb8(self.width, self.height, &self.to_rgb8())
     }
 
-    /// Writes an 8-bit RGB PNG.
+    /// Writes an 8-bit RGB PNG: encoded in memory, written to a temporary file beside the
+    /// destination (through a symbolic link, beside its target), synced, then renamed over it,
+    /// so a failed write leaves no partial PNG and an earlier file untouched. An existing
+    /// destination that is not a regular file (a device, a FIFO, a folder) is refused.
     pub fn save_png(&self, path: &Path) -> Result<(), ImageError> {
-        image::save_buffer(
-            path,
-            &self.to_rgb8(),
-            self.width,
-            self.height,
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|source| ImageError::Png {
-            path: path.to_owned(),
-            source,
-        })
+        use image::ImageEncoder as _;
+        let mut png = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(
+                &self.to_rgb8(),
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(|source| ImageError::Png {
+                path: path.to_owned(),
+                source,
+            })?;
+        let io = |what: &'static str| {
+            move |source| ImageError::Io {
+                path: path.to_owned(),
+                what,
+                source,
+            }
+        };
+        let target = match std::fs::metadata(path) {
+            Ok(m) if m.is_file() => std::fs::canonicalize(path).map_err(io("resolving"))?,
+            Ok(_) => {
+                return Err(io("writing")(std::io::Error::other(
+                    "not a regular file (a PNG is written only to a new or regular file)",
+                )));
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => path.to_owned(),
+            Err(e) => return Err(io("reading its metadata")(e)),
+        };
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "image.png".into());
+        let tmp = target.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+        let written = (|| {
+            use std::io::Write as _;
+            let mut f = std::fs::File::create_new(&tmp)?;
+            f.write_all(&png)?;
+            f.sync_all()?;
+            std::fs::rename(&tmp, &target)
+        })();
+        if let Err(e) = written {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(io("writing")(e));
+        }
+        Ok(())
     }
 
     /// Reads a PNG (any colour type; alpha is dropped, 16-bit is reduced to 8).

@@ -99,9 +99,9 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
                         "seconds": r.seconds, "peakRssMiB": peak_rss_mib(),
                         "readBytes": io_bytes("rchar"), "writtenBytes": io_bytes("wchar"),
                     });
-                    println!("{v}");
+                    outln!("{v}");
                 } else if !args.quiet {
-                    println!(
+                    outln!(
                         "planned {}: {} splats in {} units, parts of {:?} splats, {:.2} s",
                         args.input.display(),
                         r.splats,
@@ -140,9 +140,9 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
                     "seconds": r.seconds, "peakRssMiB": peak_rss_mib(),
                     "readBytes": io_bytes("rchar"), "writtenBytes": io_bytes("wchar"),
                 });
-                println!("{v}");
+                outln!("{v}");
             } else if !args.quiet {
-                println!(
+                outln!(
                     "part {part} ({:?}): {} splats in {} units, {} tiles, {:.2} MB, {:.2} s",
                     s.phase,
                     r.splats,
@@ -177,9 +177,9 @@ pub fn run_merge(args: MergeArgs) -> i32 {
                     "peakRssMiB": peak_rss_mib(),
                     "readBytes": io_bytes("rchar"), "writtenBytes": io_bytes("wchar"),
                 });
-                println!("{v}");
+                outln!("{v}");
             } else if !args.quiet {
-                println!(
+                outln!(
                     "merged {} parts into {}: {} tiles ({} built above the parts), {:.2} MB \
                      ({:.2} MB copied, the rest hard-linked), {:.2} s",
                     args.parts.len(),
