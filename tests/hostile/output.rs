@@ -276,3 +276,96 @@ fn two_real_runs_into_one_folder_the_second_refuses_the_first_completes() {
     assert!(ts.contains("\"splats\": 1500000"), "the first run's output");
     assert!(hidden(tmp.path()).is_empty(), "{:?}", hidden(tmp.path()));
 }
+
+/// A sharded conversion whose output names one of its own inputs: `convert --part` into a
+/// samples folder it reads, `merge` into one of its parts. Both are refused with exit 2 and the
+/// input is kept; the same steps into fresh folders then succeed.
+#[test]
+fn a_sharded_step_into_one_of_its_inputs_is_refused_and_the_input_kept() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.splat");
+    write_splat(&input, 20_000);
+    let plan = tmp.path().join("plan.json");
+    let run = |args: &[&str]| {
+        Command::new(bin())
+            .args(args)
+            .arg("--quiet")
+            .output()
+            .unwrap()
+    };
+    let o = run(&["convert", s(&input), "--plan", s(&plan), "--parts", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let samples: Vec<PathBuf> = (0..2).map(|i| tmp.path().join(format!("s{i}"))).collect();
+    for (i, dir) in samples.iter().enumerate() {
+        let i = i.to_string();
+        let o = run(&[
+            "convert",
+            s(&input),
+            "--plan",
+            s(&plan),
+            "--part",
+            &i,
+            "--phase",
+            "samples",
+            "-o",
+            s(dir),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let before = super::common::tree_files(&samples[0]);
+    let part = |i: &str, out: &Path| {
+        run(&[
+            "convert",
+            s(&input),
+            "--plan",
+            s(&plan),
+            "--part",
+            i,
+            "-o",
+            s(out),
+            "--samples",
+            s(&samples[0]),
+            s(&samples[1]),
+        ])
+    };
+    let o = part("0", &samples[0]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("which this run reads"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(super::common::tree_files(&samples[0]), before);
+    let parts: Vec<PathBuf> = (0..2).map(|i| tmp.path().join(format!("p{i}"))).collect();
+    for (i, out) in parts.iter().enumerate() {
+        let o = part(&i.to_string(), out);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let kept = super::common::tree_files(&parts[0]);
+    let o = run(&[
+        "merge",
+        s(&plan),
+        s(&parts[0]),
+        s(&parts[1]),
+        "-o",
+        s(&parts[0]),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("which this run reads"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(super::common::tree_files(&parts[0]), kept);
+    let merged = tmp.path().join("merged");
+    let o = run(&[
+        "merge",
+        s(&plan),
+        s(&parts[0]),
+        s(&parts[1]),
+        "-o",
+        s(&merged),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_valid(&merged);
+}

@@ -71,6 +71,9 @@ pub fn merge_parts(
     let max_level = layout.depth();
 
     let (files, radius) = read_parts(&plan, plan_path, parts, opts.lod.enabled)?;
+    let mut inputs: Vec<&Path> = vec![plan_path];
+    inputs.extend(parts.iter().map(PathBuf::as_path));
+    crate::output::check_not_over_inputs(output, &inputs)?;
     let staging = Staging::prepare(output)?;
     let dir = staging.path().to_path_buf();
     let relocate = |e: ConvertError| e.relocated(&dir, output);

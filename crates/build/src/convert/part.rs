@@ -248,6 +248,9 @@ pub fn convert_part(
     let units = plan.units_of(part);
     let unit_set: HashSet<TileKey> = units.iter().copied().collect();
 
+    let mut inputs: Vec<&Path> = vec![input_path, plan_path];
+    inputs.extend(samples.iter().map(PathBuf::as_path));
+    crate::output::check_not_over_inputs(output, &inputs)?;
     let staging = Staging::prepare(output)?;
     let dir = staging.path().to_path_buf();
     let relocate = |e: ConvertError| e.relocated(&dir, output);

@@ -221,6 +221,38 @@ impl Staging {
     }
 }
 
+/// Refuses an output folder `target` that is one of `inputs`, lies inside one, or holds one:
+/// replacing it would destroy what the run reads (a merge into one of its parts, a part into a
+/// samples folder it reads).
+pub fn check_not_over_inputs(target: &Path, inputs: &[&Path]) -> Result<(), OutputError> {
+    // The target as it will be: resolved through its parent when it does not exist yet.
+    let resolve = |p: &Path| -> Option<PathBuf> {
+        std::fs::canonicalize(p).ok().or_else(|| {
+            let parent = match p.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => Path::new("."),
+            };
+            Some(std::fs::canonicalize(parent).ok()?.join(p.file_name()?))
+        })
+    };
+    let Some(out) = resolve(target) else {
+        return Ok(());
+    };
+    for input in inputs {
+        let Some(inp) = resolve(input) else { continue };
+        if out == inp || inp.starts_with(&out) || out.starts_with(&inp) {
+            return Err(OutputError::Refused {
+                path: target.to_path_buf(),
+                why: format!(
+                    "the output would replace {}, which this run reads; choose another folder",
+                    input.display()
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 impl Drop for Staging {
     fn drop(&mut self) {
         if !self.committed
