@@ -1,4 +1,4 @@
-//! Everything the commands print on stdout goes through [`out!`] and [`outln!`]: a reader that
+//! Everything the commands print on stdout goes through `out!` and `outln!`: a reader that
 //! went away (a closed pipe, `| head`) ends the process quietly with 141, as SIGPIPE would; any
 //! other failure (a full disk behind a redirect) is an error that exits 2, never a panic.
 
@@ -32,14 +32,14 @@ fn fail(e: &std::io::Error) -> ! {
     std::process::exit(super::EXIT_FAILURE);
 }
 
-/// `print!` through [`write`].
+/// `print!` through `write()`.
 macro_rules! out {
     ($($t:tt)*) => {
         $crate::cli::out::write(format_args!($($t)*))
     };
 }
 
-/// `println!` through [`write`].
+/// `println!` through `write()`.
 macro_rules! outln {
     () => {
         $crate::cli::out::write(format_args!("\n"))
@@ -49,53 +49,25 @@ macro_rules! outln {
     };
 }
 
-/// Writes `bytes` to the file `path` whole or not at all (a temporary file beside it, synced,
-/// then renamed over it), refusing a destination inside the folder `input` (the data the command
-/// read) and one that exists but is not a regular file.
+/// Writes `bytes` to the file `path` whole or not at all (`splat2tiles_io::write_whole`),
+/// refusing a destination inside the folder `input` (the data the command read), through a
+/// symbolic link too.
 pub fn write_file(
     path: &std::path::Path,
     bytes: &[u8],
     input: &std::path::Path,
 ) -> std::io::Result<()> {
-    use std::io::{Error, ErrorKind};
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::new(ErrorKind::InvalidInput, "not a file name"))?;
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let target = std::fs::canonicalize(&parent)?.join(name);
+    let target = splat2tiles_io::destination(path)?;
     if let Ok(input) = std::fs::canonicalize(input)
         && target.starts_with(&input)
     {
-        return Err(Error::new(
-            ErrorKind::InvalidInput,
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
             format!(
                 "inside the input {} (it would change what was read)",
                 input.display()
             ),
         ));
     }
-    match std::fs::metadata(&target) {
-        Ok(m) if !m.is_file() => {
-            return Err(Error::new(ErrorKind::InvalidInput, "not a regular file"));
-        }
-        _ => {}
-    }
-    let tmp = target.with_file_name(format!(
-        ".{}.{}.tmp",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let written = (|| {
-        let mut f = std::fs::File::create_new(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, &target)
-    })();
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written
+    splat2tiles_io::write_at(&target, bytes)
 }

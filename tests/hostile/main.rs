@@ -32,6 +32,16 @@ pub fn convert(args: &[&str]) -> Output {
         .expect("run splat2tiles convert")
 }
 
+/// Converts a small generated scene (`DIR/in.splat`, 2000 splats) into `DIR/ts`; returns `DIR/ts`.
+pub fn small_tileset(dir: &Path) -> std::path::PathBuf {
+    let input = dir.join("in.splat");
+    inputs::write_splat(&input, 2000);
+    let out = dir.join("ts");
+    let o = convert(&[input.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    out
+}
+
 /// Asserts that `splat2tiles validate TILESET` exits 0 (its report is the failure message).
 pub fn assert_valid(tileset: &Path) {
     let v = Command::new(common::bin())

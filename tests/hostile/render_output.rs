@@ -83,11 +83,7 @@ fn a_png_replaces_an_earlier_file_whole_and_through_a_link() {
 #[test]
 fn a_validation_report_onto_its_tileset_is_refused() {
     let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("in.splat");
-    write_splat(&input, 500);
-    let ts = tmp.path().join("ts");
-    let o = super::convert(&[input.to_str().unwrap(), "-o", ts.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let ts = super::small_tileset(tmp.path());
     let before = std::fs::read(ts.join("tileset.json")).unwrap();
     for report in [ts.join("tileset.json"), ts.join("report.json")] {
         let o = Command::new(bin())

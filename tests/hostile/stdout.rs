@@ -2,21 +2,9 @@
 //! that closed the pipe ends the command quietly with 141; neither panics.
 
 use super::common::bin;
-use super::convert;
-use super::inputs::write_splat;
+use super::small_tileset as tileset;
 use std::io::Read;
-use std::path::Path;
 use std::process::{Command, Stdio};
-
-/// A small converted tileset under `dir`.
-fn tileset(dir: &Path) -> std::path::PathBuf {
-    let input = dir.join("in.splat");
-    write_splat(&input, 2000);
-    let out = dir.join("ts");
-    let o = convert(&[input.to_str().unwrap(), "-o", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    out
-}
 
 #[cfg(target_os = "linux")]
 #[test]

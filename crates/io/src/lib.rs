@@ -16,6 +16,7 @@ mod ply_write;
 mod splat_file;
 mod splat_write;
 pub mod spz;
+mod whole_file;
 
 pub use spz::MAX_SPZ_POINTS;
 
@@ -29,6 +30,7 @@ pub use chunked::{Chunk, ChunkedInput};
 pub use error::{Location, ReadError, ReadErrorKind};
 pub use ply_write::{PlyWriter, write_ply};
 pub use splat_write::write_splat_records;
+pub use whole_file::{destination, write_at, write_whole};
 
 /// The text encoding of a PLY body.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -96,40 +96,11 @@ impl Image {
                 path: path.to_owned(),
                 source,
             })?;
-        let io = |what: &'static str| {
-            move |source| ImageError::Io {
-                path: path.to_owned(),
-                what,
-                source,
-            }
-        };
-        let target = match std::fs::metadata(path) {
-            Ok(m) if m.is_file() => std::fs::canonicalize(path).map_err(io("resolving"))?,
-            Ok(_) => {
-                return Err(io("writing")(std::io::Error::other(
-                    "not a regular file (a PNG is written only to a new or regular file)",
-                )));
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => path.to_owned(),
-            Err(e) => return Err(io("reading its metadata")(e)),
-        };
-        let name = target
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "image.png".into());
-        let tmp = target.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
-        let written = (|| {
-            use std::io::Write as _;
-            let mut f = std::fs::File::create_new(&tmp)?;
-            f.write_all(&png)?;
-            f.sync_all()?;
-            std::fs::rename(&tmp, &target)
-        })();
-        if let Err(e) = written {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(io("writing")(e));
-        }
-        Ok(())
+        splat2tiles_io::write_whole(path, &png).map_err(|source| ImageError::Io {
+            path: path.to_owned(),
+            what: "writing",
+            source,
+        })
     }
 
     /// Reads a PNG (any colour type; alpha is dropped, 16-bit is reduced to 8).

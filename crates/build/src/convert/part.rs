@@ -315,6 +315,7 @@ pub fn convert_part(
             deepest,
             spacing: spacing.into_iter().map(F).collect(),
         };
+        remove_spill(&dir).map_err(relocate)?;
         report.bytes = write_part_json(&dir, SAMPLES_FILE, &file).map_err(relocate)?;
         report.notes = staging.commit()?;
         report.seconds = start.elapsed().as_secs_f64();
@@ -423,7 +424,6 @@ fn leaf_radius(
 /// Writes `value` as JSON to `dir/name`; returns its bytes.
 fn write_part_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> Result<u64, ConvertError> {
     let json = serde_json::to_vec(value).expect("part records serialise");
-    remove_spill(dir)?;
     let path = dir.join(name);
     std::fs::write(&path, &json).map_err(io_err(&path, "writing"))?;
     Ok(json.len() as u64)
