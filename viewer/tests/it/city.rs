@@ -3,8 +3,6 @@
 //! maxSse 64: coarse root splats only) and street view, headless from the tile selection of
 //! `splat2tiles render` and from what the streaming client fetched, vs the CPU reference.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
@@ -19,7 +17,7 @@ use splat2tiles_viewer::headless::{ViewArgs, open_tileset, tileset_camera};
 use splat2tiles_viewer::renderer::{RendererConfig, SplatRenderer};
 use splat2tiles_viewer::stream::{apply_updates, bootstrap, driver};
 
-use common::*;
+use crate::common::*;
 
 const ORIGIN: &str = "2.2945,48.8584,35";
 

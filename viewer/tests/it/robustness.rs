@@ -2,9 +2,7 @@
 //! splat on the camera plane) render without panic or GPU validation error; the tile life cycle
 //! (fade in, append, replace, remove, slot reuse) and the lazy re-sort behave.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use glam::{DMat4, DVec3};
 use splat2tiles_core::camera::Camera;
 use splat2tiles_core::splat::{Splat, Splats};

@@ -1,9 +1,7 @@
 //! GPU renderer vs the CPU reference (`splat2tiles_render::raster`) on converted shared scenes:
 //! same tile selection and camera, SSIM >= 0.98 (SH0 plant, SH3 biker subset, georeferenced).
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use glam::{DMat4, DVec3};
 use splat2tiles_build::convert::ConvertOptions;
 use splat2tiles_core::camera::Camera;

@@ -1,11 +1,9 @@
 //! The `splat2tiles-viewer` binary: headless static frame (same camera and selection as
 //! `splat2tiles render`), headless camera trace with tiles fading in, and errors naming the file.
 
-mod common;
-
 use std::process::Command;
 
-use common::*;
+use crate::common::*;
 use glam::DVec3;
 use splat2tiles_build::convert::ConvertOptions;
 use splat2tiles_render::{Camera, Image, metrics};

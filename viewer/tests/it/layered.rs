@@ -3,8 +3,6 @@
 //! frame no frame differs from its neighbour by more than an SSIM step, where the same dolly with
 //! the blend disabled (hard swap) does; a blended frame matches the CPU reference's layered render.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
 use splat2tiles_build::convert::{ConvertOptions, SchemeChoice, convert};
@@ -22,7 +20,7 @@ use splat2tiles_viewer::layered::{BlendMode, SceneSync};
 use splat2tiles_viewer::renderer::{RendererConfig, SplatRenderer};
 use splat2tiles_viewer::stream::{bootstrap, driver};
 
-use common::gpu;
+use crate::common::gpu;
 
 /// Most SSIM one frame of the dolly may lose against the previous one (as the reference
 /// renderer's continuity test, `tests/layered_content.rs`).
