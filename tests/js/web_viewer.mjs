@@ -53,15 +53,6 @@ const waitFor = async (what, pred, ms) => {
 };
 
 try {
-  const cdp = await page.context().newCDPSession(page);
-  await cdp.send('Network.enable');
-  // Bandwidth and latency only (no loss): slow enough that tiles are mid-body when we turn away.
-  await cdp.send('Network.emulateNetworkConditions', {
-    offline: false,
-    latency: 20,
-    downloadThroughput: throttle,
-    uploadThroughput: -1,
-  });
   const qs = new URLSearchParams({
     tileset: '/tileset.json',
     width: String(width),
@@ -69,6 +60,7 @@ try {
     autoView: String(opt['auto-view'] ?? 0),
     levels: String(opt.levels ?? 'best'),
     clean: '1',
+    hold: '1',
   });
   if (opt.camera) qs.set('camera', String(opt.camera));
   if (opt['max-sse']) qs.set('maxSse', String(opt['max-sse']));
@@ -78,12 +70,29 @@ try {
       window.requestAnimationFrame = (cb) => setTimeout(() => raf(cb), ms);
     }, Number(opt['frame-interval']));
   }
+  const t0 = Date.now();
   await page.goto(`${base}viewer/index.html?${qs}`);
+  // The page and its wasm load at full speed; the throttle is set before streaming starts, with
+  // no request in flight (Chromium stalls requests issued across a change of the conditions).
+  await page.waitForFunction(() => window.splat2tilesStart || document.title.startsWith('error'), null, {
+    timeout: Number(opt['start-timeout'] ?? 300) * 1000,
+  });
+  const cdp = await page.context().newCDPSession(page);
+  await cdp.send('Network.enable');
+  // Bandwidth and latency only (no loss): slow enough that tiles are mid-body when we turn away.
+  await cdp.send('Network.emulateNetworkConditions', {
+    offline: false,
+    latency: 20,
+    downloadThroughput: throttle,
+    uploadThroughput: -1,
+  });
+  await page.evaluate(() => window.splat2tilesStart?.());
   // Start-up compiles the viewer's wasm (16 MB since the TCN's runtime joined it): on a loaded
   // 2-core CI box with several browsers at once that exceeded 60 s, so allow --start-timeout.
   await page.waitForFunction(() => window.splat2tiles || document.title.startsWith('error'), null, {
     timeout: Number(opt['start-timeout'] ?? 300) * 1000,
   });
+  out.phases.push({ phase: 'viewer started', seconds: (Date.now() - t0) / 1000 });
   const title = await page.title();
   if (title.startsWith('error')) throw new Error(title);
 
