@@ -133,8 +133,8 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
             let picked = select_tiles(&ts, &cam, args.max_sse);
             let mut instances = Vec::with_capacity(picked.len());
             for path in &picked {
-                let bytes = std::fs::read(path)
-                    .with_context(|| format!("{}: cannot read", path.display()))?;
+                let bytes =
+                    splat2tiles_io::read_file(path, splat2tiles_tiles::tiling::load::CONTENT_FILE)?;
                 // Any variant: plain, EXT_meshopt_compression or SPZ_2 compressed.
                 let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
                     .with_context(|| format!("{}", path.display()))?;

@@ -98,7 +98,7 @@ pub fn load_instances(
         .iter()
         .map(|p| {
             let bytes =
-                std::fs::read(p).with_context(|| format!("{}: cannot read", p.display()))?;
+                splat2tiles_io::read_file(p, splat2tiles_tiles::tiling::load::CONTENT_FILE)?;
             let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
                 .with_context(|| format!("{}: cannot decode the tile", p.display()))?;
             Ok((splats, content_model(ts, &node)))

@@ -7,6 +7,7 @@
 //! allocate beyond what the input size justifies. Errors print `FILE: byte N: what is wrong`.
 //! Trailing bytes after the declared data are an error, not a warning.
 
+pub mod bounded;
 mod chunked;
 mod error;
 pub mod limits;
@@ -26,6 +27,7 @@ use std::path::Path;
 use crate::limits::MemoryLimit;
 use splat2tiles_core::splat::Splats;
 
+pub use bounded::{BoundedReadError, FileKind, read_file, read_text};
 pub use chunked::{Chunk, ChunkedInput};
 pub use error::{Location, ReadError, ReadErrorKind};
 pub use ply_write::{PlyWriter, write_ply};

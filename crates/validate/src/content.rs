@@ -1,9 +1,8 @@
 //! glb content checks: GLB framing (glTF 2.0 sec. 4.4), extensions, node placements; then the
 //! buffers (`glb_buffers`) and each `KHR_gaussian_splatting` primitive (`splat_primitive`).
 
-use super::context::Ctx;
+use super::context::{ContentGeom, Ctx};
 use super::issues::Issue;
-use super::splat_primitive::ContentGeom;
 use glam::{DMat4, DQuat, DVec3};
 use splat2tiles_tiles::encode::glb::{GlbError, parse_json, read_glb};
 use splat2tiles_tiles::encode::gltf::{Gltf, KHR_GAUSSIAN_SPLATTING, KHR_MESH_QUANTIZATION};

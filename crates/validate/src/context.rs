@@ -4,7 +4,7 @@
 use super::issues::Issue;
 use super::uri::{Resolved, resolve_uri};
 use super::volume::Volume;
-use glam::DMat4;
+use glam::{DMat3, DMat4, DVec3};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -79,6 +79,24 @@ pub(crate) struct Ctx<'a> {
     pub cut: Vec<CutTile>,
     /// More tiles than `cut::MAX_TILES` were walked in this document: the rule is skipped.
     pub cut_truncated: bool,
+    /// Content files checked so far (resolved paths), with their splat geometry while it fits
+    /// in [`MAX_CACHED_CENTRES`]: a content reached again from another tile is checked once,
+    /// and only its containment in the new tile's volume is checked again.
+    pub contents: std::collections::HashMap<PathBuf, Option<std::rc::Rc<ContentGeom>>>,
+    /// Splat centres held in `contents`.
+    pub cached_centres: usize,
+}
+
+/// Most splat centres [`Ctx::contents`] keeps (their shapes included: about 100 bytes each).
+pub(crate) const MAX_CACHED_CENTRES: usize = 1 << 22;
+
+/// Splat geometry of one content, in the tile frame (after the node matrix and y-up -> z-up).
+#[derive(Debug, Default)]
+pub(crate) struct ContentGeom {
+    /// Splat centres.
+    pub centres: Vec<DVec3>,
+    /// Per splat, the linear part mapping the unit sphere onto its 1-sigma ellipsoid.
+    pub shapes: Option<Vec<DMat3>>,
 }
 
 /// Most issues one report lists (hostile inputs can produce millions).
@@ -114,6 +132,8 @@ impl<'a> Ctx<'a> {
             layered_seen: false,
             cut: Vec::new(),
             cut_truncated: false,
+            contents: Default::default(),
+            cached_centres: 0,
         }
     }
 

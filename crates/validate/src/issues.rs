@@ -92,6 +92,8 @@ catalogue! {
     JSON_PARSE_ERROR => Error,
     /// A tileset JSON nests arrays/objects deeper than the validator follows (1024 levels).
     JSON_NESTING_TOO_DEEP => Error,
+    /// A JSON document holds more values than the validator parses (4M: a few hundred MiB).
+    JSON_TOO_LARGE => Error,
     /// An external tileset has errors (listed as causes).
     EXTERNAL_TILESET_VALIDATION_FAILED => Error,
     /// An external tileset has warnings but no errors (listed as causes).

@@ -35,14 +35,10 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ValidateError {
-    /// `tileset.json` itself could not be read.
-    #[error("{path}: {source}")]
-    Unreadable {
-        /// The file.
-        path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
-    },
+    /// `tileset.json` itself could not be read (missing, not a regular file, or larger than
+    /// `--max-decompressed-mib`).
+    #[error(transparent)]
+    Unreadable(#[from] splat2tiles_io::BoundedReadError),
 }
 
 /// Validates the tileset at `path` (a `tileset.json`, or a folder holding one) and everything
@@ -53,10 +49,8 @@ pub fn validate_tileset(path: &Path, opts: &ValidateOptions) -> Result<Report, V
     } else {
         path.to_path_buf()
     };
-    let bytes = std::fs::read(&file).map_err(|source| ValidateError::Unreadable {
-        path: file.clone(),
-        source,
-    })?;
+    let kind = splat2tiles_io::FileKind::new("tileset JSON", opts.max_decompressed_bytes);
+    let bytes = splat2tiles_io::read_file(&file, kind)?;
     let dir = match file.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),

@@ -1,7 +1,7 @@
 //! One `KHR_gaussian_splatting` primitive of a glb: the extension's properties, its attribute set
 //! and SH completeness, each accessor's type and bounds, the data values, and its splat geometry.
 
-use super::context::Ctx;
+use super::context::{ContentGeom, Ctx};
 use super::glb_buffers::Buffers;
 use super::issues::Issue;
 use std::collections::BTreeMap;
@@ -16,15 +16,6 @@ const SPLAT: &str = "KHR_gaussian_splatting:";
 const ROTATION: &str = "KHR_gaussian_splatting:ROTATION";
 const SCALE: &str = "KHR_gaussian_splatting:SCALE";
 const OPACITY: &str = "KHR_gaussian_splatting:OPACITY";
-
-/// Splat geometry of one content, in the tile frame (after the node matrix and y-up -> z-up).
-#[derive(Debug, Default)]
-pub(crate) struct ContentGeom {
-    /// Splat centres.
-    pub centres: Vec<DVec3>,
-    /// Per splat, the linear part mapping the unit sphere onto its 1-sigma ellipsoid.
-    pub shapes: Option<Vec<DMat3>>,
-}
 
 /// An accessor whose bytes were checked to lie inside their buffer.
 struct View<'b> {

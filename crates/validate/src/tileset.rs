@@ -5,7 +5,7 @@ mod external;
 mod implicit;
 
 use super::content::validate_glb;
-use super::context::Ctx;
+use super::context::{Ctx, MAX_CACHED_CENTRES};
 use super::declarations::declarations;
 use super::issues::Issue;
 use super::metadata::entity::entity;
@@ -430,6 +430,14 @@ pub(crate) fn content_file(
     let Some(file) = ctx.resolve(uri, path) else {
         return;
     };
+    if let Some(cached) = ctx.contents.get(&file) {
+        // Checked already from another tile: only its place in this tile's volume is new.
+        if let (Some(geom), Some(volume)) = (cached.clone(), volume) {
+            containment(ctx, uri, &geom, &volume, &world);
+        }
+        return;
+    }
+    ctx.contents.insert(file.clone(), None);
     let Some(bytes) = ctx.read(&file, uri) else {
         return;
     };
@@ -464,6 +472,12 @@ pub(crate) fn content_file(
     let Some(geom) = validate_glb(ctx, &bytes, uri, extent) else {
         return;
     };
+    drop(bytes);
+    let geom = std::rc::Rc::new(geom);
+    if ctx.cached_centres + geom.centres.len() <= MAX_CACHED_CENTRES {
+        ctx.cached_centres += geom.centres.len();
+        ctx.contents.insert(file, Some(geom.clone()));
+    }
     let Some(volume) = volume else { return };
     containment(ctx, uri, &geom, &volume, &world);
 }
@@ -472,7 +486,7 @@ pub(crate) fn content_file(
 pub(crate) fn containment(
     ctx: &mut Ctx<'_>,
     uri: &str,
-    geom: &super::splat_primitive::ContentGeom,
+    geom: &super::context::ContentGeom,
     volume: &Volume,
     world: &DMat4,
 ) {

@@ -223,8 +223,10 @@ impl Cells {
             contents.entry(k).or_default().push(i);
             home.push(k);
         }
+        // Deepest level first, so a placeholder made for a level gets its own parent in turn:
+        // every tile with a layer then has a parent with a layer, up to the root.
         let mut placeholders: BTreeMap<TileKey, usize> = BTreeMap::new();
-        for level in 1..counts.len() as u32 {
+        for level in (1..counts.len() as u32).rev() {
             let keys: Vec<TileKey> = contents
                 .keys()
                 .chain(placeholders.keys())

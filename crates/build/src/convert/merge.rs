@@ -4,6 +4,7 @@
 //! tileset stage (errors, utilities, subtrees, `tileset.json`) over the whole tree.
 
 use super::part::{PART_FILE, PART_VERSION, PartFile, ROOTS_FILE};
+use super::part_files::link_listed;
 use super::plan::Plan;
 use super::region::{RegionCtx, RootContent, WrittenParent};
 use super::shard::{arr_key, bad, parse, read_bounded};
@@ -70,7 +71,7 @@ pub fn merge_parts(
     let octree = scheme == Scheme::Octree;
     let max_level = layout.depth();
 
-    let (files, radius) = read_parts(&plan, plan_path, parts, opts.lod.enabled)?;
+    let (files, radius) = read_parts(&plan, plan_path, parts, opts.lod.enabled, memory_limit)?;
     let mut inputs: Vec<&Path> = vec![plan_path];
     inputs.extend(parts.iter().map(PathBuf::as_path));
     crate::output::check_not_over_inputs(output, &inputs)?;
@@ -78,8 +79,12 @@ pub fn merge_parts(
     let dir = staging.path().to_path_buf();
     let relocate = |e: ConvertError| e.relocated(&dir, output);
     let mut report = MergeReport::default();
-    for (_, part_dir) in &files {
-        link_tree(&part_dir.join("tiles"), &dir.join("tiles"), &mut report).map_err(relocate)?;
+    for (f, part_dir) in &files {
+        let part_file = part_dir.join(PART_FILE);
+        let done = link_listed(part_dir, &part_file, &f.files, &dir).map_err(relocate)?;
+        report.part_files += done.files;
+        report.part_bytes += done.bytes;
+        report.copied_bytes += done.copied_bytes;
     }
 
     // The tree: every part's leaves, then every parent with content.
@@ -173,14 +178,17 @@ fn read_parts(
     plan_path: &Path,
     parts: &[PathBuf],
     lod: bool,
+    memory_limit: u64,
 ) -> Result<(PartFiles, Option<f64>), ConvertError> {
+    // A parsed part takes a few times its text: at most a quarter of the memory limit is read.
+    let part_cap = MAX_PART_BYTES.min(memory_limit / 4);
     let n = plan.file.parts;
     let (scheme, max_level) = (plan.layout.scheme, plan.layout.depth());
     let octree = scheme == Scheme::Octree;
     let mut files: Vec<Option<(PartFile, PathBuf)>> = (0..n).map(|_| None).collect();
     for dir in parts {
         let path = dir.join(PART_FILE);
-        let bytes = read_bounded(&path, MAX_PART_BYTES)?;
+        let bytes = read_bounded(&path, part_cap)?;
         let f: PartFile = parse(&path, &bytes)?;
         if f.splat2tiles_part != PART_VERSION {
             return Err(bad(
@@ -278,8 +286,8 @@ fn top_levels(
             f,
             &part_dir.join(ROOTS_FILE),
             codec,
-            max_level,
-            octree,
+            (max_level, octree),
+            cx.opts.memory_limit,
             &store,
         )?;
     }
@@ -338,8 +346,8 @@ fn load_roots(
     f: &PartFile,
     path: &Path,
     codec: Codec,
-    max_level: u32,
-    octree: bool,
+    (max_level, octree): (u32, bool),
+    memory_limit: u64,
     store: &ContentStore,
 ) -> Result<(), ConvertError> {
     let rb = codec.record_bytes() as u64;
@@ -362,8 +370,31 @@ fn load_roots(
     let mut offset = 0u64;
     for u in &f.units {
         let key = arr_key(u.key, max_level, octree).expect("checked");
-        // Bounded by the file's length, checked above.
-        let mut buf = vec![0u8; (u.content * rb) as usize];
+        // Bounded by the file's length (checked above), which may be sparse: reserved fallibly.
+        if u.content * rb > memory_limit / 2 {
+            return Err(bad(
+                path,
+                Some(offset),
+                format!(
+                    "unit {:?}: {} bytes of content, more than half the memory limit ({memory_limit} bytes)",
+                    u.key,
+                    u.content * rb
+                ),
+            ));
+        }
+        let need = usize::try_from(u.content * rb).unwrap_or(usize::MAX);
+        let mut buf = Vec::new();
+        buf.try_reserve_exact(need).map_err(|_| {
+            bad(
+                path,
+                Some(offset),
+                format!(
+                    "unit {:?}: cannot reserve {need} bytes for its content",
+                    u.key
+                ),
+            )
+        })?;
+        buf.resize(need, 0);
         r.read_exact(&mut buf)
             .map_err(|e| bad(path, Some(offset), e))?;
         offset += buf.len() as u64;
@@ -379,41 +410,6 @@ fn load_roots(
             ));
         }
         store.put(key, &s, u.radius.0)?;
-    }
-    Ok(())
-}
-
-/// Hard-links (or, across file systems, copies) every file under `from` to the same place
-/// under `to`; refuses links and anything but files and folders, and a file already there.
-fn link_tree(from: &Path, to: &Path, report: &mut MergeReport) -> Result<(), ConvertError> {
-    if !from.exists() {
-        return Ok(());
-    }
-    let mut stack = vec![(from.to_path_buf(), to.to_path_buf())];
-    while let Some((src, dst)) = stack.pop() {
-        super::check_interrupt()?;
-        std::fs::create_dir_all(&dst).map_err(io_err(&dst, "creating folder"))?;
-        for e in std::fs::read_dir(&src).map_err(io_err(&src, "reading folder"))? {
-            let e = e.map_err(io_err(&src, "reading folder"))?;
-            let (s, d) = (e.path(), dst.join(e.file_name()));
-            let t = e.file_type().map_err(io_err(&s, "reading"))?;
-            if t.is_dir() {
-                stack.push((s, d));
-            } else if t.is_file() {
-                let len = e.metadata().map_err(io_err(&s, "reading"))?.len();
-                if d.exists() {
-                    return Err(bad(&s, None, "a tile of two parts (parts overlap?)"));
-                }
-                if std::fs::hard_link(&s, &d).is_err() {
-                    std::fs::copy(&s, &d).map_err(io_err(&s, "copying"))?;
-                    report.copied_bytes += len;
-                }
-                report.part_files += 1;
-                report.part_bytes += len;
-            } else {
-                return Err(bad(&s, None, "not a file or folder (a link?); refused"));
-            }
-        }
     }
     Ok(())
 }

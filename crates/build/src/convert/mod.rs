@@ -10,6 +10,7 @@ mod layered;
 mod merge;
 mod options;
 mod part;
+mod part_files;
 mod plan;
 mod region;
 mod shard;

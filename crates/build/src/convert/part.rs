@@ -9,6 +9,7 @@
 //! radius a single-machine run computes. The samples phase is skipped when the radius is not
 //! needed (`--lod-radius` given, or `--no-lod`).
 
+use super::part_files::{FileRec, list_files};
 use super::plan::{Plan, open_input};
 use super::region::{self, GroupLeaves, RegionCtx, RootContent, WrittenParent};
 use super::shard::{F, bad, f3, key_arr, parse, read_bounded, v3};
@@ -27,7 +28,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Version of the part and samples files.
-pub(super) const PART_VERSION: u32 = 1;
+pub(super) const PART_VERSION: u32 = 2;
 
 /// The part file inside a built part's folder.
 pub(super) const PART_FILE: &str = "part.json";
@@ -98,6 +99,8 @@ pub(super) struct PartFile {
     pub(super) leaves: Vec<TileRec>,
     /// LOD parents with content.
     pub(super) parents: Vec<TileRec>,
+    /// Every tile file the part wrote (what the merge carries over, each checked first).
+    pub(super) files: Vec<FileRec>,
 }
 
 /// A built unit: its root's content (`roots.bin`) and the deepest leaf level below it.
@@ -386,6 +389,7 @@ pub fn convert_part(
         units: unit_out,
         leaves: leaf_recs,
         parents: parent_recs,
+        files: list_files(&dir, "tiles").map_err(relocate)?,
     };
     write_part_json(&dir, PART_FILE, &file).map_err(relocate)?;
     report.bytes = folder_bytes(&dir);

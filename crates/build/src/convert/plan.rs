@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Version of the plan file format.
-pub const PLAN_VERSION: u32 = 1;
+pub const PLAN_VERSION: u32 = 2;
 
 /// Most parts a plan may have.
 pub const MAX_PARTS: usize = 1 << 16;
@@ -64,6 +64,53 @@ pub(super) struct PlanInput {
     pub(super) finite: u64,
     pub(super) dropped: u64,
     pub(super) sh_degree: u8,
+    /// [`fingerprint`] of the input file.
+    pub(super) fingerprint: String,
+}
+
+/// Blocks [`fingerprint`] reads, evenly spaced over the file.
+const FINGERPRINT_BLOCKS: u64 = 64;
+/// Bytes of each block.
+const FINGERPRINT_BLOCK: u64 = 64 << 10;
+
+/// A fingerprint of the content of `path`: the CRC-32 of 64 blocks of 64 KiB spread evenly
+/// over the file (all of it when smaller than 4 MiB), as hex. It tells apart two files of the
+/// same size and splat count (a mirrored or re-ordered copy changes the bytes of every block)
+/// at the cost of reading 4 MiB, not the whole input.
+pub(super) fn fingerprint(path: &Path) -> Result<String, ConvertError> {
+    use std::io::{Read, Seek, SeekFrom};
+    let io = super::io_err(path, "reading");
+    let mut f = std::fs::File::open(path).map_err(io)?;
+    let len = f.metadata().map_err(super::io_err(path, "reading"))?.len();
+    let mut h = crc32fast::Hasher::new();
+    let mut buf = vec![0u8; FINGERPRINT_BLOCK as usize];
+    let span = FINGERPRINT_BLOCKS * FINGERPRINT_BLOCK;
+    let starts: Vec<u64> = if len <= span {
+        (0..len.div_ceil(FINGERPRINT_BLOCK))
+            .map(|i| i * FINGERPRINT_BLOCK)
+            .collect()
+    } else {
+        let last = len - FINGERPRINT_BLOCK;
+        (0..FINGERPRINT_BLOCKS)
+            .map(|i| last / (FINGERPRINT_BLOCKS - 1) * i)
+            .collect()
+    };
+    for at in starts {
+        f.seek(SeekFrom::Start(at))
+            .map_err(super::io_err(path, "reading"))?;
+        let n = (len - at).min(FINGERPRINT_BLOCK) as usize;
+        f.read_exact(&mut buf[..n])
+            .map_err(super::io_err(path, "reading"))?;
+        h.update(&buf[..n]);
+    }
+    Ok(format!("crc32-64x64k:{len}:{:08x}", h.finalize()))
+}
+
+/// The one field read before a plan is parsed whole (every other field is skipped unread).
+#[derive(Deserialize)]
+struct Probe {
+    #[serde(rename = "splat2tilesPlan")]
+    version: Option<u64>,
 }
 
 /// The conversion options every part and the merge use.
@@ -250,6 +297,7 @@ pub fn make_plan(
                 .map(|f| f.to_string_lossy().into_owned())
                 .unwrap_or_default(),
             bytes,
+            fingerprint: fingerprint(input_path)?,
             splats: input.len(),
             finite: counts.finite,
             dropped,
@@ -295,8 +343,8 @@ fn refuse_foreign(plan: &Path) -> Result<(), ConvertError> {
         )),
         Ok(_) => {
             let bytes = std::fs::read(plan).map_err(super::io_err(plan, "reading"))?;
-            let v: Option<serde_json::Value> = serde_json::from_slice(&bytes).ok();
-            if v.as_ref().and_then(|v| v.get("splat2tilesPlan")).is_some() {
+            let v: Option<Probe> = serde_json::from_slice(&bytes).ok();
+            if v.is_some_and(|p| p.version.is_some()) {
                 Ok(())
             } else {
                 Err(bad(
@@ -410,8 +458,8 @@ impl Plan {
     /// Reads and checks the plan at `path`.
     pub(super) fn load(path: &Path) -> Result<Plan, ConvertError> {
         let bytes = read_bounded(path, MAX_PLAN_BYTES)?;
-        let probe: serde_json::Value = parse(path, &bytes)?;
-        match probe.get("splat2tilesPlan").and_then(|v| v.as_u64()) {
+        let probe: Probe = parse(path, &bytes)?;
+        match probe.version {
             Some(v) if v == PLAN_VERSION as u64 => {}
             Some(v) => {
                 return Err(bad(
@@ -587,7 +635,20 @@ impl Plan {
             .map_err(super::io_err(path, "reading"))?
             .len();
         let p = &self.file.input;
-        if bytes != p.bytes || input.len() != p.splats || input.sh_degree() != p.sh_degree {
+        let same = bytes == p.bytes && input.len() == p.splats && input.sh_degree() == p.sh_degree;
+        if same && fingerprint(path)? != p.fingerprint {
+            return Err(bad(
+                path,
+                None,
+                format!(
+                    "not the input of plan {}: the same size and splat count, other content \
+                     (fingerprint {} planned)",
+                    self.path.display(),
+                    p.fingerprint
+                ),
+            ));
+        }
+        if !same {
             return Err(bad(
                 path,
                 None,

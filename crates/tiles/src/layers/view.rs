@@ -6,10 +6,12 @@ use super::blend::{AncestorDelta, DrawnLayer, blend_factor, drawn_layers};
 use super::glb::read_layer;
 use crate::encode::read_tile_glb;
 use crate::tiling::TileKey;
+use crate::tiling::load::CONTENT_FILE;
 use crate::tiling::load::LoadedTileset;
 use glam::DMat4;
 use splat2tiles_core::camera::Camera;
 use splat2tiles_core::splat::Splats;
+use splat2tiles_io::bounded::read_file;
 use std::path::PathBuf;
 
 /// One layer a camera draws.
@@ -34,7 +36,7 @@ pub fn is_layered(ts: &LoadedTileset) -> bool {
     let Some(path) = ts.root_index().and_then(|i| ts.tiles[i].content.as_ref()) else {
         return false;
     };
-    std::fs::read(path)
+    read_file(path, CONTENT_FILE)
         .ok()
         .is_some_and(|b| matches!(read_layer(&b), Ok(Some(_))))
 }
@@ -102,8 +104,7 @@ pub fn layered_instances(
     let mut decoded = Vec::with_capacity(picked.len());
     for l in &picked {
         let at = |e: &dyn std::fmt::Display| LayerViewError(format!("{}: {e}", l.path.display()));
-        let bytes = std::fs::read(&l.path)
-            .map_err(|e| LayerViewError(format!("{}: cannot read: {e}", l.path.display())))?;
+        let bytes = read_file(&l.path, CONTENT_FILE).map_err(|e| LayerViewError(e.to_string()))?;
         let tile = read_tile_glb(&bytes).map_err(|e| at(&e))?;
         let layer = read_layer(&bytes).map_err(|e| at(&e))?;
         decoded.push((tile, layer));

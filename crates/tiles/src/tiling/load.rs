@@ -5,6 +5,8 @@ use super::subtree::{self, Subtree};
 use super::tileset::Tileset;
 use super::{Scheme, TileKey};
 use glam::DMat4;
+use splat2tiles_io::bounded::{BoundedReadError, FileKind, read_file};
+use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
 
 /// One available tile.
@@ -59,13 +61,17 @@ impl LoadedTileset {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum LoadError {
-    /// A file could not be read.
-    #[error("{path}: {source}")]
-    Io {
-        /// File.
+    /// A file could not be read: missing, not a regular file, or over its size cap.
+    #[error(transparent)]
+    Read(#[from] BoundedReadError),
+    /// The walk passed one of its bounds: more tiles than [`MAX_LOADED_TILES`], or one subtree
+    /// or content file reached from two tiles (a template that does not name each apart).
+    #[error("{path}: {msg}")]
+    Bound {
+        /// File (`tileset.json`, or the file reached twice).
         path: PathBuf,
-        /// OS error.
-        source: std::io::Error,
+        /// Which bound.
+        msg: String,
     },
     /// JSON did not parse.
     #[error("{path}: {msg}")]
@@ -125,11 +131,34 @@ pub fn resolve_inside(dir: &Path, uri: &str) -> Option<PathBuf> {
     Some(dir.join(rel))
 }
 
-fn read(path: &Path) -> Result<Vec<u8>, LoadError> {
-    std::fs::read(path).map_err(|source| LoadError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+/// The size cap of `tileset.json` for the implicit loader (ours are a few kB; parsed JSON takes
+/// up to about 20 times its text).
+pub const TILESET_JSON: FileKind = FileKind::new("tileset JSON", 16 << 20);
+/// The size cap of one subtree file.
+pub const SUBTREE_FILE: FileKind = FileKind::new("subtree file", 128 << 20);
+/// The size cap of one tile's content (a glb) for the tools that read it whole.
+pub const CONTENT_FILE: FileKind = FileKind::new("tile content file", 512 << 20);
+/// Most available tiles a loaded tileset may list (what the streaming client also accepts).
+pub const MAX_LOADED_TILES: usize = 1 << 20;
+
+/// A tile key as `level/x/y/z` in messages.
+fn key_name(k: TileKey) -> String {
+    format!("{}/{}/{}/{}", k.level, k.x, k.y, k.z)
+}
+
+/// `uri` with `.` dropped and `..` applied, so two spellings of one file compare equal.
+fn normalized(uri: &str) -> PathBuf {
+    let mut parts: Vec<&std::ffi::OsStr> = Vec::new();
+    for c in Path::new(uri).components() {
+        match c {
+            Component::Normal(p) => parts.push(p),
+            Component::ParentDir => {
+                parts.pop();
+            }
+            _ => {}
+        }
+    }
+    parts.iter().collect()
 }
 
 fn f64_rows(s: &Subtree, table: u32, prop: &str, width: usize) -> Option<Vec<Vec<f64>>> {
@@ -433,10 +462,40 @@ pub fn parse_subtree_tiles(
     })
 }
 
-/// Loads `tileset.json` and walks its subtrees.
+/// Loads `tileset.json` and walks its subtrees. Every file is read through
+/// [`splat2tiles_io::bounded`] with its kind's cap; the walk lists at most [`MAX_LOADED_TILES`]
+/// tiles, and a subtree or content file that two tiles reach is refused (the loop a
+/// self-referencing subtree would make, or one content drawn once per tile that names it).
 pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
-    let bytes = read(path)?;
-    let parsed = |path: &Path, e: ParseError| match e {
+    let bytes = read_file(path, TILESET_JSON)?;
+    let root = parse_tileset_json(&bytes).map_err(|e| parsed(path, e))?;
+    drop(bytes);
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let mut walk = Walk {
+        tileset: path,
+        dir: &dir,
+        seen: HashMap::new(),
+        tiles: Vec::new(),
+    };
+    let mut queue = vec![TileKey::ROOT];
+    while let Some(sroot) = queue.pop() {
+        if sroot.level < root.available_levels {
+            queue.extend(walk.subtree(&root, sroot)?);
+        }
+    }
+    let tiles = walk.tiles;
+    Ok(LoadedTileset {
+        dir,
+        scheme: root.scheme,
+        root_transform: root.root_transform,
+        tileset: root.tileset,
+        tiles,
+    })
+}
+
+/// A [`ParseError`] of `path` as a [`LoadError`].
+fn parsed(path: &Path, e: ParseError) -> LoadError {
+    match e {
         ParseError::Json(msg) => LoadError::Json {
             path: path.to_path_buf(),
             msg,
@@ -449,33 +508,59 @@ pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
             path: path.to_path_buf(),
             source,
         },
-    };
-    let root = parse_tileset_json(&bytes).map_err(|e| parsed(path, e))?;
-    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
-    let unsupported = |msg: &str| LoadError::Unsupported {
-        path: path.to_path_buf(),
-        msg: msg.to_string(),
-    };
-    let mut tiles = Vec::new();
-    let mut queue = vec![TileKey::ROOT];
-    while let Some(sroot) = queue.pop() {
-        if sroot.level >= root.available_levels {
-            continue;
-        }
-        let uri = expand_template(&root.subtree_template, sroot);
-        let spath = resolve_inside(&dir, &uri).ok_or_else(|| {
-            unsupported(&format!("subtree URI '{uri}' leaves the tileset folder"))
+    }
+}
+
+/// The state of [`load_tileset`]'s walk: the files reached so far (by normalised URI, with
+/// the tile that reached them) and the tiles listed.
+struct Walk<'a> {
+    tileset: &'a Path,
+    dir: &'a Path,
+    seen: HashMap<PathBuf, TileKey>,
+    tiles: Vec<LoadedTile>,
+}
+
+impl Walk<'_> {
+    /// Resolves `uri` (a subtree's or a content's, reached from tile `key`) inside the tileset
+    /// folder; refuses a URI that leaves it or a file another tile already reached.
+    fn reach(&mut self, what: &str, uri: &str, key: TileKey) -> Result<PathBuf, LoadError> {
+        let path = resolve_inside(self.dir, uri).ok_or_else(|| LoadError::Unsupported {
+            path: self.tileset.to_path_buf(),
+            msg: format!("{what} URI '{uri}' leaves the tileset folder"),
         })?;
-        let st =
-            parse_subtree_tiles(&root, sroot, &read(&spath)?).map_err(|e| parsed(&spath, e))?;
+        if let Some(first) = self.seen.insert(normalized(uri), key) {
+            return Err(LoadError::Bound {
+                path,
+                msg: format!(
+                    "the {what} of both tile {} and tile {}: each tile's {what} must be a file \
+                     of its own",
+                    key_name(first),
+                    key_name(key)
+                ),
+            });
+        }
+        Ok(path)
+    }
+
+    /// Reads the subtree rooted at `sroot`, lists its tiles, returns its child subtrees.
+    fn subtree(&mut self, root: &ImplicitRoot, sroot: TileKey) -> Result<Vec<TileKey>, LoadError> {
+        let uri = expand_template(&root.subtree_template, sroot);
+        let spath = self.reach("subtree", &uri, sroot)?;
+        let bytes = read_file(&spath, SUBTREE_FILE)?;
+        let st = parse_subtree_tiles(root, sroot, &bytes).map_err(|e| parsed(&spath, e))?;
+        drop(bytes);
+        if self.tiles.len() + st.tiles.len() > MAX_LOADED_TILES {
+            return Err(LoadError::Bound {
+                path: self.tileset.to_path_buf(),
+                msg: format!("more than {MAX_LOADED_TILES} available tiles"),
+            });
+        }
         for t in st.tiles {
             let content = match &t.content_uri {
-                Some(uri) => Some(resolve_inside(&dir, uri).ok_or_else(|| {
-                    unsupported(&format!("content URI '{uri}' leaves the tileset folder"))
-                })?),
+                Some(uri) => Some(self.reach("content", uri, t.key)?),
                 None => None,
             };
-            tiles.push(LoadedTile {
+            self.tiles.push(LoadedTile {
                 key: t.key,
                 content,
                 bounding_box: t.bounding_box,
@@ -483,15 +568,8 @@ pub fn load_tileset(path: &Path) -> Result<LoadedTileset, LoadError> {
                 splat_count: t.splat_count,
             });
         }
-        queue.extend(st.child_subtrees);
+        Ok(st.child_subtrees)
     }
-    Ok(LoadedTileset {
-        dir,
-        scheme: root.scheme,
-        root_transform: root.root_transform,
-        tileset: root.tileset,
-        tiles,
-    })
 }
 
 #[cfg(test)]

@@ -229,6 +229,8 @@ struct Walk<'s> {
     errors: HashMap<TileKey, f64>,
     /// Index in `Ctx::cut` per walked tile.
     walked: HashMap<TileKey, usize>,
+    /// Subtree files read so far (resolved), with the subtree root that read each first.
+    files: HashMap<std::path::PathBuf, TileKey>,
 }
 
 /// One subtree's availabilities, expanded to bits.
@@ -273,6 +275,7 @@ pub(crate) fn validate(
         schema,
         errors: HashMap::new(),
         walked: HashMap::new(),
+        files: HashMap::new(),
     };
     let mut queue = vec![(TileKey::ROOT, true)];
     let mut seen = HashSet::new();
@@ -329,6 +332,20 @@ impl Walk<'_> {
         else {
             return vec![];
         };
+        if let Some(first) = self.files.insert(file.clone(), root) {
+            // One file for two subtrees would be walked again below each of its own children.
+            let name = |k: TileKey| format!("{}/{}/{}/{}", k.level, k.x, k.y, k.z);
+            ctx.push(Issue::IMPLICIT_TILING_ERROR(
+                uri,
+                format!(
+                    "the subtree file of both subtree {} and subtree {}: each subtree needs a \
+                     file of its own; walked once",
+                    name(first),
+                    name(root)
+                ),
+            ));
+            return vec![];
+        }
         if !ctx.exists(&file) {
             if is_root {
                 ctx.push(Issue::IO_ERROR(uri, "the root subtree file is missing"));
