@@ -11,6 +11,9 @@ use std::path::{Path, PathBuf};
 /// Most connections kept at once, one thread each (browsers keep 6 per host open and idle);
 /// when full, waiting connections are evicted (`serve::admission`).
 const THREADS: usize = 512;
+/// Most of them one client address may have busy answering at once: clients of one address
+/// that read slowly leave the other three quarters to everyone else.
+const PER_ADDRESS: usize = THREADS / 4;
 /// The port `view` tries first when none is given.
 const VIEW_PORT: u16 = 8080;
 
@@ -88,6 +91,7 @@ fn run_server_fallback(
         port,
         quiet,
         threads: THREADS,
+        per_address: PER_ADDRESS,
     };
     let server = match Server::bind(mounts.clone(), opts(port)) {
         Err(ServeError::Bind { in_use: true, .. }) if fallback => {

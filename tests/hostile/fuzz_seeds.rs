@@ -1,5 +1,6 @@
-//! The seeds of the fuzz targets for the newer surfaces (`limited`, `http_head`, `output_marker`),
-//! and every prefix of them, through the same entry points: errors, never panics.
+//! The seeds of the fuzz targets for the newer surfaces (`limited`, `http_head`, `output_marker`,
+//! `plan`, `part`, `samples`, `loader`), and every prefix of them, through the same entry points:
+//! errors, never panics.
 
 use std::path::Path;
 
@@ -71,6 +72,61 @@ fn marker_seeds_and_prefixes_decide_without_panicking() {
             if ok {
                 assert!(serde_json::from_slice::<serde_json::Value>(&seed[..n]).is_ok());
             }
+        }
+    }
+}
+
+/// A seed split at its first NUL byte (plan or tileset JSON, then the second file).
+fn split_nul(seed: &[u8]) -> (&[u8], &[u8]) {
+    match seed.iter().position(|b| *b == 0) {
+        Some(i) => (&seed[..i], &seed[i + 1..]),
+        None => (seed, &[]),
+    }
+}
+
+#[test]
+fn sharded_file_seeds_are_accepted_and_their_prefixes_refused_without_panicking() {
+    use splat2tiles_build::convert::{check_part_bytes, check_plan_bytes, check_samples_bytes};
+    for seed in seeds("plan") {
+        check_plan_bytes(&seed).expect("the plan seed is a valid plan");
+        for n in cuts(seed.len()).into_iter().filter(|&n| n < seed.len()) {
+            assert!(
+                check_plan_bytes(&seed[..n]).is_err(),
+                "a {n}-byte prefix passed"
+            );
+        }
+    }
+    for (target, check) in [
+        ("part", check_part_bytes as fn(&[u8], &[u8]) -> _),
+        ("samples", check_samples_bytes),
+    ] {
+        for seed in seeds(target) {
+            let (plan, file) = split_nul(&seed);
+            check(plan, file).unwrap_or_else(|e| panic!("the {target} seed: {e}"));
+            for n in cuts(file.len()).into_iter().filter(|&n| n < file.len()) {
+                assert!(
+                    check(plan, &file[..n]).is_err(),
+                    "{target}: a {n}-byte prefix passed"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn loader_seeds_parse_and_their_prefixes_never_panic() {
+    use splat2tiles_tiles::tiling::TileKey;
+    use splat2tiles_tiles::tiling::load::{parse_subtree_tiles, parse_tileset_json};
+    for seed in seeds("loader") {
+        let (json, subtree) = split_nul(&seed);
+        let root = parse_tileset_json(json).expect("the seed's tileset.json parses");
+        let tiles = parse_subtree_tiles(&root, TileKey::ROOT, subtree).expect("its root subtree");
+        assert!(!tiles.tiles.is_empty());
+        for n in cuts(subtree.len()) {
+            let _ = parse_subtree_tiles(&root, TileKey::ROOT, &subtree[..n]);
+        }
+        for n in cuts(json.len()) {
+            let _ = parse_tileset_json(&json[..n]);
         }
     }
 }

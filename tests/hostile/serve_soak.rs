@@ -1,7 +1,8 @@
-//! `serve` under slow clients (a byte a second) and a burst of 1000 concurrent Range requests on
-//! loopback, bounded in count and time: normal requests keep being answered within 1 s, the
-//! Range requests are answered correctly, the server's resident memory stays bounded, POST gets
-//! 405 and a head that never completes gets 408.
+//! `serve` under slow clients (a byte a second), a burst of 1000 concurrent Range requests and
+//! 600 slow readers (4 KiB every 5 s of an 8 MiB file) on loopback, bounded in count and time:
+//! normal requests keep being answered within 1 s, the Range requests are answered correctly,
+//! the server's resident memory stays bounded, POST gets 405 and a head that never completes
+//! gets 408.
 
 use super::common::bin;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -244,6 +245,117 @@ fn slow_clients_and_a_range_burst_do_not_starve_normal_requests() {
     assert!(
         reconnects >= SLOW,
         "slow clients were never cut off: {reconnects}"
+    );
+    assert!(peak_rss < 256 * 1024, "server RSS peaked at {peak_rss} KiB");
+}
+
+/// Slow readers of [`slow_readers_do_not_starve_normal_requests`].
+const READERS: usize = 600;
+
+/// A connection from `from` (another loopback address than the normal requests') that asks for
+/// `/big.bin` and then reads it slowly; `None` when the server refused the connection.
+fn slow_reader(addr: SocketAddr, from: SocketAddr) -> Option<TcpStream> {
+    use socket2::{Domain, Socket, Type};
+    let s = Socket::new(Domain::IPV4, Type::STREAM, None).ok()?;
+    s.bind(&from.into()).ok()?;
+    // A small receive window: the answer backs up in the server's socket at once.
+    let _ = s.set_recv_buffer_size(4096);
+    s.connect_timeout(&addr.into(), Duration::from_secs(2))
+        .ok()?;
+    let mut s: TcpStream = s.into();
+    s.write_all(b"GET /big.bin HTTP/1.1\r\nHost: x\r\n\r\n")
+        .ok()?;
+    s.set_nonblocking(true).ok()?;
+    Some(s)
+}
+
+/// Holds [`READERS`] slow readers from 127.0.0.2 until `stop`: every 5 s each reads at most
+/// 4 KiB; a connection the server closed (or answered 503) is opened again. Returns
+/// `(reconnects, 503 answers seen)`.
+fn slow_readers(addr: SocketAddr, stop: Arc<AtomicBool>) -> (usize, usize) {
+    let from = SocketAddr::from(([127, 0, 0, 2], 0));
+    let mut conns: Vec<Option<TcpStream>> = (0..READERS).map(|_| slow_reader(addr, from)).collect();
+    let (mut reconnects, mut refused) = (0, 0);
+    let mut buf = vec![0u8; 4096];
+    while !stop.load(Ordering::SeqCst) {
+        for c in conns.iter_mut() {
+            let alive = match c {
+                Some(s) => match s.read(&mut buf) {
+                    Ok(0) => false,
+                    Ok(n) => {
+                        if buf[..n].starts_with(b"HTTP/1.1 503") {
+                            refused += 1;
+                        }
+                        true
+                    }
+                    Err(e) => e.kind() == std::io::ErrorKind::WouldBlock,
+                },
+                None => false,
+            };
+            if !alive {
+                *c = slow_reader(addr, from);
+                reconnects += 1;
+            }
+        }
+        let t = Instant::now();
+        while t.elapsed() < Duration::from_secs(5) && !stop.load(Ordering::SeqCst) {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+    (reconnects, refused)
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn slow_readers_do_not_starve_normal_requests() {
+    let tmp = tempfile::tempdir().unwrap();
+    let big: Vec<u8> = (0..8 << 20).map(|i: usize| (i * 31 % 251) as u8).collect();
+    std::fs::write(tmp.path().join("big.bin"), &big).unwrap();
+    std::fs::write(
+        tmp.path().join("tileset.json"),
+        b"{\"asset\":{\"version\":\"1.1\"}}",
+    )
+    .unwrap();
+    let server = start(tmp.path());
+    let (addr, pid) = (server.addr, server.child.id());
+    let stop = Arc::new(AtomicBool::new(false));
+    let readers = {
+        let stop = stop.clone();
+        std::thread::spawn(move || slow_readers(addr, stop))
+    };
+    std::thread::sleep(Duration::from_secs(3));
+    // Normal requests from 127.0.0.1 for 20 s: every one answered in full within 1 s.
+    let (mut worst, mut probes, mut peak_rss) = (Duration::ZERO, 0, 0);
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(20) {
+        let t = Instant::now();
+        let (st, body) = exchange(
+            addr,
+            "GET /tileset.json HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n",
+        )
+        .unwrap_or_else(|e| panic!("normal request {probes} failed: {e}"));
+        let took = t.elapsed();
+        assert_eq!(st, 200, "normal request {probes}");
+        assert!(body.starts_with(b"{\"asset\""));
+        assert!(
+            took < Duration::from_secs(1),
+            "normal request {probes} took {took:?}"
+        );
+        worst = worst.max(took);
+        peak_rss = peak_rss.max(rss_kib(pid));
+        probes += 1;
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    stop.store(true, Ordering::SeqCst);
+    let (reconnects, refused) = readers.join().unwrap();
+    eprintln!(
+        "slow readers: {probes} normal requests, slowest {worst:?}; {READERS} readers reconnected \
+         {reconnects} times, {refused} answers 503; server RSS peak {peak_rss} KiB"
+    );
+    // The readers' address was held to its share: some of them were turned away.
+    assert!(
+        refused > 0 || reconnects > 0,
+        "no slow reader was ever refused"
     );
     assert!(peak_rss < 256 * 1024, "server RSS peaked at {peak_rss} KiB");
 }

@@ -4,7 +4,9 @@
 //! When the connection cap is reached, a new connection evicts the longest-waiting connection of
 //! the client address holding the most connections (per-IP fairness: one client opening many
 //! slow connections loses its own first). Connections busy answering are never evicted; only
-//! when every connection is busy does a newcomer get 503.
+//! when every connection is busy does a newcomer get 503. One address may have at most a share
+//! of the connections busy at once (a request beyond it gets 503), so clients of one address
+//! that read slowly cannot take every connection from the others.
 
 use std::net::{IpAddr, Shutdown, TcpStream};
 use std::sync::{Arc, Mutex};
@@ -33,6 +35,19 @@ struct Inner {
     next: u64,
     entries: Vec<Entry>,
     evicted: u64,
+    /// Most connections of one address busy at once.
+    per_address: usize,
+}
+
+/// What [`Ticket::busy`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Start {
+    /// The connection may answer its request.
+    Granted,
+    /// It was evicted while its request head arrived (its socket is shut down).
+    Evicted,
+    /// Its address has its share of busy connections already: answer 503.
+    OverShare,
 }
 
 /// The registry of live connections, shared by the accept loop and the connection threads.
@@ -50,10 +65,14 @@ pub struct Ticket {
 }
 
 impl Admission {
-    /// A registry keeping at most `cap` connections.
-    pub fn new(cap: usize) -> Self {
+    /// A registry keeping at most `cap` connections, of which at most `per_address` of one
+    /// client address busy at once.
+    pub fn new(cap: usize, per_address: usize) -> Self {
         Admission {
-            inner: Arc::new(Mutex::new(Inner::default())),
+            inner: Arc::new(Mutex::new(Inner {
+                per_address: per_address.max(1),
+                ..Inner::default()
+            })),
             cap: cap.max(1),
         }
     }
@@ -126,16 +145,24 @@ impl Ticket {
         self.set(Phase::Waiting(Instant::now()));
     }
 
-    /// The connection answers a request (not evictable). False when it was evicted already.
-    pub fn busy(&self) -> bool {
+    /// The connection answers a request (not evictable), unless it was evicted already or its
+    /// address has its share of busy connections (then it stays waiting).
+    pub fn busy(&self) -> Start {
         let mut g = self.inner.lock().unwrap_or_else(|p| p.into_inner());
-        match g.entries.iter_mut().find(|e| e.id == self.id) {
-            Some(e) => {
-                e.phase = Phase::Busy;
-                true
-            }
-            None => false,
+        let Some(at) = g.entries.iter().position(|e| e.id == self.id) else {
+            return Start::Evicted;
+        };
+        let ip = g.entries[at].ip;
+        let busy_here = g
+            .entries
+            .iter()
+            .filter(|e| e.ip == ip && e.phase == Phase::Busy && e.id != self.id)
+            .count();
+        if busy_here >= g.per_address {
+            return Start::OverShare;
         }
+        g.entries[at].phase = Phase::Busy;
+        Start::Granted
     }
 }
 
@@ -156,21 +183,40 @@ mod tests {
         let l = TcpListener::bind("127.0.0.1:0").unwrap();
         let addr = l.local_addr().unwrap();
         let conns: Vec<TcpStream> = (0..4).map(|_| TcpStream::connect(addr).unwrap()).collect();
-        let a = Admission::new(3);
+        let a = Admission::new(3, 3);
         let ip_a: IpAddr = "10.0.0.1".parse().unwrap();
         let ip_b: IpAddr = "10.0.0.2".parse().unwrap();
         let t0 = a.admit(ip_a, &conns[0]).unwrap();
         let t1 = a.admit(ip_a, &conns[1]).unwrap();
         let t2 = a.admit(ip_b, &conns[2]).unwrap();
-        assert!(t0.busy());
+        assert_eq!(t0.busy(), Start::Granted);
         // Full: the newcomer evicts ip_a's waiting connection (ip_a holds the most), not ip_b's.
         let t3 = a.admit(ip_b, &conns[3]).unwrap();
         assert_eq!(a.evicted(), 1);
-        assert!(!t1.busy(), "t1 was evicted");
-        assert!(t2.busy() && t3.busy());
+        assert_eq!(t1.busy(), Start::Evicted, "t1 was evicted");
+        assert_eq!((t2.busy(), t3.busy()), (Start::Granted, Start::Granted));
         // Everything busy: no room.
         assert!(a.admit(ip_b, &conns[3]).is_none());
         drop((t0, t2));
         assert_eq!(a.live(), 1);
+    }
+
+    #[test]
+    fn one_address_gets_its_share_of_busy_connections_and_no_more() {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = l.local_addr().unwrap();
+        let conns: Vec<TcpStream> = (0..4).map(|_| TcpStream::connect(addr).unwrap()).collect();
+        let a = Admission::new(8, 2);
+        let (ip_a, ip_b): (IpAddr, IpAddr) =
+            ("10.0.0.1".parse().unwrap(), "10.0.0.2".parse().unwrap());
+        let t: Vec<Ticket> = (0..3).map(|i| a.admit(ip_a, &conns[i]).unwrap()).collect();
+        assert_eq!(t[0].busy(), Start::Granted);
+        assert_eq!(t[1].busy(), Start::Granted);
+        assert_eq!(t[2].busy(), Start::OverShare);
+        // Another address is not held back; a finished answer frees a share.
+        let b = a.admit(ip_b, &conns[3]).unwrap();
+        assert_eq!(b.busy(), Start::Granted);
+        t[0].waiting();
+        assert_eq!(t[2].busy(), Start::Granted);
     }
 }

@@ -2,11 +2,13 @@
 //! then a deadline for the whole head), answers written, keep-alive until the client stops.
 //!
 //! A client sending its head a byte at a time is cut off at [`HEAD_S`] seconds with 408; while
-//! waiting, the connection may be evicted by the accept loop ([`super::admission`]).
+//! waiting, the connection may be evicted by the accept loop ([`super::admission`]). An answer
+//! must leave at [`MIN_RATE`] bytes a second on average after [`GRACE_S`] seconds, or the
+//! connection is closed: a client that reads a byte now and then cannot hold it for long.
 
-use super::admission::Ticket;
+use super::admission::{Start, Ticket};
 use super::{Body, Method, Mount, Request, answer, http};
-use std::io::{BufRead, Read, Seek, SeekFrom};
+use std::io::{BufRead, Read, Seek, SeekFrom, Write};
 use std::net::TcpStream;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -15,6 +17,51 @@ use std::time::{Duration, Instant};
 pub const IDLE_S: u64 = 30;
 /// Seconds a whole request head may take once its first byte arrived.
 pub const HEAD_S: u64 = 10;
+
+/// Seconds an answer may take before [`MIN_RATE`] applies.
+pub const GRACE_S: u64 = 10;
+/// Least average rate (bytes a second) at which the socket must take an answer after the grace.
+pub const MIN_RATE: u64 = 4096;
+
+/// Writes to the socket no slower, on average over one answer, than [`MIN_RATE`] after
+/// [`GRACE_S`]: each write may wait only until the answer is due at that rate.
+struct Paced<'a> {
+    stream: &'a TcpStream,
+    start: Instant,
+    sent: u64,
+}
+
+impl Paced<'_> {
+    /// Starts the clock of a new answer.
+    fn begin(&mut self) {
+        self.start = Instant::now();
+        self.sent = 0;
+    }
+}
+
+impl Write for Paced<'_> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let due = self.start
+            + Duration::from_secs(GRACE_S)
+            + Duration::from_secs_f64(self.sent as f64 / MIN_RATE as f64);
+        let left = due.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                format!("the client took under {MIN_RATE} bytes/s"),
+            ));
+        }
+        self.stream
+            .set_write_timeout(Some(left.max(Duration::from_millis(1))))?;
+        let n = (&mut &*self.stream).write(buf)?;
+        self.sent += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        (&mut &*self.stream).flush()
+    }
+}
 
 /// Reads from the socket with every read bounded by a deadline.
 struct Deadlined<'a> {
@@ -68,12 +115,18 @@ fn refuse(
 /// Serves one connection: requests one after another while the client keeps it alive.
 pub fn serve(stream: TcpStream, ticket: &Ticket, mounts: &[Mount], quiet: bool, stop: &AtomicBool) {
     let _ = stream.set_nodelay(true);
-    let _ = stream.set_write_timeout(Some(Duration::from_secs(IDLE_S)));
     let mut reader = std::io::BufReader::new(Deadlined {
         stream: &stream,
         deadline: Instant::now() + Duration::from_secs(IDLE_S),
     });
-    let mut writer = std::io::BufWriter::with_capacity(64 * 1024, &stream);
+    let mut writer = std::io::BufWriter::with_capacity(
+        64 * 1024,
+        Paced {
+            stream: &stream,
+            start: Instant::now(),
+            sent: 0,
+        },
+    );
     while !stop.load(Ordering::SeqCst) {
         ticket.waiting();
         // Idle until the first byte of the next request; then the whole head has HEAD_S.
@@ -98,9 +151,21 @@ pub fn serve(stream: TcpStream, ticket: &Ticket, mounts: &[Mount], quiet: bool, 
                 return;
             }
         };
-        if !ticket.busy() {
+        writer.get_mut().begin();
+        match ticket.busy() {
+            Start::Granted => {}
             // Evicted while the head arrived: the socket is shut down already.
-            return;
+            Start::Evicted => return,
+            Start::OverShare => {
+                refuse(
+                    &mut writer,
+                    503,
+                    &[("Retry-After", "1".into())],
+                    "too many answers to this address at once",
+                    quiet,
+                );
+                return;
+            }
         }
         let method = match head.method.as_str() {
             "GET" => Method::Get,

@@ -460,6 +460,9 @@ pub struct ServeOptions {
     /// Most connections kept at once (one thread each); beyond that a newcomer evicts a waiting
     /// connection, or gets 503 when all are busy answering.
     pub threads: usize,
+    /// Most connections of one client address busy answering at once (a request beyond it
+    /// gets 503 with `Retry-After`).
+    pub per_address: usize,
 }
 
 /// Connections the kernel queues before `accept` (std's default of 128 overflowed under a burst
@@ -546,7 +549,7 @@ impl Server {
     /// Accepts connections until stopped, each answered on its own thread (keep-alive). When
     /// full, a newcomer evicts a waiting connection ([`admission`]); 503 only when all are busy.
     pub fn run(self) {
-        let admission = Admission::new(self.opts.threads);
+        let admission = Admission::new(self.opts.threads, self.opts.per_address);
         for conn in self.listener.incoming() {
             if self.stop.load(Ordering::SeqCst) {
                 break;

@@ -140,6 +140,7 @@ fn trace_streams_over_http() {
             port: 0,
             quiet: true,
             threads: 2,
+            per_address: 2,
         },
     )
     .unwrap();

@@ -183,28 +183,12 @@ fn read_parts(
     // A parsed part takes a few times its text: at most a quarter of the memory limit is read.
     let part_cap = MAX_PART_BYTES.min(memory_limit / 4);
     let n = plan.file.parts;
-    let (scheme, max_level) = (plan.layout.scheme, plan.layout.depth());
-    let octree = scheme == Scheme::Octree;
     let mut files: Vec<Option<(PartFile, PathBuf)>> = (0..n).map(|_| None).collect();
     for dir in parts {
         let path = dir.join(PART_FILE);
         let bytes = read_bounded(&path, part_cap)?;
-        let f: PartFile = parse(&path, &bytes)?;
-        if f.splat2tiles_part != PART_VERSION {
-            return Err(bad(
-                &path,
-                None,
-                format!("part version {}", f.splat2tiles_part),
-            ));
-        }
-        if f.plan != plan.id {
-            return Err(bad(
-                &path,
-                None,
-                format!("built from another plan than {}", plan_path.display()),
-            ));
-        }
-        if f.part >= n || files[f.part].is_some() {
+        let f = check_part(plan, plan_path, &path, &bytes)?;
+        if files[f.part].is_some() {
             return Err(bad(
                 &path,
                 None,
@@ -214,28 +198,6 @@ fn read_parts(
                     n - 1
                 ),
             ));
-        }
-        let planned: Vec<TileKey> = plan.units_of(f.part);
-        let keys: Option<Vec<TileKey>> = f
-            .units
-            .iter()
-            .map(|u| arr_key(u.key, max_level, octree))
-            .collect();
-        if keys.as_ref() != Some(&planned) {
-            return Err(bad(
-                &path,
-                None,
-                "its units are not the plan's units of the part",
-            ));
-        }
-        for t in f.leaves.iter().chain(&f.parents) {
-            if arr_key(t.key, max_level, octree).is_none() {
-                return Err(bad(
-                    &path,
-                    None,
-                    format!("tile {:?} is not in the tree", t.key),
-                ));
-            }
         }
         let at = f.part;
         files[at] = Some((f, dir.clone()));
@@ -264,6 +226,80 @@ fn read_parts(
         return Err(bad(plan_path, None, "no part records a leaf radius"));
     }
     Ok((files, radius))
+}
+
+/// Parses part-file `bytes` read from `path` and checks them against `plan` (read from
+/// `plan_path`): version, plan, part number, the plan's units, tile keys inside the tree, and
+/// plain paths for the listed files.
+pub(super) fn check_part(
+    plan: &Plan,
+    plan_path: &Path,
+    path: &Path,
+    bytes: &[u8],
+) -> Result<PartFile, ConvertError> {
+    let n = plan.file.parts;
+    let (max_level, octree) = (plan.layout.depth(), plan.layout.scheme == Scheme::Octree);
+    let f: PartFile = parse(path, bytes)?;
+    if f.splat2tiles_part != PART_VERSION {
+        return Err(bad(
+            path,
+            None,
+            format!("part version {}", f.splat2tiles_part),
+        ));
+    }
+    if f.plan != plan.id {
+        return Err(bad(
+            path,
+            None,
+            format!("built from another plan than {}", plan_path.display()),
+        ));
+    }
+    if f.part >= n {
+        return Err(bad(
+            path,
+            None,
+            format!(
+                "part {}: expected each of the parts 0 to {} once",
+                f.part,
+                n - 1
+            ),
+        ));
+    }
+    let planned: Vec<TileKey> = plan.units_of(f.part);
+    let keys: Option<Vec<TileKey>> = f
+        .units
+        .iter()
+        .map(|u| arr_key(u.key, max_level, octree))
+        .collect();
+    if keys.as_ref() != Some(&planned) {
+        return Err(bad(
+            path,
+            None,
+            "its units are not the plan's units of the part",
+        ));
+    }
+    for t in f.leaves.iter().chain(&f.parents) {
+        if arr_key(t.key, max_level, octree).is_none() {
+            return Err(bad(
+                path,
+                None,
+                format!("tile {:?} is not in the tree", t.key),
+            ));
+        }
+    }
+    for rec in &f.files {
+        if !super::part_files::is_plain(&rec.path) {
+            return Err(bad(
+                path,
+                None,
+                format!(
+                    "listed file '{}' is not a plain path inside the part",
+                    rec.path
+                ),
+            ));
+        }
+    }
+    Ok(f)
 }
 
 /// The levels above the units, built from the units' contents (`ROOTS_FILE` of each part) as

@@ -78,10 +78,10 @@ pub struct PartReport {
 /// `samples.json`.
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
-struct SamplesFile {
+pub(super) struct SamplesFile {
     splat2tiles_samples: u32,
     plan: String,
-    part: usize,
+    pub(super) part: usize,
     deepest: Option<u32>,
     spacing: Vec<F>,
 }
@@ -582,6 +582,45 @@ pub(super) fn folder_bytes(dir: &Path) -> u64 {
     total
 }
 
+/// Parses samples-file `bytes` read from `path` and checks them against `plan`: version, plan,
+/// part number, positive spacings, a deepest level inside the tree.
+pub(super) fn check_samples(
+    plan: &Plan,
+    path: &Path,
+    bytes: &[u8],
+) -> Result<SamplesFile, ConvertError> {
+    let n = plan.file.parts;
+    let s: SamplesFile = parse(path, bytes)?;
+    if s.splat2tiles_samples != PART_VERSION {
+        return Err(bad(
+            path,
+            None,
+            format!("samples version {}", s.splat2tiles_samples),
+        ));
+    }
+    if s.plan != plan.id {
+        return Err(bad(
+            path,
+            None,
+            format!("made from another plan than {}", plan.path.display()),
+        ));
+    }
+    if s.part >= n {
+        return Err(bad(
+            path,
+            None,
+            format!("part {}: each of the parts 0 to {} once", s.part, n - 1),
+        ));
+    }
+    if s.spacing.iter().any(|x| !(x.0.is_finite() && x.0 > 0.0)) {
+        return Err(bad(path, None, "a spacing sample is not a positive number"));
+    }
+    if s.deepest.is_some_and(|d| d > plan.layout.depth()) {
+        return Err(bad(path, None, "deepest level below the plan's deepest"));
+    }
+    Ok(s)
+}
+
 /// The default leaf radius from every part's samples: the single-machine rule over the union
 /// of the samples, the deepest leaf level the deepest of all parts'.
 fn radius_from_samples(plan: &Plan, folders: &[PathBuf]) -> Result<f64, ConvertError> {
@@ -603,22 +642,8 @@ fn radius_from_samples(plan: &Plan, folders: &[PathBuf]) -> Result<f64, ConvertE
     for f in folders {
         let path = f.join(SAMPLES_FILE);
         let bytes = read_bounded(&path, MAX_SAMPLES_BYTES)?;
-        let s: SamplesFile = parse(&path, &bytes)?;
-        if s.splat2tiles_samples != PART_VERSION {
-            return Err(bad(
-                &path,
-                None,
-                format!("samples version {}", s.splat2tiles_samples),
-            ));
-        }
-        if s.plan != plan.id {
-            return Err(bad(
-                &path,
-                None,
-                format!("made from another plan than {}", plan.path.display()),
-            ));
-        }
-        if s.part >= n || seen[s.part] {
+        let s = check_samples(plan, &path, &bytes)?;
+        if seen[s.part] {
             return Err(bad(
                 &path,
                 None,
@@ -626,16 +651,6 @@ fn radius_from_samples(plan: &Plan, folders: &[PathBuf]) -> Result<f64, ConvertE
             ));
         }
         seen[s.part] = true;
-        if s.spacing.iter().any(|x| !(x.0.is_finite() && x.0 > 0.0)) {
-            return Err(bad(
-                &path,
-                None,
-                "a spacing sample is not a positive number",
-            ));
-        }
-        if s.deepest.is_some_and(|d| d > plan.layout.depth()) {
-            return Err(bad(&path, None, "deepest level below the plan's deepest"));
-        }
         spacing.extend(s.spacing.into_iter().map(|x| x.0));
         deepest = deepest.max(s.deepest);
     }

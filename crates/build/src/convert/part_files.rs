@@ -90,6 +90,11 @@ fn inside(rel: &str) -> Option<PathBuf> {
     (plain && !rel.is_empty()).then(|| p.to_path_buf())
 }
 
+/// Whether `rel` is a plain relative path (what a part may list).
+pub(super) fn is_plain(rel: &str) -> bool {
+    inside(rel).is_some()
+}
+
 /// Hard-links (or, across file systems, copies) each listed file of `part_dir` into `to`,
 /// after checking it is a regular file of the recorded size and CRC-32; nothing else of the
 /// part folder is carried over, and a file already in `to` (two parts' tile) is refused.

@@ -458,7 +458,12 @@ impl Plan {
     /// Reads and checks the plan at `path`.
     pub(super) fn load(path: &Path) -> Result<Plan, ConvertError> {
         let bytes = read_bounded(path, MAX_PLAN_BYTES)?;
-        let probe: Probe = parse(path, &bytes)?;
+        Self::from_bytes(path, &bytes)
+    }
+
+    /// Parses and checks plan `bytes` read from `path` (named in errors).
+    pub(super) fn from_bytes(path: &Path, bytes: &[u8]) -> Result<Plan, ConvertError> {
+        let probe: Probe = parse(path, bytes)?;
         match probe.version {
             Some(v) if v == PLAN_VERSION as u64 => {}
             Some(v) => {
@@ -476,7 +481,7 @@ impl Plan {
                 ));
             }
         }
-        let file: PlanFile = parse(path, &bytes)?;
+        let file: PlanFile = parse(path, bytes)?;
         let invalid = |why: String| bad(path, None, format!("invalid plan: {why}"));
         let layout = layout_of(&file.layout).map_err(invalid)?;
         let o = &file.options;
@@ -579,7 +584,7 @@ impl Plan {
         }
         Ok(Plan {
             file,
-            id: digest(&bytes),
+            id: digest(bytes),
             path: path.to_path_buf(),
             layout,
             units,
