@@ -6,7 +6,7 @@ set -eu
 cd "$(dirname "$0")"
 SECONDS_PER_TARGET="${1:-300}"
 mkdir -p logs
-for t in ${TARGETS:-ply spz splat glb subtree tileset limited http_head output_marker}; do
+for t in ${TARGETS:-ply spz splat glb subtree tileset limited http_head output_marker plan part samples loader}; do
   mkdir -p "corpus/$t"
   cp -n seeds/$t/* "corpus/$t/" 2>/dev/null || true
   RUSTC_BOOTSTRAP=1 cargo fuzz run -O "$t" "corpus/$t" -- \

@@ -1,7 +1,8 @@
 //! Sharded conversion against tampered inputs: part tiles deleted, truncated or changed after
 //! the part was built, files the part never wrote, a huge unit content claimed over a sparse
 //! `roots.bin`, an oversized `part.json`, and a plan used with another scene of the same size.
-//! Each refusal exits 2, names the file and leaves no output, lock or staging folder.
+//! Each refusal exits 2, names the file and leaves no output, lock or staging folder; every
+//! command runs under a 512 MiB data limit.
 
 use super::common::bin;
 use super::inputs::write_splat;
@@ -13,12 +14,17 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// Runs `splat2tiles ARGS... --quiet` under a 512 MiB data limit (`prlimit`, where it exists):
+/// an allocation past it aborts the command, which the exit-code checks catch.
 fn run(args: &[&str]) -> Output {
-    Command::new(bin())
-        .args(args)
-        .arg("--quiet")
-        .output()
-        .unwrap()
+    let mut cmd = if Path::new("/usr/bin/prlimit").exists() {
+        let mut c = Command::new("/usr/bin/prlimit");
+        c.arg("--data=536870912").arg(bin());
+        c
+    } else {
+        Command::new(bin())
+    };
+    cmd.args(args).arg("--quiet").output().unwrap()
 }
 
 /// A plan of `DIR/in.splat` (20,000 splats, tiles of at most 1024) in two parts and both parts
