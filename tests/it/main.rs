@@ -23,7 +23,6 @@ mod layered_content;
 mod lod_hierarchy;
 mod lod_levels;
 mod lod_merge;
-mod partition_city;
 mod partition_convert;
 mod partition_ilp;
 mod render_metrics;

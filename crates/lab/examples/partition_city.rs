@@ -2,10 +2,10 @@
 //! uniform tiling (leaves by `--max-splats` only) against the view-optimised one (`--partition`,
 //! views from the tuning split), streamed by the real client in the simulator on test traces.
 //!
-//! Ignored (minutes): `cargo test --test partition_city -- --ignored --nocapture`; prints the
-//! BENCHMARKS.md table. `PARTITION_CITY_STEP=N` streams every N-th test trace (default 8).
-
-use crate::common;
+//! A measurement (minutes; prints the BENCHMARKS.md table):
+//! `cargo run --profile test -p splat2tiles-lab --example partition_city`. `PARTITION_CITY_STEP=N`
+//! streams every N-th test trace (default 8). Reads `../shared/scenes` and
+//! `../shared/navigation-traces` beside the repository.
 
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
 use splat2tiles_build::partition::plan::PartitionRequest;
@@ -60,10 +60,8 @@ fn content_tiles(dir: &Path) -> (usize, u64) {
     (c.len(), bytes)
 }
 
-#[test]
-#[ignore]
-fn partition_on_the_streaming_city() {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+fn main() {
+    let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let work = root.join("target/tmp-big/partition-city");
     let _ = std::fs::remove_dir_all(&work);
     std::fs::create_dir_all(&work).unwrap();
@@ -74,7 +72,7 @@ fn partition_on_the_streaming_city() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(8);
     let spec = CitySpec::default();
-    let sources = city_sources(&common::scenes(), spec.stride).unwrap();
+    let sources = city_sources(&root.join("../shared/scenes"), spec.stride).unwrap();
     let layout = spec.layout();
     let grid = StreetGrid::of(&sources, &layout);
     let splats = generate_city(&sources, &layout);
