@@ -488,6 +488,28 @@ pub fn evaluation_set(grid: &StreetGrid, nav_root: &Path) -> Result<EvaluationSe
     Ok(set)
 }
 
+/// Tiles a walk sees for the first time after `after_s`, and all it sees.
+pub fn revealed(cat: &splat2tiles_stream::TileCatalog, t: &Trace, after_s: f64) -> (usize, usize) {
+    let cfg = splat2tiles_stream::PlanStepConfig::default();
+    let mut first_seen = std::collections::HashMap::new();
+    let mut vis = vec![];
+    for p in &t.poses {
+        splat2tiles_stream::cull_hierarchical(
+            cat,
+            p,
+            &cfg.intrinsics,
+            cfg.max_sse,
+            cfg.vis_test,
+            &mut vis,
+        );
+        for &i in &vis {
+            first_seen.entry(i).or_insert(p.t);
+        }
+    }
+    let late = first_seen.values().filter(|&&s| s > after_s).count();
+    (late, first_seen.len())
+}
+
 #[cfg(test)]
 #[path = "stream_city_tests.rs"]
 mod tests;
