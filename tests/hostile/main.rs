@@ -10,6 +10,7 @@ mod build_script;
 mod busy_port;
 mod fuzz_seeds;
 mod inputs;
+mod lapis;
 mod loader;
 mod memory;
 mod output;

@@ -259,31 +259,6 @@ fn sparse_levels_get_placeholders_and_report_dropped_changes() {
     assert_eq!(n, 1200);
 }
 
-/// Six levels whose splats follow the prefix rule exactly (no opacity changes), each level three
-/// to forty times the one above: a level's tile often lies under cells of two or more levels
-/// above that hold no splat. Each such cell gets a placeholder, so every layer has its parent
-/// (LAYER_PARENT_MISSING otherwise: placeholders were made only one level up) and the tileset
-/// validates.
-#[test]
-fn deep_levels_under_empty_cells_get_a_parent_at_every_level() {
-    let dir = tempfile::tempdir().unwrap();
-    let all = common::random_splats(3000, 0, 10.0, 31);
-    let lv = levels(&all, &[1, 3, 9, 27, 81, 3000], |_, _| false);
-    let files = write_levels(dir.path(), &lv);
-    let out = dir.path().join("lapis");
-    let r = import_lapisgs(&files, &out, &opts()).unwrap();
-    assert!(r.placeholders >= 2, "{r:?}");
-    let report = validate_tileset(&out.join("tileset.json"), &ValidateOptions::default()).unwrap();
-    assert!(report.codes().is_empty(), "{}", report.to_text("lapis"));
-    let imp = imported(&out.join("tileset.json"));
-    let keys: std::collections::HashSet<TileKey> = imp.tiles.iter().map(|t| t.0).collect();
-    for k in &keys {
-        if let Some(p) = k.parent() {
-            assert!(keys.contains(&p), "tile {k:?} has no parent layer");
-        }
-    }
-}
-
 #[test]
 fn a_level_breaking_the_prefix_rule_is_refused_with_file_splat_and_byte() {
     let dir = tempfile::tempdir().unwrap();
