@@ -380,7 +380,7 @@ fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
 }
 
 /// A generated city of `n` splats (copies of every 8th splat of the shared scenes,
-/// `../shared/scenes/README.md`)
+/// `data/scenes/README.md`)
 /// converted into `dir/name`, z up, georeferenced at `origin` when given, at most 16,384 splats
 /// per tile.
 fn city(dir: &Path, name: &str, n: usize, origin: Option<&str>) -> PathBuf {
@@ -578,7 +578,7 @@ fn web_viewer_draws_generated_cities_like_the_reference() {
 
 /// The city walk of `tests/js/city_walk.mjs` (the 50M run is
 /// `benches/city_walk.rs`) in small: a generated 60,000-splat city, the first 10 s of a real head
-/// trace (EyeNavGS, `../shared/navigation-traces/README.md`) placed as a street-level walk (x20
+/// trace (EyeNavGS, `data/navigation-traces/README.md`) placed as a street-level walk (x20
 /// horizontally, eye 1.7 m above the ground), a 1 MB budget the city's tiles do not fit in. The
 /// page does not crash, frames keep coming during the walk, the client's cache never exceeds
 /// budgetMB, every sample records the memory columns, and the eye stays at street level.

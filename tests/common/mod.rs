@@ -65,19 +65,15 @@ pub fn assert_valid_with_extents(out: &Path) {
     );
 }
 
-/// `../shared/scenes` beside the crate (present in CI).
+/// The repository's scenes (`data/scenes`, with their README and licences).
 pub fn scenes() -> PathBuf {
-    repo().join("../shared/scenes")
+    repo().join("data/scenes")
 }
 
 /// A shared scene by file name; panics with a clear message when the folder is missing.
 pub fn scene(name: &str) -> PathBuf {
     let p = scenes().join(name);
-    assert!(
-        p.is_file(),
-        "missing shared scene {} (../shared/scenes)",
-        p.display()
-    );
+    assert!(p.is_file(), "missing scene {} (data/scenes)", p.display());
     p
 }
 

@@ -7,14 +7,14 @@ use std::path::PathBuf;
 /// File name of the shared plant scene (113,648 splats).
 pub const PLANT: &str = "plant.splat";
 
-/// Path of a shared scene (`../shared/scenes/NAME` beside the crate).
+/// Path of a shared scene (`data/scenes/NAME` beside the crate).
 pub fn shared_scene(name: &str) -> PathBuf {
     {
         let mut p = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
         while !p.join("samples/plant.splat").is_file() && p.pop() {}
         p
     }
-    .join("../shared/scenes")
+    .join("data/scenes")
     .join(name)
 }
 

@@ -24,7 +24,7 @@ fn convert_cli(input: &Path, out: &Path, extra: &[&str]) -> serde_json::Value {
 }
 
 /// Tile boxes enclose every splat's 3-sigma ellipsoid, leaves and LOD parents alike:
-/// `validate --check-extent` warns about nothing on the shared scenes (../shared/scenes/README.md),
+/// `validate --check-extent` warns about nothing on the shared scenes (data/scenes/README.md),
 /// local and georeferenced (before, plant.splat alone gave 9 extent warnings).
 #[test]
 fn shared_scenes_have_no_extent_warnings() {

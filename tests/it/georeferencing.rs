@@ -2,7 +2,7 @@
 //! implicit root is the smallest Web-Mercator tile holding the scene with a region within 2x of
 //! the scene, Mercator keys are recoverable from the tileset metadata, no non-leaf content holds
 //! fewer than the floor of splats, errors are of the scene's size, positions decode exactly.
-//! Uses plant.splat (../shared/scenes, CC-BY-4.0 Marcel Padilla) and generated scenes.
+//! Uses plant.splat (data/scenes, CC-BY-4.0 Marcel Padilla) and generated scenes.
 
 use crate::common;
 

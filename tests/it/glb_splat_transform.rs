@@ -15,7 +15,7 @@ fn reads_splat_transform_glb() {
         "{} is missing: run `npm ci --prefix tests/js` (needs Node >= 20)",
         cli.display()
     );
-    let scene = root.join("../shared/scenes/plant.splat");
+    let scene = root.join("data/scenes/plant.splat");
     let scene = if scene.is_file() {
         scene
     } else {

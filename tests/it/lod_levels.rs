@@ -230,7 +230,7 @@ fn degenerate_inputs_give_finite_sensible_parents() {
 #[test]
 fn every_level_of_a_generated_city_is_a_real_reduction() {
     // 600,000 splats of displaced, rotated, scaled copies of the shared scenes
-    // (../shared/scenes/README.md), 8192 splats per tile.
+    // (data/scenes/README.md), 8192 splats per tile.
     let sources = shared_sources(&common::scenes()).unwrap();
     let n = 600_000;
     let city = generate_city(

@@ -1,4 +1,4 @@
-//! Reference-image test: `splat2tiles render ../shared/scenes/plant.splat --auto-view 0` (at
+//! Reference-image test: `splat2tiles render data/scenes/plant.splat --auto-view 0` (at
 //! 320x240) must match the committed `tests/data/render/plant_view0.png` with SSIM >= 0.99, and
 //! so must the same view rendered from a converted tileset refined to its leaves (LOD parents,
 //! chosen by screen-space error, must stay above 0.85). `S2T_BLESS=1` rewrites the PNG.

@@ -1,7 +1,7 @@
 //! The utilities `convert --variants all` stores (estimated when each tile is written, at a grid
 //! of viewing distances, and interpolated at its switching distance: `variants::curve`) against
 //! the same estimate computed from the tiles read back at that distance, over every content tile
-//! of the shared scenes (../shared/scenes, see its README.md) and the plant with generated SH1-3.
+//! of the shared scenes (data/scenes, see its README.md) and the plant with generated SH1-3.
 
 use crate::common::*;
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};

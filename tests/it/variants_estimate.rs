@@ -1,6 +1,6 @@
 //! The utility estimate (`variants::estimate`, no renders) against the rendered utility it is
 //! calibrated to (`variants::utility`): over every content tile and variant of the shared scenes
-//! (../shared/scenes, see its README.md) and the plant with generated SH1-3.
+//! (data/scenes, see its README.md) and the plant with generated SH1-3.
 
 use crate::common::*;
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};

@@ -1,6 +1,6 @@
 //! The variant utility (spec/quality-variants.md, "Utility") sees what a viewer sees: damaged
 //! copies of a real tile (half the splats, positions jittered by 1% of the box, colours at 3
-//! bits) score at least 0.05 below Best. Scenes: ../shared/scenes (see its README.md).
+//! bits) score at least 0.05 below Best. Scenes: data/scenes (see its README.md).
 
 use crate::common::*;
 use glam::DVec3;

@@ -1,4 +1,4 @@
-// A real head trace (../shared/navigation-traces/, EyeNavGS, Ding et al. 2025, arXiv:2506.02380,
+// A real head trace (data/navigation-traces/, EyeNavGS, Ding et al. 2025, arXiv:2506.02380,
 // Apache-2.0) placed in a generated city as a street-level walk: the trace's horizontal positions
 // scaled and centred on a point of the city, eye height above the city's ground, head turns kept.
 //

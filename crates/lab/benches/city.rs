@@ -394,7 +394,7 @@ fn main() {
         .unwrap_or_else(|| root.join("target/city-bench"));
     std::fs::create_dir_all(&dir).unwrap();
     let bin = release_binary();
-    let blocks = load_blocks(&root.join("../shared/scenes"));
+    let blocks = load_blocks(&root.join("data/scenes"));
     let ram = physical_memory().unwrap_or(0);
     let mut md = format!(
         "memory limit {}; machine RAM {}; {} cores\n\n| city | SH | path | seconds | splats/s | peak RSS | RSS / limit | spill | output | tiles | levels | parent splats | LOD s |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",

@@ -7,7 +7,7 @@
 //! `target/`. Per city: converts it with the release binary (`--memory-limit 2GiB`) into
 //! `CITY_WALK_DIR` (default `target/tmp-big/city-walk`) unless already there, serves it with
 //! `splat2tiles view`, runs `tests/js/city_walk.mjs` (trace `CITY_WALK_TRACE`, default EyeNavGS
-//! `../shared/navigation-traces/nyc/user101_nyc.csv`, placed as a street-level walk at the city's
+//! `data/navigation-traces/nyc/user101_nyc.csv`, placed as a street-level walk at the city's
 //! centre: horizontal x`CITY_WALK_SCALE` (20), eye 1.7 m above the ground z = 0; `budgetMB`
 //! `CITY_WALK_BUDGET_MB` (256); canvas `CITY_WALK_SIZE` (640x360)), then for each format of
 //! `CITY_WALK_PEER_FORMATS` (default `compressed.ply,ply`; empty: no peer) converts the city to
@@ -118,7 +118,7 @@ fn run_city(bin: &Path, input: &Path) -> String {
     let target = root().join("target");
     let trace = root().join(env_or(
         "CITY_WALK_TRACE",
-        "../shared/navigation-traces/nyc/user101_nyc.csv",
+        "data/navigation-traces/nyc/user101_nyc.csv",
     ));
     let budget = env_or("CITY_WALK_BUDGET_MB", "256");
     let scale = env_or("CITY_WALK_SCALE", "20");

@@ -12,7 +12,7 @@ use std::process::Command;
 fn main() {
     let bin = release_binary();
     let tmp = tempfile::tempdir().unwrap();
-    let scenes = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+    let scenes = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes");
     let big = tmp.path().join("generated_1m_sh3.ply");
     generate_sh3_ply(&big, 1_000_000);
     let inputs = [

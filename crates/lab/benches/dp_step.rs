@@ -11,7 +11,7 @@
 //! first 30 ms carry no new bytes, 10 ms per request; one row set without RTT). Links: 10 and 50
 //! Mbit/s constant, and the
 //! HSDPA log `bus.ljansbakken-oslo-report.2010-09-28_1407CEST.log` x10 (a 4G-like link;
-//! `../shared/network-traces/README.md`) from 20 s in, planned on its own future
+//! `data/network-traces/README.md`) from 20 s in, planned on its own future
 //! (`bandwidth::future_pieces`, the oracle network). Execution: downloads one after another in
 //! plan order, each `bytes` over the true link then its 10 ms; a candidate counts if it is
 //! complete by its deadline. Solve time: median of 5 runs per problem, one thread.
@@ -106,9 +106,7 @@ fn execute(cands: &[Candidate], plan: &Plan, pieces: &[(f64, f64)], rtt: f64) ->
 fn main() {
     let root = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let hsdpa = read_log(
-        &root.join(
-            "../shared/network-traces/hsdpa/bus.ljansbakken-oslo-report.2010-09-28_1407CEST.log",
-        ),
+        &root.join("data/network-traces/hsdpa/bus.ljansbakken-oslo-report.2010-09-28_1407CEST.log"),
         10.0,
     )
     .expect("HSDPA log");

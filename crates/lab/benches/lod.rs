@@ -15,7 +15,7 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(16_384);
-    let scenes = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+    let scenes = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes");
     let tmp = std::env::temp_dir().join(format!("s2t-lod-bench-{}", std::process::id()));
     let mut md = String::new();
     let _ = writeln!(

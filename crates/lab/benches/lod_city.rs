@@ -9,7 +9,7 @@
 //! frame width, default the viewer's pixel scale, 960), `LOD_CITY_ERROR_SCALES` (SSIM again with
 //! every error scaled), `LOD_CITY_BYTES_SCALES` (bytes a viewer loads with every error scaled).
 //! Cities: displaced, rotated, scaled copies of the three shared scenes
-//! (`../shared/scenes/README.md`), built in memory. Writes `target/lod_city.md`.
+//! (`data/scenes/README.md`), built in memory. Writes `target/lod_city.md`.
 
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
 use splat2tiles_build::lod::eval::level_table;
@@ -48,7 +48,7 @@ fn main() {
         ..ViewOptions::default()
     };
     let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
-    let sources = shared_sources(&root.join("../shared/scenes")).expect("shared scenes");
+    let sources = shared_sources(&root.join("data/scenes")).expect("shared scenes");
     let tmp = root.join("target/tmp-big");
     let mut md = String::new();
     let _ = writeln!(

@@ -1,7 +1,7 @@
 //! Fidelity per byte against the peers: our four variants, TileSplat's Table 6
 //! bit allocation, SPZ v2 (our writer), SPZ v3/v4 and PlayCanvas SOG (splat-transform).
 //!
-//! Each scene (the three shared scenes, `../shared/scenes/README.md`, and the plant with generated
+//! Each scene (the three shared scenes, `data/scenes/README.md`, and the plant with generated
 //! SH1-3, every 4th splat) is encoded whole by every codec, decoded by that codec's own reader (ours, or
 //! splat-transform back to PLY), and rendered by the CPU reference renderer from the 8 automatic
 //! views at 1280x720 (mid-grey background) around the box holding 99% of the splat centres on each
@@ -141,7 +141,7 @@ fn main() {
         eprintln!("wrote docs/peers.svg from {} rows", points.len());
         return;
     }
-    let dir = root().join("../shared/scenes");
+    let dir = root().join("data/scenes");
     let only = std::env::var("PEERS_SCENES").unwrap_or_default();
     let plant = read_path(&dir.join("plant.splat")).unwrap();
     let mut scenes: Vec<(String, Splats, UpAxis)> = vec![];

@@ -43,8 +43,7 @@ fn zstd_streams(raw: &[u8], n: usize, degree: u8) -> usize {
 }
 
 fn main() {
-    let scenes_dir =
-        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+    let scenes_dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes");
     let plant = read_path(&scenes_dir.join("plant.splat")).unwrap();
     let inputs = vec![
         ("plant.splat (SH0)".to_string(), plant.clone()),

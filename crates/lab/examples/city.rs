@@ -1,5 +1,5 @@
 //! Writes a generated city (`splat2tiles_lab::city`, copies of the three shared scenes of
-//! `../shared/scenes/`) as a z-up binary PLY: the input of the viewers' city checks.
+//! `data/scenes/`) as a z-up binary PLY: the input of the viewers' city checks.
 //!
 //! Run: `cargo run --example city -- SPLATS OUT.ply [SCENES_DIR]`, then
 //! `splat2tiles convert OUT.ply -o city/ --up-axis +z [--origin LON,LAT,H]`.
@@ -11,13 +11,13 @@ use splat2tiles_lab::city::{CityLayout, generate_city, shared_sources};
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (Some(n), Some(out)) = (args.first(), args.get(1)) else {
-        anyhow::bail!("usage: city SPLATS OUT.ply [SCENES_DIR (default ../shared/scenes)]");
+        anyhow::bail!("usage: city SPLATS OUT.ply [SCENES_DIR (default data/scenes)]");
     };
     let splats: usize = n
         .parse()
         .map_err(|e| anyhow::anyhow!("SPLATS '{n}': {e}"))?;
     let scenes = args.get(2).map(PathBuf::from).unwrap_or_else(|| {
-        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes")
+        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes")
     });
     let city = generate_city(
         &shared_sources(&scenes)?,

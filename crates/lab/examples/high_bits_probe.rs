@@ -32,8 +32,8 @@ use splat2tiles_tiles::encode::tile::IDENTITY;
 use splat2tiles_tiles::variants::{LOW_SPZ, decode_variant, relative};
 
 fn main() {
-    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-        .join("../shared/scenes");
+    let dir =
+        std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes");
     let only = std::env::var("PROBE_SCENES").unwrap_or_default();
     let cands: Vec<Vec<i32>> = std::env::var("PROBE_CANDS")
         .unwrap_or("18,12,11,12,12".into())

@@ -53,8 +53,8 @@ fn rewritten(glb: &[u8], version: u8, level: u8) -> Vec<u8> {
 }
 
 fn main() {
-    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-        .join("../shared/scenes");
+    let dir =
+        std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes");
     println!("| scene | variant | v0 (as written) | v1 level 2 | v1 level 3 |");
     println!("|---|---|---|---|---|");
     for f in ["plant.splat", "donut_fused_sh0.ply", "biker.spz", "sh3"] {

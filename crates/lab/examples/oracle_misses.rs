@@ -16,9 +16,9 @@ use splat2tiles_stream::client::{ClientConfig, PredictorKind};
 use splat2tiles_stream::predict::Oracle;
 use splat2tiles_tiles::tiling::TileKey;
 
-/// The shared scenes beside the repository.
+/// The scenes of the repository (`data/scenes`).
 fn scenes() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes")
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes")
 }
 
 fn main() {
@@ -194,7 +194,7 @@ fn oracle_misses_on_the_full_city() {
 /// `simulate --experiment city` (its sessions: 10 Mbit/s, 40 ms RTT, the experiment's budget, or
 /// `BUDGET_MIB`), one row per trace; the reactive client's CHR beside it. Needs `STREAM_CITY_DIR`
 /// (a city built by `cargo run --release --example stream_city -- DIR`) and
-/// `../shared/navigation-traces` (its README).
+/// the human traces under `data/` (read through `sim::split`).
 #[expect(
     clippy::too_many_lines,
     reason = "a measurement run by hand: one straight script that prints its table"

@@ -30,8 +30,8 @@ fn morton_order(s: &Splats, block: usize) -> Vec<usize> {
 }
 
 fn main() {
-    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-        .join("../shared/scenes");
+    let dir =
+        std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes");
     println!("| scene | order | High | Medium | Low |");
     println!("|---|---|---:|---:|---:|");
     for f in ["plant.splat", "donut_fused_sh0.ply", "biker.spz"] {

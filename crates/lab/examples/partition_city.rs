@@ -4,8 +4,8 @@
 //!
 //! A measurement (minutes; prints the BENCHMARKS.md table):
 //! `cargo run --profile test -p splat2tiles-lab --example partition_city`. `PARTITION_CITY_STEP=N`
-//! streams every N-th test trace (default 8). Reads `../shared/scenes` and
-//! `../shared/navigation-traces` beside the repository.
+//! streams every N-th test trace (default 8). Reads `data/scenes` and
+//! the human traces under `data/` (read through `sim::split`).
 
 use splat2tiles_build::convert::{ConvertOptions, convert_scene};
 use splat2tiles_build::partition::plan::PartitionRequest;
@@ -66,13 +66,13 @@ fn main() {
     let _ = std::fs::remove_dir_all(&work);
     std::fs::create_dir_all(&work).unwrap();
     let _clean = Cleanup(work.clone());
-    let nav = root.join("../shared/navigation-traces");
+    let nav = root.join(splat2tiles_lab::sim::stream_city::NAVIGATION_DIR);
     let step: usize = std::env::var("PARTITION_CITY_STEP")
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(8);
     let spec = CitySpec::default();
-    let sources = city_sources(&root.join("../shared/scenes"), spec.stride).unwrap();
+    let sources = city_sources(&root.join("data/scenes"), spec.stride).unwrap();
     let layout = spec.layout();
     let grid = StreetGrid::of(&sources, &layout);
     let splats = generate_city(&sources, &layout);

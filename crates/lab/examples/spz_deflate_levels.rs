@@ -37,8 +37,8 @@ fn timed(mut f: impl FnMut() -> usize) -> (usize, f64) {
 }
 
 fn main() {
-    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-        .join("../shared/scenes");
+    let dir =
+        std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes");
     println!("| scene | coder | level | B/splat | ms |");
     println!("|---|---|---:|---:|---:|");
     let extra = std::env::var("LEVELS_PLY").ok();

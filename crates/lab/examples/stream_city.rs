@@ -3,7 +3,7 @@
 //!
 //! Run: `cargo run --release --example stream_city -- OUT_DIR [--origin LON,LAT,H] [--seed N]
 //! [--splats N] [--stride N] [--scenes DIR]` (defaults: `sim::stream_city::DEFAULT_ORIGIN`, `CitySpec::default()`,
-//! `../shared/scenes`). Prints splats, tiles, bytes per variant and seconds. Exit 2 on bad
+//! `data/scenes`). Prints splats, tiles, bytes per variant and seconds. Exit 2 on bad
 //! arguments or a failed conversion (nothing is left at OUT_DIR then).
 
 use splat2tiles_core::frame::geo::Geodetic;
@@ -16,7 +16,7 @@ fn run() -> Result<(), String> {
     let mut origin = DEFAULT_ORIGIN.to_string();
     let mut spec = CitySpec::default();
     let mut scenes =
-        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/scenes");
+        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/scenes");
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
         match a.as_str() {

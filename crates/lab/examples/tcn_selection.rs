@@ -4,7 +4,7 @@
 //!
 //! Run: `cargo run --release --example tcn_selection -- TRACES_DIR [--city DIR] [--seconds S]
 //! [--every N]`. Without `--city` the small city of `tests/sim_city.rs` (200k splats, stride 16,
-//! seed 3, 4,096 splats per leaf; `../shared/scenes/README.md`) is built in a temporary folder
+//! seed 3, 4,096 splats per leaf; `data/scenes/README.md`) is built in a temporary folder
 //! under `target/tmp-big/` and removed after; with it, a city built by `cargo run --release
 //! --example stream_city -- DIR` (its grid: `CitySpec::default()`). Traces: the test split
 //! (`sim::stream_city::evaluation_set`) on that city's streets, the first S s (60) of every N-th
@@ -141,7 +141,7 @@ fn run() -> Result<(), String> {
     }
     let nav =
         nav.ok_or("usage: tcn_selection TRACES_DIR [--city DIR] [--seconds S] [--every N]")?;
-    let scenes = Path::new("../shared/scenes");
+    let scenes = Path::new("data/scenes");
     let tmp = PathBuf::from("target/tmp-big/tcn_selection");
     let (dir, grid, built) = match city {
         Some(d) => {

@@ -176,7 +176,7 @@ pub fn generate_city(sources: &[Splats], layout: &CityLayout) -> Splats {
 }
 
 /// The three shared scenes of `scenes_dir` (`plant.splat`, `donut_fused_sh0.ply`, `biker.spz`;
-/// `../shared/scenes/README.md`), each normalised with its format's usual up axis.
+/// `data/scenes/README.md`), each normalised with its format's usual up axis.
 pub fn shared_sources(scenes_dir: &Path) -> anyhow::Result<Vec<Splats>> {
     ["plant.splat", "donut_fused_sh0.ply", "biker.spz"]
         .iter()

@@ -1,9 +1,9 @@
-//! Reader for the EyeNavGS head traces (`../shared/navigation-traces/`) and their placement into
+//! Reader for the EyeNavGS head traces (`data/navigation-traces/`) and their placement into
 //! our z-up scenes as [`Trace`]s: real people walking and turning, at street level in a city.
 //!
 //! Dataset: Ding, Lee, Zhu, Guan, Sun, Hsu, Liu, "EyeNavGS: A 6-DoF Navigation Dataset and
 //! Record-n-Replay Software for Real-World 3DGS Scenes in VR", arXiv:2506.02380, 2025 (Apache 2.0;
-//! `../shared/navigation-traces/README.md`): 10 scenes x 22 users, head poses at 12 Hz.
+//! `data/navigation-traces/README.md`): 10 scenes x 22 users, head poses at 12 Hz.
 //!
 //! Input rows are `t_s,x,y,z,qx,qy,qz,qw` in Unity's frame (y up, left-handed, metres after the
 //! dataset's per-scene scale); the camera looks along +z of the quaternion. Swapping Unity's y and
@@ -396,7 +396,7 @@ mod tests {
         0.1667,1.1735,0.6560,-1.5210,0,0,0,1\n";
 
     fn shared() -> std::path::PathBuf {
-        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("../shared/navigation-traces")
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/navigation-traces")
     }
 
     #[test]
@@ -547,7 +547,7 @@ mod tests {
         }
     }
 
-    /// The shared copy (`../shared/navigation-traces/README.md`): every file of two scenes reads,
+    /// The shared copy (`data/navigation-traces/README.md`): every file of two scenes reads,
     /// at 12 Hz, with heads mostly level (median |pitch| under 25 deg; some users look up at
     /// the buildings much of the time) and walking speeds near the
     /// README's median.

@@ -298,13 +298,13 @@ mod tests {
         assert_eq!(eval.traces().len(), 2);
     }
 
-    /// With the shared traces (`../shared/navigation-traces/README.md`): the tuning set holds
+    /// With the shared traces (`data/navigation-traces/README.md`): the tuning set holds
     /// exactly the 8 train/val scenes' 176 sessions and no test scene; the evaluation set the 44
     /// sessions of nyc and truck.
     #[test]
     fn shared_sets_hold_the_right_scenes() {
         let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-            .join("../shared/navigation-traces");
+            .join("data/navigation-traces");
         if !root.exists() {
             eprintln!("skipped: {} missing", root.display());
             return;

@@ -15,10 +15,10 @@ use splat2tiles_viewer::headless::{
 };
 use splat2tiles_viewer::renderer::{FrameStats, RendererConfig};
 
-/// A shared scene (`<repo>/../shared/scenes/NAME`); panics clearly when it is missing.
+/// A shared scene (`<repo>/data/scenes/NAME`); panics clearly when it is missing.
 pub fn scene(name: &str) -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/scenes")
+        .join("../data/scenes")
         .join(name);
     assert!(p.is_file(), "missing shared scene {}", p.display());
     p

@@ -1,5 +1,5 @@
 //! The native viewer on a generated city (`splat2tiles_lab::city`, copies of every 8th splat
-//! of the shared scenes, `../shared/scenes/README.md`), local and georeferenced: overview (also at
+//! of the shared scenes, `data/scenes/README.md`), local and georeferenced: overview (also at
 //! maxSse 64: coarse root splats only) and street view, headless from the tile selection of
 //! `splat2tiles render` and from what the streaming client fetched, vs the CPU reference.
 
@@ -24,7 +24,7 @@ const ORIGIN: &str = "2.2945,48.8584,35";
 /// A 60,000-splat city converted into `dir/name` (z up, at most 16,384 splats per tile: one
 /// renderer page), georeferenced at [`ORIGIN`] when `geo`; returns `tileset.json`.
 fn city(dir: &Path, name: &str, geo: bool) -> PathBuf {
-    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes");
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes");
     let sources: Vec<_> = shared_sources(&scenes)
         .expect("shared scenes")
         .iter()

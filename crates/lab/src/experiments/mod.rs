@@ -15,7 +15,7 @@ pub struct SimulateArgs {
     #[arg(long, default_value = "all")]
     pub experiment: String,
     /// Folder of the shared scenes (plant.splat, donut_fused_sh0.ply, biker.spz).
-    #[arg(long, default_value = "../shared/scenes")]
+    #[arg(long, default_value = "data/scenes")]
     pub scenes: PathBuf,
     /// Where tables (streaming.md) and work files go.
     #[arg(long, default_value = "target/sim")]
@@ -36,8 +36,8 @@ pub struct SimulateArgs {
     /// Human navigation traces (experiment `city`; read only through `sim::split`).
     #[arg(long, default_value = crate::sim::stream_city::NAVIGATION_DIR)]
     pub navigation: PathBuf,
-    /// HSDPA and FCC throughput logs (experiment `city`; `../shared/network-traces/README.md`).
-    #[arg(long, default_value = "../shared/network-traces")]
+    /// HSDPA and FCC throughput logs (experiment `city`; `data/network-traces/README.md`).
+    #[arg(long, default_value = "data/network-traces")]
     pub networks: PathBuf,
     /// Splats per tile when tiling the shared scenes.
     #[arg(long, default_value_t = 4096)]

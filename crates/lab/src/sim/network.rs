@@ -1,7 +1,7 @@
-//! Reader for real throughput logs (`../shared/network-traces/`: HSDPA 3G and FCC broadband, in
+//! Reader for real throughput logs (`data/network-traces/`: HSDPA 3G and FCC broadband, in
 //! Pensieve's `TIME_S THROUGHPUT_MBPS` format) into piecewise-constant bandwidth for the simulator.
 //!
-//! Sources (`../shared/network-traces/README.md`): HSDPA: Riiser, Vigmostad, Griwodz, Halvorsen,
+//! Sources (`data/network-traces/README.md`): HSDPA: Riiser, Vigmostad, Griwodz, Halvorsen,
 //! "Commute Path Bandwidth Traces from 3G Networks", ACM MMSys 2013; FCC: "Measuring Broadband
 //! America" 2016; both as prepared by Pensieve (Mao, Netravali, Alizadeh, SIGCOMM 2017).
 //!
@@ -250,12 +250,12 @@ mod tests {
         }
     }
 
-    /// Every shared log reads (`../shared/network-traces/README.md`); the median of the HSDPA
+    /// Every shared log reads (`data/network-traces/README.md`); the median of the HSDPA
     /// means is near the README's ~1 Mbit/s.
     #[test]
     fn shared_logs_read() {
-        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-            .join("../shared/network-traces");
+        let root =
+            Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("data/network-traces");
         if !root.exists() {
             eprintln!("skipped: {} missing", root.display());
             return;

@@ -2,7 +2,7 @@
 //! converted with all four variants) and its trace set per split: human walks, street walks, flights.
 //!
 //! Content: [`splat::city`](crate::city) copies of the three shared scenes
-//! (`../shared/scenes/README.md`: plant, donut, biker; every `stride`-th splat), each scaled to an
+//! (`data/scenes/README.md`: plant, donut, biker; every `stride`-th splat), each scaled to an
 //! 18 m x [0.75, 1) block, turned by a multiple of 90 degrees and centred on a 24 m grid without
 //! jitter, so the streets between blocks are at least 6 m wide and a walk down one reveals new
 //! blocks. Ground at z = 0; street centre lines at `(k - 0.5) * 24 m` on x and y, `k = 0..=side`.
@@ -49,8 +49,8 @@ pub const FLIGHT_SPEED: f64 = 8.0;
 pub const FLIGHT_ALTITUDE: f64 = 40.0;
 /// Where the experiments' city is georeferenced (`lon,lat,height`; Berlin, Alexanderplatz).
 pub const DEFAULT_ORIGIN: &str = "13.4132,52.5219,34";
-/// Default folder of the EyeNavGS sessions (`../shared/navigation-traces/README.md`).
-pub const NAVIGATION_DIR: &str = "../shared/navigation-traces";
+/// Default folder of the EyeNavGS sessions (`data/navigation-traces/README.md`).
+pub const NAVIGATION_DIR: &str = "data/navigation-traces";
 /// Synthetic walks per 20 seeds (seeds `0..20`, split 14/3/3 by [`synthetic_split`]).
 pub const WALK_SEEDS: std::ops::Range<u64> = 0..20;
 /// Synthetic flights (seeds `20..40`, split 14/3/3).
@@ -162,7 +162,7 @@ impl StreetGrid {
     }
 }
 
-/// The source scenes thinned by `stride` (`../shared/scenes/`).
+/// The source scenes thinned by `stride` (`data/scenes/`).
 pub fn city_sources(scenes_dir: &Path, stride: usize) -> anyhow::Result<Vec<Splats>> {
     let stride = stride.max(1);
     Ok(shared_sources(scenes_dir)?

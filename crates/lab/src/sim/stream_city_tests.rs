@@ -9,11 +9,11 @@ fn root() -> PathBuf {
 }
 
 fn scenes() -> PathBuf {
-    root().join("../shared/scenes")
+    root().join("data/scenes")
 }
 
 fn nav() -> PathBuf {
-    root().join("../shared/navigation-traces")
+    root().join("data/navigation-traces")
 }
 
 /// Deletes a test's folder however the test ends.
@@ -41,7 +41,7 @@ fn grid(spec: &CitySpec) -> StreetGrid {
     )
 }
 
-/// A small city (`../shared/scenes/README.md` content): streets stay (almost) clear, the
+/// A small city (`data/scenes/README.md` content): streets stay (almost) clear, the
 /// conversion writes four variants, georeferenced, the same bytes twice.
 #[test]
 fn small_city_has_streets_four_variants_and_is_reproducible() {
@@ -172,7 +172,7 @@ fn flights_stay_over_the_city_at_altitude() {
     }
 }
 
-/// The city's trace set per split (`../shared/navigation-traces/README.md`): the evaluation set
+/// The city's trace set per split (`data/navigation-traces/README.md`): the evaluation set
 /// holds only test scenes (nyc, truck) and test seeds; the tuning set none of them.
 #[test]
 fn trace_sets_split_by_scene() {

@@ -1,5 +1,5 @@
 //! The request-ordering check on a small generated city (`sim::stream_city`, the shared scenes of
-//! `../shared/scenes/README.md` as blocks): the real client over the simulated transport at
+//! `data/scenes/README.md` as blocks): the real client over the simulated transport at
 //! 10 Mbit/s along synthetic street walks; cache hits over first-time entries into the needed cut
 //! (`sim::score`, from the whole tileset) must be clearly higher with the oracle than reactive.
 

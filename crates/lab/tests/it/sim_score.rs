@@ -1,4 +1,4 @@
-//! Session scoring on a real tileset (the plant of `../shared/scenes/README.md`): the needed cut
+//! Session scoring on a real tileset (the plant of `data/scenes/README.md`): the needed cut
 //! refines near and coarsens far, and the quality metric is 1 for the cut at Best and moves when
 //! what is drawn is damaged (Low variants, parents instead of leaves, nothing).
 

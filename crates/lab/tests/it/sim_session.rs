@@ -1,4 +1,4 @@
-//! Simulator checks on the converted plant (`../shared/scenes/plant.splat`, see its README): the
+//! Simulator checks on the converted plant (`data/scenes/plant.splat`, see its README): the
 //! real client over the simulated transport is deterministic, its recorded inputs replay to the
 //! same decisions, the logs are consistent with the files and the link, the fallback rule applies
 //! to the predictors that need pose history, and traces round-trip.
