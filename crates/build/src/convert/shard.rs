@@ -8,7 +8,6 @@ use super::ConvertError;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use splat2tiles_tiles::tiling::TileKey;
-use std::io::Read;
 use std::path::Path;
 
 /// An `f64` stored exactly, as the 16 hex digits of its bits.
@@ -84,25 +83,30 @@ pub(super) fn bad(path: &Path, offset: Option<u64>, why: impl std::fmt::Display)
     }
 }
 
-/// Reads at most `limit` bytes of `path` (a longer file is refused before it is read).
+/// Reads at most `limit` bytes of `path` through `splat2tiles_io::read_file` (a regular file
+/// only; a longer file is refused before it is read), with its errors as [`ConvertError`]s.
 pub(super) fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, ConvertError> {
-    let f = std::fs::File::open(path).map_err(super::io_err(path, "reading"))?;
-    let len = f.metadata().map_err(super::io_err(path, "reading"))?.len();
-    if len > limit {
-        return Err(bad(
+    use splat2tiles_io::BoundedReadError as E;
+    let kind = splat2tiles_io::FileKind::new("such a file", limit);
+    splat2tiles_io::read_file(path, kind).map_err(|e| match e {
+        E::Io { source, .. } => super::io_err(path, "reading")(source),
+        E::TooLarge { size, limit, .. } => bad(
             path,
             None,
-            format!("{len} bytes, more than the {limit} such a file may have"),
-        ));
-    }
-    let mut bytes = Vec::with_capacity(len as usize);
-    f.take(limit + 1)
-        .read_to_end(&mut bytes)
-        .map_err(super::io_err(path, "reading"))?;
-    if bytes.len() as u64 > limit {
-        return Err(bad(path, None, format!("more than {limit} bytes")));
-    }
-    Ok(bytes)
+            format!("{size} bytes, more than the {limit} such a file may have"),
+        ),
+        E::NotRegular { .. } => bad(
+            path,
+            None,
+            "not a regular file (only regular files are read)",
+        ),
+        E::OutOfMemory { size, .. } => bad(
+            path,
+            None,
+            format!("cannot reserve {size} bytes of memory to read it"),
+        ),
+        other => bad(path, None, other),
+    })
 }
 
 /// Parses JSON `bytes` read from `path`; errors name the byte offset.
