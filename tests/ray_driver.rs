@@ -3,7 +3,7 @@
 //! the single-machine bytes, validates, and every part stays under its `--memory-limit`.
 //!
 //! Ray comes from PyPI into `target/ray-venv` (`.ci/run` installs it; this test installs it
-//! when missing). Skipped, saying so, only when `python3` is absent.
+//! when missing). Skipped, saying why, when `python3` or its `venv` module is absent.
 
 mod common;
 
@@ -15,14 +15,15 @@ use std::process::Command;
 /// The Ray version the driver is tested with (`.ci/run` installs the same).
 const RAY: &str = "ray==2.60.0";
 
-/// The virtual environment's python with Ray importable; `None` when there is no python3.
-fn ray_python() -> Option<PathBuf> {
+/// The virtual environment's python with Ray importable; `Err` says why the test skips (no
+/// python3, or one without `venv`, e.g. Debian without python3-venv).
+fn ray_python() -> Result<PathBuf, String> {
     let has_python = Command::new("python3")
         .arg("--version")
         .output()
         .is_ok_and(|o| o.status.success());
     if !has_python {
-        return None;
+        return Err("python3 is not installed (the Ray driver needs it)".into());
     }
     let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/ray-venv");
     let py = venv.join("bin/python");
@@ -38,11 +39,13 @@ fn ray_python() -> Option<PathBuf> {
             .arg(&venv)
             .output()
             .unwrap();
-        assert!(
-            o.status.success(),
-            "python3 -m venv: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        if !o.status.success() {
+            let _ = std::fs::remove_dir_all(&venv);
+            return Err(format!(
+                "`python3 -m venv` failed (python3-venv missing?): {}",
+                String::from_utf8_lossy(&o.stderr).trim()
+            ));
+        }
         let o = Command::new(&py)
             .args(["-m", "pip", "install", "-q", RAY])
             .output()
@@ -54,14 +57,17 @@ fn ray_python() -> Option<PathBuf> {
         );
         assert!(has_ray(&py), "ray not importable after pip install {RAY}");
     }
-    Some(py)
+    Ok(py)
 }
 
 #[test]
 fn ray_driver_converts_in_four_parts_with_a_killed_task() {
-    let Some(py) = ray_python() else {
-        eprintln!("SKIPPED ray_driver: python3 is not installed (the Ray driver needs it)");
-        return;
+    let py = match ray_python() {
+        Ok(py) => py,
+        Err(why) => {
+            eprintln!("SKIPPED ray_driver: {why}");
+            return;
+        }
     };
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("city.splat");

@@ -31,7 +31,12 @@ impl Drop for Served {
 
 /// Starts the binary with `args` (which must include `--port 0`) and reads the port it prints.
 fn start(args: &[&str], log: &Path) -> Served {
-    let mut child = Command::new(bin())
+    start_with(&bin(), args, log)
+}
+
+/// [`start`] with the executable at `program` (a copy of the binary, as if installed there).
+fn start_with(program: &Path, args: &[&str], log: &Path) -> Served {
+    let mut child = Command::new(program)
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -755,4 +760,90 @@ fn view_serves_the_tileset_and_the_viewer() {
     let ts = get(s.port, "/tileset.json");
     assert_eq!(ts.body, std::fs::read(root.join("tileset.json")).unwrap());
     assert_eq!(get(s.port, "/viewer/../tileset.json").status, 403);
+}
+
+#[test]
+fn an_installed_view_finds_the_viewer_beside_its_executable() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().join("root");
+    sample_dir(&root);
+    // `build.sh --install` beside the binary, and a PREFIX/bin + PREFIX/share layout.
+    for (exe, web) in [
+        ("bin/splat2tiles", "bin/splat2tiles-web"),
+        ("prefix/bin/splat2tiles", "prefix/share/splat2tiles/web"),
+    ] {
+        let exe = tmp.path().join(exe);
+        std::fs::create_dir_all(exe.parent().unwrap()).unwrap();
+        std::fs::copy(bin(), &exe).unwrap();
+        let web = tmp.path().join(web);
+        fake_web(&web, true);
+        let s = start_with(
+            &exe,
+            &[
+                "view",
+                root.to_str().unwrap(),
+                "--no-open",
+                "--quiet",
+                "--port",
+                "0",
+            ],
+            &tmp.path().join("log"),
+        );
+        let page = get(s.port, "/viewer/index.html");
+        assert_eq!(page.status, 200, "{}", web.display());
+        // The stand-in, not the source tree's viewer.
+        assert!(page.body.ends_with(b"viewer</p>"), "{}", web.display());
+        drop(s);
+        std::fs::remove_dir_all(&web).unwrap();
+    }
+}
+
+#[test]
+fn view_of_a_folder_without_a_tileset_suggests_a_command_that_works() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A folder of scenes (like the repository's samples/): convert one into a fresh folder.
+    let samples = tmp.path().join("samples");
+    std::fs::create_dir_all(&samples).unwrap();
+    std::fs::copy(scene("plant.splat"), samples.join("plant.splat")).unwrap();
+    std::fs::write(samples.join("README.md"), "licence").unwrap();
+    let out = Command::new(bin())
+        .args(["view", "samples", "--no-open", "--port", "0"])
+        .current_dir(tmp.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    let suggested = err
+        .split('`')
+        .nth(1)
+        .unwrap_or_else(|| panic!("a command in backquotes: {err}"));
+    let convert = suggested.split(" && ").next().unwrap();
+    let words: Vec<&str> = convert.split_whitespace().collect();
+    assert_eq!(
+        words[1..],
+        ["convert", "samples/plant.splat", "-o", "out/plant"],
+        "{err}"
+    );
+    let o = Command::new(words[0])
+        .args(&words[1..])
+        .arg("--quiet")
+        .current_dir(tmp.path())
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{suggested}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(tmp.path().join("out/plant/tileset.json").is_file());
+    assert!(suggested.ends_with("view out/plant"), "{suggested}");
+    // A folder of other files: never suggested as the output (convert would refuse it).
+    std::fs::remove_file(samples.join("plant.splat")).unwrap();
+    let out = Command::new(bin())
+        .args(["view", "samples", "--no-open", "--port", "0"])
+        .current_dir(tmp.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(err.contains("-o out/scene"), "{err}");
 }

@@ -584,9 +584,22 @@ fn web_viewer_draws_generated_cities_like_the_reference() {
 /// budgetMB, every sample records the memory columns, and the eye stays at street level.
 #[test]
 fn web_viewer_walks_a_city_trace_within_its_budget() {
+    walk_city(None, 10);
+}
+
+/// The same walk through a georeferenced city (Web-Mercator tiles, an ECEF root transform, a
+/// root `region`): the walk is placed in the root's east-north-up frame and sent as ECEF
+/// `look-at:` cameras.
+#[test]
+fn web_viewer_walks_a_georeferenced_city_trace() {
+    walk_city(Some("-73.9857,40.7484,10"), 6);
+}
+
+/// Walks the first `seconds` of the trace through a 60,000-splat city placed at `origin`.
+fn walk_city(origin: Option<&str>, seconds: u32) {
     require_harness();
     let tmp = tempfile::tempdir().unwrap();
-    let dir = city(tmp.path(), "walk", 60_000, None);
+    let dir = city(tmp.path(), "walk", 60_000, origin);
     let viewing = view(&dir, &tmp.path().join("view.log"));
     let csv = tmp.path().join("walk.csv");
     let trace = scenes().join("../navigation-traces/nyc/user101_nyc.csv");
@@ -597,7 +610,8 @@ fn web_viewer_walks_a_city_trace_within_its_budget() {
         .arg(&trace)
         .arg("--csv")
         .arg(&csv)
-        .args(["--seconds", "10", "--budget-mb", "1", "--ground", "0"])
+        .args(["--seconds", &seconds.to_string(), "--budget-mb", "1"])
+        .args(["--ground", "0"])
         .args(["--width", "160", "--height", "120", "--timeout", "240"])
         .output()
         .expect("cannot run `node` (install Node >= 20)");

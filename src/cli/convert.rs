@@ -25,19 +25,16 @@ Sharded (README \"Converting on a cluster\"):
   splat2tiles convert city.ply --plan plan.json --part 0 --phase samples -o s0   (each part)
   splat2tiles convert city.ply --plan plan.json --part 0 --samples s0 s1 s2 s3 -o p0
   splat2tiles merge plan.json p0 p1 p2 p3 -o city/")]
+#[command(override_usage = "splat2tiles convert <INPUT> -o <OUTPUT> [OPTIONS]
+       splat2tiles convert <INPUT> --plan <PLAN> [--parts <N> | --part <K> -o <OUTPUT>] [OPTIONS]")]
 pub struct ConvertArgs {
     /// Input scene: trainer PLY (binary or ascii), antimatter15 .splat, or Niantic .spz (v2-v4).
     pub input: PathBuf,
-    /// Output folder: absent, empty, or an earlier splat2tiles output (replaced only when the new
-    /// one is complete); any other folder is refused, never deleted.
+    /// Output folder (required, except when writing a --plan): absent, empty, or an earlier
+    /// splat2tiles output (replaced only when the new one is complete, and said so); any other
+    /// folder is refused, never deleted.
     #[arg(short, long, required_unless_present = "plan")]
     pub output: Option<PathBuf>,
-    /// Sharded conversion: the plan file. Alone (with --parts), write the plan; with --part,
-    /// build that part of it (its conversion options are the plan's).
-    #[arg(long)]
-    pub plan: Option<PathBuf>,
-    #[command(flatten)]
-    pub shard: shard::ShardArgs,
     /// Most splats per leaf tile.
     #[arg(long, default_value_t = 32_768, value_parser = clap::value_parser!(u64).range(1..=16_777_216))]
     pub max_splats: u64,
@@ -101,7 +98,16 @@ pub struct ConvertArgs {
     /// No progress bars and no summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Sharded conversion: the plan file. Alone (with --parts), write the plan; with --part,
+    /// build that part of it (its conversion options are the plan's).
+    #[arg(long, help_heading = SHARDED)]
+    pub plan: Option<PathBuf>,
+    #[command(flatten, next_help_heading = SHARDED)]
+    pub shard: shard::ShardArgs,
 }
+
+/// The help heading of the options of a sharded conversion (listed after the everyday ones).
+const SHARDED: &str = "Sharded conversion (README \"Converting on a cluster\")";
 
 /// The scene's frame and tiling: options shared by `convert` and `import-lapisgs`.
 #[derive(Debug, Args)]
@@ -306,8 +312,10 @@ pub fn run(args: ConvertArgs) -> i32 {
                     }
                 }
                 outln!("  tileset: {}", tileset.display());
+                let me = super::program();
                 outln!(
-                    "  look at it: splat2tiles render {} --auto-view 0 -o view.png",
+                    "  look at it: {me} view {}   (or: {me} render {} --auto-view 0 -o view.png)",
+                    output.display(),
                     tileset.display()
                 );
             }

@@ -14,11 +14,13 @@ use splat2tiles_render::metrics;
 use splat2tiles_render::raster::{RenderOptions, render_with_stats};
 use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
 use splat2tiles_tiles::geometry::{
-    content_model, finite_bounds, select_tiles, tileset_bounds, tileset_up,
+    Instances, content_model, finite_bounds, frame_centres, select_tiles, tileset_bounds,
+    tileset_up,
 };
 
 /// Arguments of `splat2tiles render`.
 #[derive(Debug, Clone, clap::Args)]
+#[command(group(clap::ArgGroup::new("view").required(true).args(["camera", "auto_view"])))]
 pub struct RenderArgs {
     /// Scene file (.ply, .splat, .spz) or a tileset (`tileset.json`).
     pub input: PathBuf,
@@ -26,11 +28,7 @@ pub struct RenderArgs {
     /// `look-at:EX,EY,EZ:TX,TY,TZ[:UX,UY,UZ]` (world coordinates; image up along UX,UY,UZ, else
     /// --up-axis) or `geo:LON,LAT,HEIGHT:HEADING,PITCH` (degrees, metres; georeferenced tilesets,
     /// heading clockwise from north, pitch above the horizontal): the viewers' stats report these.
-    #[arg(
-        long,
-        conflicts_with = "auto_view",
-        required_unless_present = "auto_view"
-    )]
+    #[arg(long)]
     pub camera: Option<String>,
     /// One of the 8 automatic viewpoints around the scene's bounding box (0..=7).
     #[arg(long)]
@@ -53,7 +51,7 @@ pub struct RenderArgs {
     /// Background colour R,G,B in [0, 1].
     #[arg(long, default_value = "0,0,0")]
     pub background: String,
-    /// Output PNG.
+    /// Output PNG (the name must end in .png).
     #[arg(short, long)]
     pub output: PathBuf,
     /// Tilesets: refine tiles while their screen-space error exceeds this many pixels.
@@ -102,6 +100,17 @@ impl RenderArgs {
 /// Runs `render`: reads a scene file or a tileset (tiles chosen by screen-space error for the
 /// camera), renders with the CPU reference renderer and writes the PNG.
 pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
+    // Checked before the (possibly long) render: render writes PNG and nothing else.
+    if !args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        anyhow::bail!(
+            "{}: render writes PNG images; give an output name ending in .png",
+            args.output.display()
+        );
+    }
     let up_arg = match &args.up_axis {
         Some(s) => Some(
             camera::parse_axis(s)
@@ -122,27 +131,14 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
     let (instances, cam, note) = if is_tileset {
         let ts = splat2tiles_tiles::tiling::load::load_tileset(&args.input)?;
         let up = up_arg.unwrap_or_else(|| tileset_up(&ts));
-        let cam = resolve_camera(&args.camera_request(), up, tileset_bounds(&ts))?;
-        if splat2tiles_tiles::layers::view::is_layered(&ts) {
-            // Layered content: ancestors' layers + blended children (spec/layered-content.md).
-            let instances =
-                splat2tiles_tiles::layers::view::layered_instances(&ts, &cam, args.max_sse)?;
-            let note = format!("{} layers of {} tiles, ", instances.len(), ts.tiles.len());
-            (instances, cam, note)
+        let (cam, instances) = tileset_view(args, &ts, up)?;
+        let what = if splat2tiles_tiles::layers::view::is_layered(&ts) {
+            " layers"
         } else {
-            let picked = select_tiles(&ts, &cam, args.max_sse);
-            let mut instances = Vec::with_capacity(picked.len());
-            for path in &picked {
-                let bytes =
-                    splat2tiles_io::read_file(path, splat2tiles_tiles::tiling::load::CONTENT_FILE)?;
-                // Any variant: plain, EXT_meshopt_compression or SPZ_2 compressed.
-                let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
-                    .with_context(|| format!("{}", path.display()))?;
-                instances.push((splats, content_model(&ts, &node)));
-            }
-            let note = format!("{} of {} tiles, ", picked.len(), ts.tiles.len());
-            (instances, cam, note)
-        }
+            ""
+        };
+        let note = format!("{}{what} of {} tiles, ", instances.len(), ts.tiles.len());
+        (instances, cam, note)
     } else {
         let scene = splat2tiles_io::read_path(&args.input)?;
         let up = up_arg.unwrap_or_else(|| default_up_axis(&args.input));
@@ -168,6 +164,50 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         args.output.display()
     );
     Ok(())
+}
+
+/// The camera and the tile contents it sees. `--auto-view` frames the splat centres, as it does
+/// for a scene file (so the same K gives the same picture of a scene and of its tileset).
+fn tileset_view(
+    args: &RenderArgs,
+    ts: &splat2tiles_tiles::tiling::load::LoadedTileset,
+    up: DVec3,
+) -> anyhow::Result<(camera::Camera, Instances)> {
+    let req = args.camera_request();
+    let cam = resolve_camera(&req, up, tileset_bounds(ts))?;
+    if args.auto_view.is_none() {
+        return Ok((cam, tileset_instances(ts, &cam, args.max_sse)?));
+    }
+    frame_centres(
+        cam,
+        |cam| tileset_instances(ts, cam, args.max_sse),
+        |bounds| Ok(resolve_camera(&req, up, Some(bounds))?),
+    )
+}
+
+/// The contents `cam` selects (refining while the screen-space error exceeds `max_sse`), each
+/// with its world matrix; for layered tilesets the ancestors' layers and blended children.
+fn tileset_instances(
+    ts: &splat2tiles_tiles::tiling::load::LoadedTileset,
+    cam: &camera::Camera,
+    max_sse: f64,
+) -> anyhow::Result<Instances> {
+    if splat2tiles_tiles::layers::view::is_layered(ts) {
+        // Layered content: ancestors' layers + blended children (spec/layered-content.md).
+        return Ok(splat2tiles_tiles::layers::view::layered_instances(
+            ts, cam, max_sse,
+        )?);
+    }
+    let picked = select_tiles(ts, cam, max_sse);
+    let mut instances = Vec::with_capacity(picked.len());
+    for path in &picked {
+        let bytes = splat2tiles_io::read_file(path, splat2tiles_tiles::tiling::load::CONTENT_FILE)?;
+        // Any variant: plain, EXT_meshopt_compression or SPZ_2 compressed.
+        let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
+            .with_context(|| format!("{}", path.display()))?;
+        instances.push((splats, content_model(ts, &node)));
+    }
+    Ok(instances)
 }
 
 /// SSIM and PSNR of two PNG files.

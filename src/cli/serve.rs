@@ -48,9 +48,11 @@ pub struct ViewArgs {
     /// Print the URL without opening a browser.
     #[arg(long)]
     pub no_open: bool,
-    /// The web viewer's folder (`index.html` and the wasm-bindgen output in `pkg/`).
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/viewer/web"))]
-    pub web_dir: PathBuf,
+    /// The web viewer's folder (`index.html` and the wasm-bindgen output in `pkg/`)
+    /// [default: `splat2tiles-web/` beside the executable (what `viewer/web/build.sh --install`
+    /// writes), else `../share/splat2tiles/web` from it, else the source tree's `viewer/web`].
+    #[arg(long)]
+    pub web_dir: Option<PathBuf>,
     /// No log line per request.
     #[arg(short, long)]
     pub quiet: bool,
@@ -132,10 +134,50 @@ pub fn run_serve(args: &ServeArgs) -> anyhow::Result<()> {
     })
 }
 
+/// How to get a web viewer, for the errors that find none.
+const BUILD_VIEWER: &str = "build it in the source tree with `viewer/web/build.sh` (it writes \
+    viewer/web/pkg/; `--install` also copies the viewer beside the installed splat2tiles), or \
+    point --web-dir at a built viewer";
+
+/// The web viewer's folder: `given`, else the first built one of [`web_dir_candidates`].
+pub fn find_web_dir(given: Option<&Path>) -> anyhow::Result<PathBuf> {
+    if let Some(web) = given {
+        check_web_dir(web)?;
+        return Ok(web.to_path_buf());
+    }
+    let candidates = web_dir_candidates();
+    if let Some(found) = candidates.iter().find(|c| check_web_dir(c).is_ok()) {
+        return Ok(found.clone());
+    }
+    let looked: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
+    bail!(
+        "no built web viewer found (looked in {}); {BUILD_VIEWER}",
+        looked.join(", ")
+    )
+}
+
+/// Where `view` looks for the web viewer, in order: `splat2tiles-web/` beside the executable,
+/// `../share/splat2tiles/web` from its folder (a `PREFIX/bin` + `PREFIX/share` install), and the
+/// source tree this binary was built from.
+pub fn web_dir_candidates() -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    if let Some(dir) = std::env::current_exe()
+        .ok()
+        .and_then(|e| std::fs::canonicalize(e).ok())
+        .and_then(|e| e.parent().map(Path::to_path_buf))
+    {
+        out.push(dir.join("splat2tiles-web"));
+        if let Some(prefix) = dir.parent() {
+            out.push(prefix.join("share/splat2tiles/web"));
+        }
+    }
+    out.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer/web"));
+    out
+}
+
 /// Checks that `web` holds a built viewer: `index.html` and the wasm-bindgen `pkg/`.
 pub fn check_web_dir(web: &Path) -> anyhow::Result<()> {
-    let how = "build it with `viewer/web/build.sh` (wasm-bindgen output goes to viewer/web/pkg/), \
-               or point --web-dir at a built viewer";
+    let how = BUILD_VIEWER;
     if !web.join("index.html").is_file() {
         bail!(
             "{}: no web viewer here (index.html missing); {how}",
@@ -151,19 +193,60 @@ pub fn check_web_dir(web: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The scene files (by extension) directly in `dir`, sorted.
+fn scenes_in(dir: &Path) -> Vec<PathBuf> {
+    let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.is_file()
+                && p.extension()
+                    .and_then(|e| e.to_str())
+                    .is_some_and(|e| ["ply", "splat", "spz"].contains(&&*e.to_ascii_lowercase()))
+        })
+        .collect();
+    found.sort();
+    found
+}
+
+/// What to run instead of viewing `dir`, which holds no tileset: a command `convert` accepts
+/// (it refuses to write into a folder of other files, so those get a fresh output folder).
+fn convert_first(dir: &Path, me: &str) -> String {
+    let fresh = |stem: &str| Path::new("out").join(stem).display().to_string();
+    if let Some(scene) = scenes_in(dir).first() {
+        let stem = scene
+            .file_stem()
+            .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
+        let out = fresh(&stem);
+        return format!(
+            "it holds a scene; convert it, then view the result: `{me} convert {} -o {out} && {me} view {out}`",
+            scene.display()
+        );
+    }
+    let empty_or_absent = std::fs::read_dir(dir).map_or(true, |mut d| d.next().is_none());
+    let out = if empty_or_absent {
+        dir.display().to_string()
+    } else {
+        fresh("scene")
+    };
+    format!("convert a scene first: `{me} convert SCENE -o {out} && {me} view {out}`")
+}
+
 /// Runs `view`.
 pub fn run_view(args: &ViewArgs) -> anyhow::Result<()> {
     if !args.dir.join("tileset.json").is_file() {
         bail!(
-            "{}: no tileset.json here; convert a scene first (`splat2tiles convert SCENE -o {}`)",
+            "{}: no tileset.json here; {}",
             args.dir.display(),
-            args.dir.display()
+            convert_first(&args.dir, &super::program())
         );
     }
-    check_web_dir(&args.web_dir)?;
+    let web_dir = find_web_dir(args.web_dir.as_deref())?;
     let mounts = vec![
         Mount::new("/", &args.dir)?,
-        Mount::new("/viewer/", &args.web_dir)?,
+        Mount::new("/viewer/", &web_dir)?,
     ];
     let shown = args.dir.display().to_string();
     let port = args.port.unwrap_or(VIEW_PORT);

@@ -1,5 +1,5 @@
-//! `splat2tiles validate`: arguments, the run, and the report printed as text or JSON (exit 0 when
-//! no ERROR, 1 when errors were found, 2 when the tileset cannot be read at all).
+//! `splat2tiles validate`: arguments, the run, and the report as text or JSON; exit 0 when no
+//! ERROR, 1 when errors were found, 2 when the tileset cannot be read (missing, or not JSON).
 
 use clap::Args;
 use splat2tiles_validate::{ValidateOptions, validate_tileset};
@@ -74,7 +74,10 @@ pub fn run(args: ValidateArgs) -> i32 {
         eprintln!("splat2tiles: {}: {e}", path.display());
         return super::EXIT_FAILURE;
     }
-    if report.is_valid() {
+    if report.unreadable {
+        // Not a tileset at all (not JSON, or past the parse limits): like a missing file.
+        super::EXIT_FAILURE
+    } else if report.is_valid() {
         0
     } else {
         super::EXIT_FINDINGS

@@ -1,6 +1,5 @@
-//! A plain clone works: the README's first command converts the sample shipped in the
-//! repository, with no `../shared` beside the clone (the already-built binary stands in for
-//! `cargo run --release`, whose build would be too slow here).
+//! A plain clone works, with no `../shared` beside it: the README's first command's convert, the
+//! hint's render, validate, the web viewer's build and `view` serving it (the built binary stands in for `cargo run`).
 
 use super::assert_valid;
 use super::common::bin;
@@ -72,4 +71,129 @@ fn readme_first_command_converts_in_a_plain_clone() {
     // The sample ships with its licence.
     let lic = std::fs::read_to_string(clone.join("samples/README.md")).unwrap();
     assert!(lic.contains("CC-BY-4.0") && lic.contains("Marcel Padilla"));
+
+    // The hint's render command, run as printed, then validate.
+    let o = Command::new(bin())
+        .args(&args)
+        .current_dir(&clone)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let hint = text
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("look at it: "))
+        .unwrap_or_else(|| panic!("no hint in {text}"));
+    let render = hint.split("(or: ").nth(1).unwrap().trim_end_matches(')');
+    let words: Vec<&str> = render.split_whitespace().collect();
+    let o = Command::new(words[0])
+        .args(&words[1..])
+        .current_dir(&clone)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "`{render}`: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(clone.join("view.png").is_file());
+    let o = Command::new(bin())
+        .arg("validate")
+        .arg(args[out_flag + 1])
+        .current_dir(&clone)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+
+    // The web viewer builds in the clone and `view` serves it.
+    build_web_viewer(repo, &clone);
+    serve_and_fetch(&clone, Path::new(args[out_flag + 1]));
+}
+
+/// Runs the clone's `viewer/web/build.sh` (the README's second step) into a target folder of its
+/// own under this repository's `target/` (kept between runs, so only changed crates rebuild),
+/// with the wasm-bindgen-cli this repository's build installed (no registry needed).
+fn build_web_viewer(repo: &Path, clone: &Path) {
+    let tools = repo.join("target/tools");
+    assert!(
+        tools.join("bin/wasm-bindgen").is_file(),
+        "target/tools/bin/wasm-bindgen is missing: run viewer/web/build.sh first (.ci/run does)"
+    );
+    let target = repo.join("target/plain-clone");
+    std::fs::create_dir_all(target.join("tools/bin")).unwrap();
+    std::fs::copy(
+        tools.join("bin/wasm-bindgen"),
+        target.join("tools/bin/wasm-bindgen"),
+    )
+    .unwrap();
+    let o = Command::new("bash")
+        .arg(clone.join("viewer/web/build.sh"))
+        .current_dir(clone)
+        .env("CARGO_TARGET_DIR", &target)
+        .env("CARGO_INCREMENTAL", "0")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "build.sh in the clone: {out}\n{err}");
+    assert!(out.contains("web viewer built"), "{out}");
+    assert!(
+        clone
+            .join("viewer/web/pkg/splat2tiles_web_bg.wasm")
+            .is_file()
+    );
+}
+
+/// `view` of the clone's output with the clone's viewer: it prints the page and serves the
+/// page, the wasm and the tileset.
+fn serve_and_fetch(clone: &Path, out: &Path) {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let mut child = Command::new(bin())
+        .arg("view")
+        .arg(out)
+        .args(["--port", "0", "--no-open", "--quiet", "--web-dir"])
+        .arg(clone.join("viewer/web"))
+        .current_dir(clone)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let page = lines
+        .by_ref()
+        .map_while(Result::ok)
+        .find_map(|l| l.strip_prefix("viewer: ").map(str::to_string));
+    let Some(page) = page else {
+        let _ = child.kill();
+        panic!("view printed no viewer line");
+    };
+    let addr = page
+        .trim_start_matches("http://")
+        .split('/')
+        .next()
+        .unwrap()
+        .to_string();
+    for path in [
+        "/viewer/index.html",
+        "/viewer/pkg/splat2tiles_web_bg.wasm",
+        "/tileset.json",
+    ] {
+        let mut s = std::net::TcpStream::connect(&addr).unwrap();
+        write!(
+            s,
+            "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+        )
+        .unwrap();
+        let mut answer = Vec::new();
+        s.read_to_end(&mut answer).unwrap();
+        let head = String::from_utf8_lossy(&answer[..answer.len().min(64)]).into_owned();
+        assert!(head.starts_with("HTTP/1.1 200"), "{path}: {head}");
+    }
+    let _ = child.kill();
+    let _ = child.wait();
 }

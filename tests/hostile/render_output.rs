@@ -81,6 +81,46 @@ fn a_png_replaces_an_earlier_file_whole_and_through_a_link() {
 }
 
 #[test]
+fn an_output_that_is_not_png_is_refused_once_and_nothing_is_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.splat");
+    write_splat(&input, 500);
+    for name in ["x.jpg", "x", "x.png.tmp"] {
+        let out = tmp.path().join(name);
+        let o = render(&input, &out);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert_eq!(err.matches("ending in .png").count(), 1, "{err}");
+        assert_eq!(err.lines().count(), 1, "one error line: {err}");
+        assert!(!out.exists(), "{name} was created");
+    }
+    // Upper case is a PNG name too.
+    let o = render(&input, &tmp.path().join("X.PNG"));
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn render_without_a_camera_names_both_ways_to_give_one() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.splat");
+    write_splat(&input, 500);
+    let o = Command::new(bin())
+        .arg("render")
+        .arg(&input)
+        .arg("-o")
+        .arg(tmp.path().join("v.png"))
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--camera") && err.contains("--auto-view"),
+        "{err}"
+    );
+    assert!(!tmp.path().join("v.png").exists());
+}
+
+#[test]
 fn a_validation_report_onto_its_tileset_is_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let ts = super::small_tileset(tmp.path());

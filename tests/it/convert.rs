@@ -403,6 +403,70 @@ fn failed_run_leaves_the_earlier_result_untouched() {
     ]);
     assert!(o.status.success());
     assert_ne!(std::fs::read(out.join("tileset.json")).unwrap(), before);
+    // ... and says so (the first run into an absent folder did not).
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(&format!(
+            "replaced the earlier splat2tiles output in {}",
+            out.display()
+        )),
+        "{err}"
+    );
+}
+
+/// The "look at it" hint's commands, run as printed: from a folder the binary is not in and not
+/// on PATH (its path is printed), and with it on PATH (installed: its bare name).
+#[test]
+fn the_hint_names_the_program_as_it_can_be_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in.ply");
+    std::fs::write(&input, ply_bytes(&PROPS, 8, &records(8))).unwrap();
+    let bin_dir = bin()
+        .canonicalize()
+        .unwrap()
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    for installed in [false, true] {
+        let path = if installed {
+            format!("{}:/usr/bin:/bin", bin_dir.display())
+        } else {
+            "/usr/bin:/bin".to_string()
+        };
+        let o = Command::new(bin())
+            .args(["convert", "in.ply", "-o", "out", "--no-utility"])
+            .current_dir(tmp.path())
+            .env("PATH", &path)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let text = String::from_utf8_lossy(&o.stdout);
+        let hint = text
+            .lines()
+            .find_map(|l| l.trim().strip_prefix("look at it: "))
+            .unwrap_or_else(|| panic!("no hint in {text}"));
+        let render = hint.split("(or: ").nth(1).unwrap().trim_end_matches(')');
+        let words: Vec<&str> = render.split_whitespace().collect();
+        if installed {
+            assert!(hint.starts_with("splat2tiles view out "), "{hint}");
+            assert_eq!(words[0], "splat2tiles");
+        } else {
+            assert_eq!(Path::new(words[0]), bin().canonicalize().unwrap(), "{hint}");
+        }
+        let o = Command::new(words[0])
+            .args(&words[1..])
+            .current_dir(tmp.path())
+            .env("PATH", &path)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{render}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(tmp.path().join("view.png").is_file());
+        std::fs::remove_file(tmp.path().join("view.png")).unwrap();
+    }
 }
 
 #[test]
@@ -432,6 +496,38 @@ fn help_lists_examples() {
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success());
     assert!(s.contains("Examples:") && s.contains("--origin") && s.contains("--up-axis"));
+    // The usage shows -o as required; the everyday options come before the sharded ones.
+    let usage = s
+        .lines()
+        .find(|l| l.starts_with("Usage:"))
+        .unwrap_or_default();
+    assert!(
+        usage.starts_with("Usage: splat2tiles convert <INPUT> -o <OUTPUT>"),
+        "{usage}"
+    );
+    // The help line declaring --flag (`  -q, --quiet`, `      --part <PART>`).
+    let at = |flag: &str| {
+        s.lines()
+            .position(|l| {
+                let l = l.trim_start();
+                let l = l.split_once(", ").map_or(
+                    l,
+                    |(short, long)| {
+                        if short.len() == 2 { long } else { l }
+                    },
+                );
+                l.strip_prefix("--")
+                    .and_then(|r| r.strip_prefix(flag))
+                    .is_some_and(|r| r.is_empty() || r.starts_with(' '))
+            })
+            .unwrap_or_else(|| panic!("--{flag} in the help:\n{s}"))
+    };
+    for everyday in ["max-splats", "variants", "memory-limit", "quiet"] {
+        for sharded in ["plan", "parts", "part", "samples"] {
+            assert!(at(everyday) < at(sharded), "--{everyday} after --{sharded}");
+        }
+    }
+    assert!(s.contains("Sharded conversion"), "{s}");
 }
 
 #[cfg(unix)]

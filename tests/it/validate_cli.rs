@@ -73,4 +73,20 @@ fn exit_codes_json_report_and_report_file() {
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
+
+    // A file that is not JSON (here a PNG) is unreadable too: exit 2, with the parse error
+    // reported where it is.
+    let png = dir.path().join("picture.json");
+    std::fs::write(&png, b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR").unwrap();
+    for json in [false, true] {
+        let o = Command::new(common::bin())
+            .arg("validate")
+            .arg(&png)
+            .args(json.then_some("--json"))
+            .output()
+            .unwrap();
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(o.status.code(), Some(2), "{out}");
+        assert!(out.contains("JSON_PARSE_ERROR"), "{out}");
+    }
 }

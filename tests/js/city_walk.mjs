@@ -49,6 +49,7 @@ try {
     ground: opt.ground !== undefined ? num('ground', 0) : frame.ground,
     eye: num('eye', 1.7),
     scale: num('scale', 20),
+    transform: frame.transform,
   };
   poses = placeTrace(rows, place);
   if (opt.seconds !== undefined) {

@@ -52,9 +52,11 @@ const toCity = ([x, y, z]) => [x, z, y];
 
 /**
  * City-frame poses `{ t, eye, target, up, spec }` of `rows` (see the top comment), `spec` being
- * the viewer's `look-at:` camera text; `place` = `{ cx, cy, ground, eye, scale }`.
+ * the viewer's `look-at:` camera text; `place` = `{ cx, cy, ground, eye, scale, transform }`,
+ * where `transform` (the root matrix of a georeferenced city, or null) takes the spec to the
+ * world while `eye`, `target` and `up` stay in the city's frame.
  */
-export function placeTrace(rows, { cx, cy, ground, eye, scale }) {
+export function placeTrace(rows, { cx, cy, ground, eye, scale, transform = null }) {
   let [x0, x1, z0, z1] = [Infinity, -Infinity, Infinity, -Infinity];
   for (const r of rows) {
     x0 = Math.min(x0, r.p[0]);
@@ -71,12 +73,15 @@ export function placeTrace(rows, { cx, cy, ground, eye, scale }) {
     const fwd = toCity(rotate(q, [0, 0, 1]));
     const up = toCity(rotate(q, [0, 1, 0]));
     const target = e.map((c, i) => c + fwd[i]);
+    const [we, wt, wu] = transform
+      ? [apply(transform, e), apply(transform, target), apply(transform, up, 0)]
+      : [e, target, up];
     return {
       t: r.t - rows[0].t,
       eye: e,
       target,
       up,
-      spec: `look-at:${e.map(f)}:${target.map(f)}:${up.map(f)}`,
+      spec: `look-at:${we.map(f)}:${wt.map(f)}:${wu.map(f)}`,
     };
   });
 }
@@ -90,22 +95,61 @@ export function pathLength(poses) {
   return d;
 }
 
+/** WGS84 semi-major axis (m) and first eccentricity squared. */
+const WGS84_A = 6378137.0;
+const WGS84_E2 = 6.69437999014e-3;
+
+/** ECEF (m) of geodetic `lon`, `lat` (radians) and ellipsoidal `h` (m). */
+function ecefOf(lon, lat, h) {
+  const n = WGS84_A / Math.sqrt(1 - WGS84_E2 * Math.sin(lat) ** 2);
+  return [
+    (n + h) * Math.cos(lat) * Math.cos(lon),
+    (n + h) * Math.cos(lat) * Math.sin(lon),
+    (n * (1 - WGS84_E2) + h) * Math.sin(lat),
+  ];
+}
+
+/** `m` (column-major 4x4) applied to point `p`, or to direction `p` when `w` is 0. */
+function apply(m, [x, y, z], w = 1) {
+  return [0, 1, 2].map((r) => m[r] * x + m[4 + r] * y + m[8 + r] * z + m[12 + r] * w);
+}
+
+/** The local frame's coordinates of world point `p`, for a rigid (rotation + translation) `m`. */
+function toLocal(m, p) {
+  const d = [0, 1, 2].map((r) => p[r] - m[12 + r]);
+  // Rigid: the inverse rotation is the transpose.
+  return [0, 1, 2].map((c) => m[4 * c] * d[0] + m[4 * c + 1] * d[1] + m[4 * c + 2] * d[2]);
+}
+
 /**
- * The city's centre and ground from a local tileset.json's root box (`boundingVolume.box`,
- * centre + three half axes, no root transform): `{ cx, cy, ground }`, ground = the box's lowest z.
+ * The city's centre and ground in its tileset's root frame (z up): `{ cx, cy, ground, transform }`.
+ * A local city: the root box (`boundingVolume.box`, centre + three half axes), ground = its lowest
+ * z, `transform` null. A georeferenced city (root `transform` onto the Earth, a `region` or a box):
+ * the same in the root's local east-north-up frame, with `transform` the root matrix that takes
+ * the placed poses to the world (ECEF) for the viewer's `look-at:` specs.
  */
 export function cityFrame(tileset) {
   const root = tileset?.root;
-  const box = root?.boundingVolume?.box;
-  if (!Array.isArray(box) || box.length !== 12 || !box.every(Number.isFinite)) {
-    throw new Error('tileset.json: the root has no boundingVolume.box (a local city is expected)');
+  const bv = root?.boundingVolume ?? {};
+  const id = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
+  const t = root?.transform;
+  if (t !== undefined && !(Array.isArray(t) && t.length === 16 && t.every(Number.isFinite))) {
+    throw new Error('tileset.json: the root transform is not 16 finite numbers');
   }
-  if (root.transform) {
-    const id = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
-    if (!root.transform.every((v, i) => v === id[i])) {
-      throw new Error('tileset.json: the root has a transform (georeferenced); walk a local city');
-    }
+  const transform = t && !t.every((v, i) => v === id[i]) ? t : null;
+  const finite = (a, n) => Array.isArray(a) && a.length === n && a.every(Number.isFinite);
+  if (finite(bv.box, 12)) {
+    const box = bv.box;
+    const dz = Math.abs(box[5]) + Math.abs(box[8]) + Math.abs(box[11]);
+    return { cx: box[0], cy: box[1], ground: box[2] - dz, transform };
   }
-  const dz = Math.abs(box[5]) + Math.abs(box[8]) + Math.abs(box[11]);
-  return { cx: box[0], cy: box[1], ground: box[2] - dz };
+  if (finite(bv.region, 6) && transform) {
+    // Region: west, south, east, north (radians), min and max height (m), in world coordinates.
+    const [w, s, e, n, h0] = bv.region;
+    const c = toLocal(transform, ecefOf((w + e) / 2, (s + n) / 2, h0));
+    return { cx: c[0], cy: c[1], ground: c[2], transform };
+  }
+  throw new Error(
+    'tileset.json: the root has neither a boundingVolume.box nor a region with a root transform',
+  );
 }

@@ -9,7 +9,9 @@ use splat2tiles_core::camera::{self, Camera};
 use splat2tiles_core::splat::Splats;
 use splat2tiles_render::Image;
 use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
-use splat2tiles_tiles::geometry::{content_model, select_tiles, tileset_bounds, tileset_up};
+use splat2tiles_tiles::geometry::{
+    content_model, frame_centres, select_tiles, tileset_bounds, tileset_up,
+};
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 
 use crate::gpu::{Headless, OFFSCREEN_FORMAT, Offscreen};
@@ -79,14 +81,25 @@ pub fn open_tileset(path: &Path) -> anyhow::Result<LoadedTileset> {
     load_tileset(path).context("cannot load the tileset")
 }
 
-/// The camera `splat2tiles render` would use for this tileset and these arguments.
+/// The camera `splat2tiles render` would use for this tileset and these arguments: an auto view
+/// frames the splat centres of the tiles it selects ([`frame_centres`]).
 pub fn tileset_camera(ts: &LoadedTileset, v: &ViewArgs) -> anyhow::Result<Camera> {
     let up = match &v.up_axis {
         Some(s) => camera::parse_axis(s)
             .with_context(|| format!("--up-axis '{s}': expected one of +x,-x,+y,-y,+z,-z"))?,
         None => tileset_up(ts),
     };
-    Ok(resolve_camera(&v.camera_request(), up, tileset_bounds(ts))?)
+    let req = v.camera_request();
+    let cam = resolve_camera(&req, up, tileset_bounds(ts))?;
+    if v.auto_view.is_none() {
+        return Ok(cam);
+    }
+    let (cam, _) = frame_centres(
+        cam,
+        |cam| load_instances(ts, &select_tiles(ts, cam, v.max_sse)),
+        |bounds| Ok(resolve_camera(&req, up, Some(bounds))?),
+    )?;
+    Ok(cam)
 }
 
 /// Reads and decodes tile contents (any variant) with their tile-to-world matrices.

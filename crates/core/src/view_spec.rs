@@ -176,6 +176,56 @@ impl ViewSpec {
     }
 }
 
+/// `x` with at most `decimals` decimals, trailing zeros dropped, and no negative zero.
+fn short_decimal(x: f64, decimals: usize) -> String {
+    let s = format!("{x:.decimals$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        &s
+    };
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
+impl ViewSpec {
+    /// The spec for people to read and copy (overlays, logs): positions to the millimetre,
+    /// directions to 1e-4, geodetic angles to about a centimetre on the ground (1e-7 degrees)
+    /// and heading and pitch to 0.01 degrees. It parses back to within those steps.
+    pub fn short(&self) -> String {
+        let v = |p: DVec3, d: usize| {
+            format!(
+                "{},{},{}",
+                short_decimal(p.x, d),
+                short_decimal(p.y, d),
+                short_decimal(p.z, d)
+            )
+        };
+        match self {
+            ViewSpec::LookAt { eye, target, up } => {
+                let mut s = format!("look-at:{}:{}", v(*eye, 3), v(*target, 3));
+                if let Some(u) = up {
+                    s += &format!(":{}", v(*u, 4));
+                }
+                s
+            }
+            ViewSpec::Geo {
+                lon,
+                lat,
+                height,
+                heading,
+                pitch,
+            } => format!(
+                "geo:{},{},{}:{},{}",
+                short_decimal(*lon, 7),
+                short_decimal(*lat, 7),
+                short_decimal(*height, 3),
+                short_decimal(*heading, 2),
+                short_decimal(*pitch, 2)
+            ),
+        }
+    }
+}
+
 impl std::fmt::Display for ViewSpec {
     /// Shortest round-trip decimal forms: parsing the text gives back the same numbers.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -208,6 +258,37 @@ pub fn is_georeferenced(root_transform: DMat4) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn short_form_is_short_and_parses_back_within_its_steps() {
+        let spec = ViewSpec::LookAt {
+            eye: DVec3::new(1.234_567_890_123, -0.000_01, 20.0),
+            target: DVec3::new(0.1 + 0.2, 2.5, -3.999_999_9),
+            up: Some(DVec3::new(0.0, -1.0e-9, 1.0)),
+        };
+        let short = spec.short();
+        assert_eq!(short, "look-at:1.235,0,20:0.3,2.5,-4:0,0,1");
+        let ViewSpec::LookAt { eye, target, up } = ViewSpec::parse(&short).unwrap() else {
+            panic!("{short} is a look-at");
+        };
+        assert!(
+            (eye - DVec3::new(1.234_567_890_123, -0.000_01, 20.0))
+                .abs()
+                .max_element()
+                < 5e-4
+        );
+        assert!((target - DVec3::new(0.3, 2.5, -4.0)).abs().max_element() < 5e-4);
+        assert_eq!(up, Some(DVec3::Z));
+        let geo = ViewSpec::Geo {
+            lon: 2.294_512_345_678_9,
+            lat: -48.858_4,
+            height: 35.000_000_01,
+            heading: 359.999,
+            pitch: -12.345_678,
+        };
+        assert_eq!(geo.short(), "geo:2.2945123,-48.8584,35:360,-12.35");
+        assert!(ViewSpec::parse(&geo.short()).is_ok());
+    }
 
     fn close(a: DMat4, b: DMat4, tol: f64) -> bool {
         a.to_cols_array()

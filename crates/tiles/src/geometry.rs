@@ -1,6 +1,5 @@
 //! Tileset geometry shared by the renderer, the viewers, the client and the evaluations: content
-//! matrices, the up direction and bounds of a tileset, box corners, screen-space error and the
-//! REPLACE selection of a camera.
+//! matrices, up, bounds, auto-view framing, box corners, screen-space error, REPLACE selection.
 
 use std::path::PathBuf;
 
@@ -19,6 +18,53 @@ pub fn finite_bounds(splats: &Splats) -> Option<(DVec3, DVec3)> {
         .filter(|p| p.is_finite());
     let first = it.next()?;
     Some(it.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p))))
+}
+
+/// Tile contents with their world matrices, as selected for one camera.
+pub type Instances = Vec<(Splats, glam::DMat4)>;
+
+/// Rounds of [`frame_centres`]: each frames the splat centres the previous camera's tiles hold
+/// (finer tiles as the camera comes closer); they settle in two or three.
+const FRAMING_ROUNDS: usize = 4;
+
+/// Auto-view framing of a tileset's splat centres, as a scene file's auto view frames its own:
+/// from `cam` (framed on the root's bounding volume), take the contents `instances_for` selects,
+/// frame their centres' bounds with `frame`, and repeat until the camera stays put. Returns the
+/// camera and the contents it selects.
+pub fn frame_centres<E>(
+    mut cam: Camera,
+    mut instances_for: impl FnMut(&Camera) -> Result<Instances, E>,
+    mut frame: impl FnMut((DVec3, DVec3)) -> Result<Camera, E>,
+) -> Result<(Camera, Instances), E> {
+    let mut instances = instances_for(&cam)?;
+    for _ in 0..FRAMING_ROUNDS {
+        let Some(bounds) = centre_bounds(&instances) else {
+            break;
+        };
+        let next = frame(bounds)?;
+        let moved = (next.center() - cam.center()).length();
+        if moved <= 1e-9 * (1.0 + cam.center().length()) {
+            break;
+        }
+        cam = next;
+        instances = instances_for(&cam)?;
+    }
+    Ok((cam, instances))
+}
+
+/// World-space bounds of the finite splat centres of `instances`, `None` when there are none.
+pub fn centre_bounds(instances: &[(Splats, glam::DMat4)]) -> Option<(DVec3, DVec3)> {
+    instances
+        .iter()
+        .flat_map(|(s, m)| {
+            s.positions
+                .iter()
+                .map(move |&p| m.transform_point3(DVec3::from(p)))
+        })
+        .filter(|p| p.is_finite())
+        .fold(None, |acc: Option<(DVec3, DVec3)>, p| {
+            Some(acc.map_or((p, p), |(lo, hi)| (lo.min(p), hi.max(p))))
+        })
 }
 
 /// World matrix of a tile's content: root transform, then glTF y-up -> 3D Tiles z-up, then the

@@ -82,15 +82,19 @@ fn run(bytes: &[u8], dir: &Path, file: Option<(&Path, String)>, opts: &ValidateO
         }
     }
     let name = ctx.file.clone();
+    let mut parsed = false;
     if let Some(bytes) = ctx.decompress(bytes.to_vec(), &name)
         && let Some(v) = json::parse(&mut ctx, &bytes, &name)
     {
+        parsed = true;
         tileset::tileset(&mut ctx, &v, glam::DMat4::IDENTITY);
         if let Some(path) = &layered_from {
             layered::validate(&mut ctx, path);
         }
     }
-    Report::new(ctx.issues)
+    let mut report = Report::new(ctx.issues);
+    report.unreadable = !parsed;
+    report
 }
 
 /// Validates one glb on its own (framing, accessors, `KHR_gaussian_splatting` rules).

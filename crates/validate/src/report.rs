@@ -25,6 +25,10 @@ pub struct Report {
     pub num_infos: usize,
     /// Every issue, in the order found.
     pub issues: Vec<Issue>,
+    /// The tileset file itself could not be read as JSON (not JSON, too deep, too large, a bad
+    /// gzip stream): nothing of the tileset was checked. Not part of the JSON report.
+    #[serde(skip)]
+    pub unreadable: bool,
 }
 
 impl Report {
@@ -37,6 +41,7 @@ impl Report {
             num_warnings: count(Severity::Warning),
             num_infos: count(Severity::Info),
             issues,
+            unreadable: false,
         }
     }
 

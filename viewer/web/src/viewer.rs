@@ -330,16 +330,25 @@ impl WebViewer {
 
     /// The current view as text (`geo:` for georeferenced tilesets, else `look-at:`).
     pub fn camera_spec(&self) -> String {
-        let Some(c) = &self.controls else {
-            return String::new();
-        };
+        self.view_spec().map(|v| v.to_string()).unwrap_or_default()
+    }
+
+    /// The camera as the overlay shows it: [`ViewSpec::short`], millimetres and 0.01 degrees.
+    fn camera_short(&self) -> String {
+        self.view_spec().map(|v| v.short()).unwrap_or_default()
+    }
+
+    /// The camera's spec: geodetic in an Earth-placed tileset, else look-at; `None` before the
+    /// tileset is read.
+    fn view_spec(&self) -> Option<ViewSpec> {
+        let c = self.controls.as_ref()?;
         let cam = c.camera();
         let geo = is_georeferenced(self.shared.borrow().client.root_transform());
-        if geo {
-            ViewSpec::geo_of(&cam).to_string()
+        Some(if geo {
+            ViewSpec::geo_of(&cam)
         } else {
-            ViewSpec::look_at_of(&cam, c.up).to_string()
-        }
+            ViewSpec::look_at_of(&cam, c.up)
+        })
     }
 
     /// Renders one frame at page time `now_s` (seconds): input, streaming, uploads, draw.
@@ -568,7 +577,7 @@ impl WebViewer {
             },
             v["mode"].as_str().unwrap_or_default(),
             f("speed"),
-            v["camera"].as_str().unwrap_or_default(),
+            self.camera_short(),
         )
     }
 

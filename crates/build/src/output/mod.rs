@@ -210,6 +210,12 @@ impl Staging {
         active.retain(|d| d != &self.path);
         drop(active);
         let mut notes = std::mem::take(&mut self.notes);
+        if had_old {
+            notes.push(format!(
+                "replaced the earlier splat2tiles output in {}",
+                target.display()
+            ));
+        }
         if had_old && let Err(e) = std::fs::remove_dir_all(&old) {
             notes.push(format!(
                 "warning: the new output is in place, but the earlier result could not be deleted \
@@ -298,6 +304,16 @@ mod tests {
         // Nothing hidden is left beside it; a second run may replace it.
         assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 1);
         assert!(guard::check_target(&target).unwrap());
+        // Replacing it says so.
+        let st = Staging::prepare(&target).unwrap();
+        std::fs::write(st.path().join("tileset.json"), "{\"v\":2}").unwrap();
+        let notes = st.commit().unwrap();
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].starts_with("replaced the earlier splat2tiles output in "));
+        assert_eq!(
+            std::fs::read_to_string(target.join("tileset.json")).unwrap(),
+            "{\"v\":2}"
+        );
     }
 
     #[test]
