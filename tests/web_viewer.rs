@@ -48,6 +48,29 @@ fn require_harness() {
     );
 }
 
+/// `render`'s view arguments for the camera the web viewer starts at with `how`: `--camera SPEC`
+/// as given, and for `--auto-view K` the orbit view K framing the root's bounding volume as the
+/// page does before any content has arrived (`render --auto-view` frames the splat centres).
+fn render_view(tileset: &Path, how: &[&str], w: u32, h: u32) -> Vec<String> {
+    use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+    use splat2tiles_core::view_spec::ViewSpec;
+    use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
+    match how {
+        ["--auto-view", k] => {
+            let ts = splat2tiles_tiles::tiling::load::load_tileset(tileset).unwrap();
+            let up = tileset_up(&ts);
+            let (lo, hi) = tileset_bounds(&ts).unwrap();
+            let k: usize = k.parse().unwrap();
+            let cam = auto_views_with(lo, hi, up, w, h, DEFAULT_FOV_Y_DEG)[k];
+            vec![
+                "--camera".into(),
+                ViewSpec::look_at_of(&cam, up).to_string(),
+            ]
+        }
+        other => other.iter().map(|a| a.to_string()).collect(),
+    }
+}
+
 /// Starts `splat2tiles view DIR --port 0 --no-open` and reads the server's base URL.
 fn view(dir: &Path, log: &Path) -> Viewing {
     let mut child = Command::new(bin())
@@ -173,7 +196,13 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
     let note = run(Command::new(bin())
         .arg("render")
         .arg(dir.join("tileset.json"))
-        .args(["--auto-view", "0", "--width", &w.to_string()])
+        .args(render_view(
+            &dir.join("tileset.json"),
+            &["--auto-view", "0"],
+            w,
+            h,
+        ))
+        .args(["--width", &w.to_string()])
         .args(["--height", &h.to_string(), "-o"])
         .arg(&reference));
     // "rendered K of N tiles, S splats (...)": what the viewer must hold once settled.
@@ -203,6 +232,7 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
         assert!(failed.is_empty(), "run {runs}: failed requests: {failed:?}");
         let fin = &v["final"];
         assert_eq!(u(&fin["errors"]), 0, "run {runs}: {fin:#}");
+        assert_short_camera(&v["overlay"]);
         assert_eq!(u(&fin["residentSplats"]), splats, "run {runs}: {fin:#}");
         assert!(
             !v["abortedRequests"].as_array().unwrap().is_empty(),
@@ -241,6 +271,23 @@ fn web_viewer_streams_pauses_resumes_and_matches_the_reference() {
         "SSIM {s:.4} < {MIN_SSIM}: {}",
         shot.display()
     );
+}
+
+/// The overlay's camera is for people: `camera=look-at:...` with at most 4 decimals a number
+/// (`stats().camera` keeps the exact round-trip text).
+fn assert_short_camera(overlay: &Value) {
+    let text = overlay.as_str().unwrap_or_default();
+    let spec = text
+        .split("camera=")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no camera= in the overlay: {text:?}"));
+    let spec = spec.split_whitespace().next().unwrap_or_default();
+    assert!(spec.starts_with("look-at:"), "{text:?}");
+    for n in spec["look-at:".len()..].split([',', ':']) {
+        let decimals = n.split_once('.').map_or(0, |(_, d)| d.len());
+        assert!(decimals <= 4, "{n} in the overlay's camera {spec}");
+        assert!(n.parse::<f64>().is_ok_and(f64::is_finite), "{n} in {spec}");
+    }
 }
 
 /// Frames seconds apart (SwiftShader drew the 50M city walk at about 0.35 frames/s) must not bound
@@ -328,7 +375,8 @@ fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
         let note = run(Command::new(bin())
             .arg("render")
             .arg(&ts_native)
-            .args(["--auto-view", "0", "--width", &w.to_string()])
+            .args(render_view(&ts_native, &["--auto-view", "0"], w, h))
+            .args(["--width", &w.to_string()])
             .args(["--height", &h.to_string(), "-o"])
             .arg(&reference));
         std::fs::remove_file(&ts_native).unwrap();
@@ -434,7 +482,7 @@ fn web_vs_reference(
     let note = run(Command::new(bin())
         .arg("render")
         .arg(dir.join("tileset.json"))
-        .args(how)
+        .args(render_view(&dir.join("tileset.json"), how, w, h))
         .args(["--max-sse", &max_sse.to_string()])
         .args(["--width", &w.to_string(), "--height", &h.to_string(), "-o"])
         .arg(&reference));
@@ -914,7 +962,7 @@ fn web_viewer_draws_every_object_of_a_flat_city_at_its_default_max_sse() {
         run(Command::new(bin())
             .arg("render")
             .arg(dir.join("tileset.json"))
-            .args(how)
+            .args(render_view(&dir.join("tileset.json"), &how, w, h))
             .args(["--max-sse", "0", "--width", &w.to_string()])
             .args(["--height", &h.to_string(), "-o"])
             .arg(&full));

@@ -120,6 +120,7 @@ try {
   const png = await page.locator('#view').screenshot();
   fs.writeFileSync(opt.shot, png);
   out.info = await page.evaluate(() => window.splat2tiles.viewer.info());
+  out.overlay = await page.evaluate(() => document.getElementById('overlay').textContent);
   out.ok = true;
 } catch (e) {
   out.error = String(e?.message ?? e);
