@@ -197,3 +197,54 @@ fn serve_and_fetch(clone: &Path, out: &Path) {
     let _ = child.kill();
     let _ = child.wait();
 }
+
+/// Nothing the tests, examples, benches, tools or CI read lies outside the repository: no source
+/// names the folder beside the clone (`../shared`) or the machine's copy of it (`/work/shared`).
+/// Comments may (they say where data came from); code, strings and scripts may not.
+#[test]
+fn no_source_reads_outside_the_repository() {
+    // Split so that this file does not name them.
+    const NEEDLES: [&str; 2] = [concat!("..", "/shared"), concat!("/work", "/shared")];
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut found = Vec::new();
+    let roots = [
+        "tests", "src", "crates", "viewer", "tools", "fuzz", "scripts", ".ci",
+    ];
+    let mut stack: Vec<std::path::PathBuf> = roots.iter().map(|r| repo.join(r)).collect();
+    while let Some(p) = stack.pop() {
+        let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+        if matches!(
+            name.as_deref(),
+            Some("node_modules" | "target" | "pkg" | "data")
+        ) {
+            continue;
+        }
+        if p.is_dir() {
+            stack.extend(std::fs::read_dir(&p).unwrap().flatten().map(|e| e.path()));
+            continue;
+        }
+        let ext = p.extension().and_then(|e| e.to_str()).unwrap_or_default();
+        let code = ["rs", "mjs", "js", "sh", "py", "html", "toml"].contains(&ext)
+            || p.parent().is_some_and(|d| d.ends_with(".ci"));
+        let Ok(text) = std::fs::read_to_string(&p) else {
+            continue;
+        };
+        if !code {
+            continue;
+        }
+        for (i, line) in text.lines().enumerate() {
+            let body = line.trim_start();
+            let comment = ["//", "#", "*", "/*", "<!--"]
+                .iter()
+                .any(|c| body.starts_with(c));
+            if !comment && NEEDLES.iter().any(|n| line.contains(n)) {
+                found.push(format!("{}:{}: {}", p.display(), i + 1, line.trim()));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "outside the repository:\n{}",
+        found.join("\n")
+    );
+}
