@@ -361,3 +361,19 @@ pub fn convert_file(input: &Path, out: &Path, extra: &[&str]) {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// The "look at it:" hint in `convert`'s summary (`stdout`): the whole hint and the words of the
+/// render command it suggests (`PROGRAM render TILESET --auto-view 0 -o view.png`).
+pub fn convert_hint(stdout: &str) -> (String, Vec<String>) {
+    let hint = stdout
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("look at it: "))
+        .unwrap_or_else(|| panic!("no hint in {stdout}"));
+    let render = hint
+        .split("(or: ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no render command in the hint {hint}"))
+        .trim_end_matches(')');
+    let words = render.split_whitespace().map(str::to_string).collect();
+    (hint.to_string(), words)
+}

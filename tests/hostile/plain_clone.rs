@@ -1,8 +1,8 @@
-//! A plain clone works, with no `../shared` beside it: the README's first command's convert, the
-//! hint's render, validate, the web viewer's build and `view` serving it (the built binary stands in for `cargo run`).
+//! A plain clone with no data folder beside it works: the README's convert, the hint's render,
+//! validate, the web viewer's build and `view` serving it (the built binary stands in for cargo run).
 
 use super::assert_valid;
-use super::common::bin;
+use super::common::{bin, convert_hint};
 use std::path::Path;
 use std::process::Command;
 
@@ -79,21 +79,16 @@ fn readme_first_command_converts_in_a_plain_clone() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = String::from_utf8_lossy(&o.stdout);
-    let hint = text
-        .lines()
-        .find_map(|l| l.trim().strip_prefix("look at it: "))
-        .unwrap_or_else(|| panic!("no hint in {text}"));
-    let render = hint.split("(or: ").nth(1).unwrap().trim_end_matches(')');
-    let words: Vec<&str> = render.split_whitespace().collect();
-    let o = Command::new(words[0])
+    let (_, words) = convert_hint(&String::from_utf8_lossy(&o.stdout));
+    let o = Command::new(&words[0])
         .args(&words[1..])
         .current_dir(&clone)
         .output()
         .unwrap();
     assert!(
         o.status.success(),
-        "`{render}`: {}",
+        "`{}`: {}",
+        words.join(" "),
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(clone.join("view.png").is_file());
@@ -199,7 +194,7 @@ fn serve_and_fetch(clone: &Path, out: &Path) {
 }
 
 /// Nothing the tests, examples, benches, tools or CI read lies outside the repository: no source
-/// names the folder beside the clone (`../shared`) or the machine's copy of it (`/work/shared`).
+/// names the shared-data folder beside the clone or the machine's copy of it under `/work`.
 /// Comments may (they say where data came from); code, strings and scripts may not.
 #[test]
 fn no_source_reads_outside_the_repository() {
@@ -225,7 +220,7 @@ fn no_source_reads_outside_the_repository() {
         }
         let ext = p.extension().and_then(|e| e.to_str()).unwrap_or_default();
         let code = ["rs", "mjs", "js", "sh", "py", "html", "toml"].contains(&ext)
-            || p.parent().is_some_and(|d| d.ends_with(".ci"));
+            || p.parent().and_then(Path::file_name) == Some(std::ffi::OsStr::new(".ci"));
         let Ok(text) = std::fs::read_to_string(&p) else {
             continue;
         };

@@ -1021,6 +1021,27 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
     m.insert("b3dm_valid", |t| {
         write_legacy(t, b"b3dm", 1, r#"{"BATCH_LENGTH":0}"#, true, 0)
     });
+    m.insert("root_subtree_missing", |t| {
+        std::fs::remove_file(t.dir.join("subtrees/0/0/0/0.subtree")).unwrap();
+    });
+    m.insert("b3dm_glb_padded", |t| {
+        std::fs::write(t.dir.join("content.b3dm"), padded_b3dm()).unwrap();
+    });
+    m.insert("cmpt_with_b3dm_and_glb", |t| {
+        // Inner tiles: a b3dm whose glb is followed by padding, then a glb (8-byte aligned).
+        let glb = write_glb(br#"{"asset":{"version":"2.0"}}"#, None).unwrap();
+        let inner = [padded_b3dm(), glb];
+        let total = 16 + inner.iter().map(Vec::len).sum::<usize>();
+        let mut out = b"cmpt".to_vec();
+        out.extend_from_slice(&1u32.to_le_bytes());
+        out.extend_from_slice(&(total as u32).to_le_bytes());
+        out.extend_from_slice(&(inner.len() as u32).to_le_bytes());
+        for tile in &inner {
+            assert!(out.len().is_multiple_of(8));
+            out.extend_from_slice(tile);
+        }
+        std::fs::write(t.dir.join("content.cmpt"), out).unwrap();
+    });
     m.insert("b3dm_version_2", |t| {
         write_legacy(t, b"b3dm", 2, r#"{"BATCH_LENGTH":0}"#, true, 0)
     });
@@ -1161,6 +1182,26 @@ fn deep_tree(t: &Ts, levels: usize) {
 
 /// Writes `content.<magic>` (a 3D Tiles 1.0 tile with feature table JSON `ft` and, when `glb`,
 /// an embedded minimal glb) into a `files` tileset; `extra` bytes beyond byteLength.
+/// A b3dm whose glb (52 bytes, so 4 mod 8) is followed by 4 zero bytes that bring the tile's
+/// byteLength to a multiple of 8, as the b3dm layout asks.
+fn padded_b3dm() -> Vec<u8> {
+    // A 29-byte JSON chunk, padded to 32: a 52-byte glb.
+    let mut glb = write_glb(br#"{"asset": {"version": "2.0"}}"#, None).unwrap();
+    assert_eq!(glb.len() % 8, 4, "the glb needs padding");
+    let ft = br#"{"BATCH_LENGTH":0}  "#;
+    assert!((28 + ft.len()).is_multiple_of(8));
+    glb.extend_from_slice(&[0; 4]);
+    let total = 28 + ft.len() + glb.len();
+    let mut out = b"b3dm".to_vec();
+    out.extend_from_slice(&1u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(ft.len() as u32).to_le_bytes());
+    out.extend_from_slice(&[0u8; 12]);
+    out.extend_from_slice(ft);
+    out.extend_from_slice(&glb);
+    out
+}
+
 fn write_legacy(t: &Ts, magic: &[u8; 4], version: u32, ft: &str, glb: bool, extra: usize) {
     let header = if magic == b"i3dm" { 32 } else { 28 };
     let mut ft = ft.as_bytes().to_vec();

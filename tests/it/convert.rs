@@ -440,20 +440,18 @@ fn the_hint_names_the_program_as_it_can_be_run() {
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let text = String::from_utf8_lossy(&o.stdout);
-        let hint = text
-            .lines()
-            .find_map(|l| l.trim().strip_prefix("look at it: "))
-            .unwrap_or_else(|| panic!("no hint in {text}"));
-        let render = hint.split("(or: ").nth(1).unwrap().trim_end_matches(')');
-        let words: Vec<&str> = render.split_whitespace().collect();
+        let (hint, words) = convert_hint(&String::from_utf8_lossy(&o.stdout));
         if installed {
             assert!(hint.starts_with("splat2tiles view out "), "{hint}");
             assert_eq!(words[0], "splat2tiles");
         } else {
-            assert_eq!(Path::new(words[0]), bin().canonicalize().unwrap(), "{hint}");
+            assert_eq!(
+                Path::new(&words[0]),
+                bin().canonicalize().unwrap(),
+                "{hint}"
+            );
         }
-        let o = Command::new(words[0])
+        let o = Command::new(&words[0])
             .args(&words[1..])
             .current_dir(tmp.path())
             .env("PATH", &path)
@@ -461,7 +459,7 @@ fn the_hint_names_the_program_as_it_can_be_run() {
             .unwrap();
         assert!(
             o.status.success(),
-            "{render}: {}",
+            "{hint}: {}",
             String::from_utf8_lossy(&o.stderr)
         );
         assert!(tmp.path().join("view.png").is_file());

@@ -52,7 +52,7 @@ fn external_cycles_are_errors_with_causes_not_hangs() {
     let (code, out) = validate_cli(&["--json"], &a);
     assert_eq!(code, Some(1), "{out}");
     let v: Value = serde_json::from_str(&out).unwrap();
-    assert_eq!(v["issues"][0]["type"], "EXTERNAL_TILESET_VALIDATION_FAILED");
+    assert_eq!(v["issues"][0]["type"], "EXTERNAL_TILESET_VALIDATION_ERROR");
     assert_eq!(v["issues"][0]["path"], "tileset.json#/root/content/uri");
     let cause = &v["issues"][0]["causes"][0];
     assert_eq!(cause["type"], "EXTERNAL_TILESET_CYCLE");

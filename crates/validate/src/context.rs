@@ -57,6 +57,12 @@ pub(crate) struct Ctx<'a> {
     pub chain: Vec<PathBuf>,
     /// External tilesets already checked (each is validated once per run).
     pub visited: std::collections::HashSet<PathBuf>,
+    /// Extensions found in the external tilesets walked from the tileset being checked (their
+    /// own objects and those of the tilesets they refer to): that tileset must declare them too.
+    pub found_below: std::collections::BTreeSet<String>,
+    /// Per external tileset checked: the extensions found in it and below it (a tileset
+    /// referenced again passes them up without being walked again).
+    pub found_in: std::collections::HashMap<PathBuf, std::collections::BTreeSet<String>>,
     /// Issues pushed in the whole run, nested external tilesets included (bounded).
     pub pushed: usize,
     /// The tileset being checked is 3D Tiles 1.0 without `3DTILES_content_gltf` declared: a glTF
@@ -123,6 +129,8 @@ impl<'a> Ctx<'a> {
             file: "tileset.json".to_string(),
             chain: Vec::new(),
             visited: std::collections::HashSet::new(),
+            found_below: Default::default(),
+            found_in: Default::default(),
             pushed: 0,
             gltf_undeclared: false,
             opts,

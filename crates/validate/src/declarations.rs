@@ -5,7 +5,7 @@
 use super::context::Ctx;
 use super::issues::Issue;
 use serde_json::Value;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 /// Extensions whose rules this validator applies (or that need no object in the tileset).
 const KNOWN: &[&str] = &[
@@ -13,10 +13,16 @@ const KNOWN: &[&str] = &[
     "3DTILES_implicit_tiling",
     "3DTILES_metadata",
     "3DTILES_multiple_contents",
+    // Its declaration rules are checked; the archives' entries are noted as not opened.
+    "MAXAR_content_3tz",
 ];
 
 /// Extensions declared without any object in the tileset JSON (they act on the content).
-const WITHOUT_OBJECT: &[&str] = &["3DTILES_content_gltf"];
+const WITHOUT_OBJECT: &[&str] = &["3DTILES_content_gltf", "MAXAR_content_3tz"];
+
+/// Extensions that change how contents must be read, so a client without them cannot load the
+/// tileset: when used they must also be required (as Cesium's validator requires).
+const MUST_BE_REQUIRED: &[&str] = &["MAXAR_content_3tz"];
 
 /// Every extension name found as a key of an `extensions` object, with the first JSON pointer
 /// where it appears, and the pointers of `extensions` members that are not objects and of
@@ -105,8 +111,9 @@ fn names<'v>(ctx: &mut Ctx<'_>, v: &'v Value, key: &str) -> Vec<&'v str> {
     out
 }
 
-/// Checks the declarations of the tileset JSON `v`; returns the names in `extensionsUsed`.
-pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> Vec<String> {
+/// Checks the declarations of the tileset JSON `v`; returns the names in `extensionsUsed` and
+/// the extensions found in `v` (for [`unfound`], once the external tilesets are walked).
+pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> (Vec<String>, BTreeSet<String>) {
     let used = names(ctx, v, "extensionsUsed");
     let required = names(ctx, v, "extensionsRequired");
     for (i, r) in required.iter().enumerate() {
@@ -120,6 +127,16 @@ pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> Vec<String> {
                 ctx.at(&format!("/extensionsRequired/{i}")),
                 format!(
                     "'{r}' is required but this validator does not know it: its rules are not checked, and clients without it must refuse the tileset"
+                ),
+            ));
+        }
+    }
+    for (i, u) in used.iter().enumerate() {
+        if MUST_BE_REQUIRED.contains(u) && !required.contains(u) {
+            ctx.push(Issue::EXTENSION_REQUIRED_BUT_NOT_DECLARED(
+                ctx.at(&format!("/extensionsUsed/{i}")),
+                format!(
+                    "'{u}' changes how contents are read: it must be in extensionsRequired too"
                 ),
             ));
         }
@@ -143,13 +160,41 @@ pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> Vec<String> {
             ));
         }
     }
-    for (i, u) in used.iter().enumerate() {
-        if !found.contains_key(*u) && !WITHOUT_OBJECT.contains(u) {
-            ctx.push(Issue::EXTENSION_USED_BUT_NOT_FOUND(
-                ctx.at(&format!("/extensionsUsed/{i}")),
-                format!("'{u}' is in extensionsUsed but no object of the tileset uses it"),
+    (
+        used.into_iter().map(str::to_string).collect(),
+        found.into_keys().collect(),
+    )
+}
+
+/// After the walk of a tileset: every extension found in the external tilesets below it
+/// (`below`) must be in its `used` too, and every extension it declares must be found in it or
+/// below it (3D Tiles 1.1 "Extensions": a tileset declares what it and its external tilesets use).
+pub(crate) fn unfound(
+    ctx: &mut Ctx<'_>,
+    used: &[String],
+    found: &BTreeSet<String>,
+    below: &BTreeSet<String>,
+) {
+    for name in below {
+        if !used.contains(name) && !found.contains(name) {
+            ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
+                ctx.at(""),
+                format!(
+                    "extension '{name}' is used in an external tileset this one refers to, but \
+                     not in this tileset's extensionsUsed"
+                ),
             ));
         }
     }
-    used.into_iter().map(str::to_string).collect()
+    for (i, u) in used.iter().enumerate() {
+        if !found.contains(u) && !below.contains(u) && !WITHOUT_OBJECT.contains(&u.as_str()) {
+            ctx.push(Issue::EXTENSION_USED_BUT_NOT_FOUND(
+                ctx.at(&format!("/extensionsUsed/{i}")),
+                format!(
+                    "'{u}' is in extensionsUsed but no object of the tileset or of its external \
+                     tilesets uses it"
+                ),
+            ));
+        }
+    }
 }

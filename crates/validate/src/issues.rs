@@ -95,7 +95,7 @@ catalogue! {
     /// A JSON document holds more values than the validator parses (4M: a few hundred MiB).
     JSON_TOO_LARGE => Error,
     /// An external tileset has errors (listed as causes).
-    EXTERNAL_TILESET_VALIDATION_FAILED => Error,
+    EXTERNAL_TILESET_VALIDATION_ERROR => Error,
     /// An external tileset has warnings but no errors (listed as causes).
     EXTERNAL_TILESET_VALIDATION_WARNING => Warning,
     /// An external tileset has only notes (listed as causes).
@@ -115,6 +115,8 @@ catalogue! {
     TYPE_MISMATCH => Error,
     /// An array has the wrong number of elements.
     ARRAY_LENGTH_MISMATCH => Error,
+    /// An array has an allowed but unexpected length (an empty `children`: leave it out).
+    ARRAY_LENGTH_UNEXPECTED => Warning,
     /// A number is outside its allowed range.
     VALUE_NOT_IN_RANGE => Error,
     /// A string is not one of the allowed values.
@@ -123,6 +125,9 @@ catalogue! {
     ASSET_VERSION_UNKNOWN => Warning,
     /// The root tile has no refine value.
     TILE_REFINE_MISSING_IN_ROOT => Error,
+    /// refine is ADD or REPLACE in the wrong case (`add`, `Replace`): read as meant, but a
+    /// strict client refuses it.
+    TILE_REFINE_WRONG_CASE => Warning,
     /// A bounding volume is malformed or degenerate.
     BOUNDING_VOLUME_INVALID => Error,
     /// A tile transform is not 16 finite numbers.
@@ -139,7 +144,8 @@ catalogue! {
     /// is then drawn empty): it needs a level-of-detail content, or its parent's bounding volume
     /// and geometric error.
     TILE_WITHOUT_CONTENT_ENDS_REFINEMENT => Warning,
-    /// An implicit root has children, metadata or a content bounding volume.
+    /// An implicit root has children, metadata or a content bounding volume, or its root
+    /// subtree file is missing.
     TILE_IMPLICIT_ROOT_INVALID => Error,
     /// A template URI uses a variable that the subdivision scheme does not define.
     TEMPLATE_URI_INVALID_VARIABLE_NAME => Error,
@@ -149,6 +155,8 @@ catalogue! {
     IMPLICIT_TILING_ERROR => Error,
     /// An extension is in extensionsRequired but not in extensionsUsed.
     EXTENSION_REQUIRED_BUT_NOT_USED => Error,
+    /// An extension that clients cannot do without (MAXAR_content_3tz) is used but not required.
+    EXTENSION_REQUIRED_BUT_NOT_DECLARED => Error,
     /// An extension object is present but its name is not in extensionsUsed.
     EXTENSION_FOUND_BUT_NOT_USED => Error,
     /// An `extras` member is not a JSON object.

@@ -27,7 +27,7 @@ fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
         _ => {
             ctx.push(Issue::BINARY_INVALID(
                 format!("{name}@byte 0"),
-                "not a b3dm, i3dm, pnts or cmpt tile (bad magic)",
+                "not a b3dm, i3dm, pnts or cmpt tile, nor a glb inside a cmpt (bad magic)",
             ));
             return;
         }
@@ -188,7 +188,21 @@ fn glb_payload(ctx: &mut Ctx<'_>, payload: &[u8], name: &str, offset: usize) {
             format!("the embedded glb starts at byte {offset}, not on an 8-byte boundary"),
         ));
     }
-    validate_glb(ctx, payload, &format!("{name}@glb"), false);
+    validate_glb(ctx, unpadded_glb(payload), &format!("{name}@glb"), false);
+}
+
+/// The glb at the start of `payload` without the zero padding (fewer than 8 bytes) that brings
+/// its tile's byteLength to a multiple of 8; `payload` itself when its glb header says otherwise.
+fn unpadded_glb(payload: &[u8]) -> &[u8] {
+    if payload.len() < 12 || &payload[..4] != b"glTF" {
+        return payload;
+    }
+    let len = u32_at(payload, 8) as usize;
+    let padding = payload.len().checked_sub(len);
+    match padding {
+        Some(p) if len >= 12 && p < 8 && payload[len..].iter().all(|&b| b == 0) => &payload[..len],
+        _ => payload,
+    }
 }
 
 /// The inner tiles of a composite tile.
@@ -224,12 +238,14 @@ fn composite(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
                 format!("inner tile {i} starts at byte {at}, not on an 8-byte boundary"),
             ));
         }
-        tile(
-            ctx,
-            &b[at..at + len],
-            &format!("{name}@tile {i}"),
-            depth + 1,
-        );
+        let inner = &b[at..at + len];
+        let inner_name = format!("{name}@tile {i}");
+        if inner.starts_with(b"glTF") {
+            // A glb inner tile: its 12-byte header has the layout of the others.
+            validate_glb(ctx, unpadded_glb(inner), &inner_name, false);
+        } else {
+            tile(ctx, inner, &inner_name, depth + 1);
+        }
         at += len;
     }
 }

@@ -191,6 +191,48 @@ pub(crate) struct Parent {
     pub replace: bool,
 }
 
+/// Checks a tile's `refine`; false when it says ADD (true for REPLACE, inherited or unreadable).
+fn refine_replaces(ctx: &mut Ctx<'_>, refine: Option<&Value>, path: &str, is_root: bool) -> bool {
+    match refine {
+        Some(Value::String(r)) if r == "ADD" || r == "REPLACE" => r == "REPLACE",
+        Some(Value::String(r))
+            if r.eq_ignore_ascii_case("ADD") || r.eq_ignore_ascii_case("REPLACE") =>
+        {
+            ctx.push(Issue::TILE_REFINE_WRONG_CASE(
+                format!("{path}/refine"),
+                format!(
+                    "refine '{r}' must be upper case: '{}'",
+                    r.to_ascii_uppercase()
+                ),
+            ));
+            r.eq_ignore_ascii_case("REPLACE")
+        }
+        Some(Value::String(r)) => {
+            ctx.push(Issue::VALUE_NOT_IN_LIST(
+                format!("{path}/refine"),
+                format!("refine '{r}' is not ADD or REPLACE"),
+            ));
+            true
+        }
+        Some(_) => {
+            ctx.push(Issue::TYPE_MISMATCH(
+                format!("{path}/refine"),
+                "refine must be a string",
+            ));
+            true
+        }
+        None => {
+            if is_root {
+                ctx.push(Issue::TILE_REFINE_MISSING_IN_ROOT(
+                    path,
+                    "the root tile must say refine ADD or REPLACE",
+                ));
+            }
+            true
+        }
+    }
+}
+
 /// Validates one tile and its subtree of explicit children.
 pub(crate) fn tile(
     ctx: &mut Ctx<'_>,
@@ -225,23 +267,7 @@ pub(crate) fn tile(
             format!("geometricError {e} is larger than the parent's {p}"),
         ));
     }
-    let mut replace = parent.replace;
-    match obj.get("refine") {
-        Some(Value::String(r)) if r == "ADD" || r == "REPLACE" => replace &= r == "REPLACE",
-        Some(Value::String(r)) => ctx.push(Issue::VALUE_NOT_IN_LIST(
-            format!("{path}/refine"),
-            format!("refine '{r}' is not ADD or REPLACE"),
-        )),
-        Some(_) => ctx.push(Issue::TYPE_MISMATCH(
-            format!("{path}/refine"),
-            "refine must be a string",
-        )),
-        None if is_root => ctx.push(Issue::TILE_REFINE_MISSING_IN_ROOT(
-            path,
-            "the root tile must say refine ADD or REPLACE",
-        )),
-        None => {}
-    }
+    let replace = refine_replaces(ctx, obj.get("refine"), path, is_root) && parent.replace;
     let local = obj
         .get("transform")
         .and_then(|t| transform(ctx, t, &format!("{path}/transform")))
@@ -314,9 +340,10 @@ pub(crate) fn tile(
             return;
         };
         if children.is_empty() {
-            ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
+            // Read as a leaf; the schema's minItems asks leaves to leave children out.
+            ctx.push(Issue::ARRAY_LENGTH_UNEXPECTED(
                 format!("{path}/children"),
-                "children, when present, must not be empty",
+                "an empty children array: a leaf tile should omit children",
             ));
         }
         if depth > 256 {
@@ -407,6 +434,61 @@ fn content(
     content_file(ctx, uri, &format!("{cp}/uri"), cvol.or(volume), world);
 }
 
+/// What a JSON content is.
+enum JsonContent {
+    /// An external tileset (also anything unreadable: its validation reports why).
+    Tileset,
+    /// glTF JSON (`.gltf`, or top-level glTF arrays such as meshes and buffers).
+    Gltf,
+    /// GeoJSON (`.geojson`, or a top-level GeoJSON `type`), as `MAXAR_content_geojson` uses.
+    GeoJson,
+}
+
+/// Tells an external tileset from glTF JSON and GeoJSON by its name and top-level members.
+fn json_content_kind(bytes: &[u8], lower_uri: &str) -> JsonContent {
+    const GLTF_MEMBERS: [&str; 6] = [
+        "meshes",
+        "scenes",
+        "nodes",
+        "buffers",
+        "accessors",
+        "bufferViews",
+    ];
+    const GEOJSON_TYPES: [&str; 9] = [
+        "FeatureCollection",
+        "Feature",
+        "Point",
+        "MultiPoint",
+        "LineString",
+        "MultiLineString",
+        "Polygon",
+        "MultiPolygon",
+        "GeometryCollection",
+    ];
+    if lower_uri.ends_with(".gltf") {
+        return JsonContent::Gltf;
+    }
+    // serde_json stops at 128 levels of nesting: a deep file is an error here, then reported by
+    // the external tileset's own bounded parse.
+    let Ok(Value::Object(top)) = serde_json::from_slice::<Value>(bytes) else {
+        return JsonContent::Tileset;
+    };
+    if top.contains_key("root") || top.contains_key("geometricError") {
+        return JsonContent::Tileset;
+    }
+    if GLTF_MEMBERS.iter().any(|m| top.contains_key(*m)) {
+        return JsonContent::Gltf;
+    }
+    let geojson_type = top
+        .get("type")
+        .and_then(Value::as_str)
+        .is_some_and(|t| GEOJSON_TYPES.contains(&t));
+    if geojson_type || (lower_uri.ends_with(".geojson") && !top.contains_key("asset")) {
+        return JsonContent::GeoJson;
+    }
+    JsonContent::Tileset
+}
+
 /// Validates one content file and that its splats lie inside `volume`.
 pub(crate) fn content_file(
     ctx: &mut Ctx<'_>,
@@ -443,14 +525,16 @@ pub(crate) fn content_file(
     };
     let first = bytes.iter().find(|b| !b.is_ascii_whitespace()).copied();
     if first == Some(b'{') {
-        let gltf = uri.to_ascii_lowercase().ends_with(".gltf");
-        if gltf {
-            ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
+        match json_content_kind(&bytes, &lower) {
+            JsonContent::Gltf => ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
                 uri,
                 "a glTF JSON content: only glb contents are validated",
-            ));
-        } else {
-            external(ctx, &file, &bytes, uri, path, world);
+            )),
+            JsonContent::GeoJson => ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
+                uri,
+                "a GeoJSON content (MAXAR_content_geojson): not validated",
+            )),
+            JsonContent::Tileset => external(ctx, &file, &bytes, uri, path, world),
         }
         return;
     }
@@ -551,7 +635,8 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value, world: DMat4) {
         legacy_properties(ctx, p, &format!("{path}/properties"));
     }
     let error = non_negative(ctx, v, "geometricError", path);
-    let used = declarations(ctx, v);
+    let (used, found) = declarations(ctx, v);
+    let outer_below = std::mem::take(&mut ctx.found_below);
     ctx.gltf_undeclared = v.pointer("/asset/version").and_then(Value::as_str) == Some("1.0")
         && !used.iter().any(|u| u == "3DTILES_content_gltf");
     if v.get("schema").is_some() && v.get("schemaUri").is_some() {
@@ -619,6 +704,10 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value, world: DMat4) {
             ctx.cut_truncated = outer_truncated;
         }
     }
+    let below = std::mem::replace(&mut ctx.found_below, outer_below);
+    super::declarations::unfound(ctx, &used, &found, &below);
+    // What this tileset and those below it use, for the tileset that refers to this one.
+    ctx.found_below.extend(found.into_iter().chain(below));
 }
 
 /// Validates `asset`: an object with a string `version` ("1.0" or "1.1") and an optional

@@ -355,8 +355,9 @@ fn value(ctx: &mut Ctx<'_>, schema: &Schema, p: &Prop, v: &Value, path: &str) {
     range(ctx, p, v, path);
 }
 
-/// Checks numeric values against `min` / `max` (after normalization, offset and scale when
-/// normalized); `noData` values are exempt.
+/// Checks numeric values against `min` / `max`, which bound the values after the transforms
+/// (3D Metadata "min": normalization, then offset and scale, which apply to float and normalized
+/// components); `noData` values are exempt.
 fn range(ctx: &mut Ctx<'_>, p: &Prop, v: &Value, path: &str) {
     if (p.min.is_none() && p.max.is_none()) || components(&p.kind).is_none() {
         return;
@@ -374,12 +375,17 @@ fn range(ctx: &mut Ctx<'_>, p: &Prop, v: &Value, path: &str) {
             x
         })
     };
-    if p.normalized {
+    if p.normalized || comp.starts_with("FLOAT") {
         let (off, sc) = (list(&p.offset), list(&p.scale));
         for (i, x) in nums.iter_mut().enumerate() {
             let o = off.as_ref().and_then(|o| o.get(i)).copied().unwrap_or(0.0);
             let s = sc.as_ref().and_then(|s| s.get(i)).copied().unwrap_or(1.0);
-            *x = o + s * normalize(*x, comp);
+            let raw = if p.normalized {
+                normalize(*x, comp)
+            } else {
+                *x
+            };
+            *x = o + s * raw;
         }
     }
     for (bound, below) in [(&p.min, true), (&p.max, false)] {

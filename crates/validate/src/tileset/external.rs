@@ -44,9 +44,14 @@ pub(crate) fn external(
         return;
     }
     if !ctx.visited.insert(real.clone()) {
-        // Referenced before (not in a cycle): its issues were reported the first time.
+        // Referenced before (not in a cycle): its issues were reported the first time; what it
+        // uses still counts for this referring tileset.
+        if let Some(found) = ctx.found_in.get(&real).cloned() {
+            ctx.found_below.extend(found);
+        }
         return;
     }
+    let outer_below = std::mem::take(&mut ctx.found_below);
     let name = file
         .strip_prefix(&ctx.root)
         .map(|p| p.display().to_string())
@@ -57,12 +62,16 @@ pub(crate) fn external(
     let saved_issues = std::mem::take(&mut ctx.issues);
     let saved_variants = std::mem::take(&mut ctx.variant_templates);
     let saved_gltf = ctx.gltf_undeclared;
-    ctx.chain.push(real);
+    ctx.chain.push(real.clone());
 
     if let Some(v) = json::parse(ctx, bytes, &name) {
         super::tileset(ctx, &v, world);
     }
 
+    // `tileset` left what this external tileset and those below it use in found_below.
+    let found = std::mem::replace(&mut ctx.found_below, outer_below);
+    ctx.found_below.extend(found.iter().cloned());
+    ctx.found_in.insert(real.clone(), found);
     ctx.chain.pop();
     ctx.variant_templates = saved_variants;
     ctx.gltf_undeclared = saved_gltf;
@@ -73,7 +82,7 @@ pub(crate) fn external(
     let summary = |what: &str| format!("external tileset '{uri}' has {what} (see causes)");
     let issue = match worst {
         None => return,
-        Some(Severity::Error) => Issue::EXTERNAL_TILESET_VALIDATION_FAILED(path, summary("errors")),
+        Some(Severity::Error) => Issue::EXTERNAL_TILESET_VALIDATION_ERROR(path, summary("errors")),
         Some(Severity::Warning) => {
             Issue::EXTERNAL_TILESET_VALIDATION_WARNING(path, summary("warnings"))
         }

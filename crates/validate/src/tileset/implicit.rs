@@ -348,7 +348,11 @@ impl Walk<'_> {
         }
         if !ctx.exists(&file) {
             if is_root {
-                ctx.push(Issue::IO_ERROR(uri, "the root subtree file is missing"));
+                // As Cesium's validator: without its root subtree the implicit root is unusable.
+                ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
+                    uri,
+                    "the root subtree file is missing: the implicit tree cannot be read",
+                ));
             } else {
                 ctx.push(Issue::SUBTREE_FILE_MISSING(
                     uri,
