@@ -1000,6 +1000,42 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
                 .push(json!({"children": [0]}));
         })
     });
+    m.insert("plain_glb_material_and_light", |t| {
+        plain_glb(t, |v| {
+            add_material(v, json!({"pbrMetallicRoughness": {"metallicFactor": 0.5}}));
+            add_light(v, json!({"type": "spot", "spot": {"outerConeAngle": 0.5}}));
+        })
+    });
+    m.insert("plain_glb_metallic_factor_above_one", |t| {
+        plain_glb(t, |v| {
+            add_material(v, json!({"pbrMetallicRoughness": {"metallicFactor": 2.0}}))
+        })
+    });
+    m.insert("plain_glb_base_color_texture_missing", |t| {
+        plain_glb(t, |v| {
+            add_material(
+                v,
+                json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 3}}}),
+            )
+        })
+    });
+    m.insert("plain_glb_alpha_mode_invalid", |t| {
+        plain_glb(t, |v| add_material(v, json!({"alphaMode": "opaque"})))
+    });
+    m.insert("plain_glb_spot_cone_inverted", |t| {
+        plain_glb(t, |v| {
+            add_light(
+                v,
+                json!({"type": "spot", "spot": {"innerConeAngle": 0.6, "outerConeAngle": 0.3}}),
+            )
+        })
+    });
+    m.insert("plain_glb_light_missing", |t| {
+        plain_glb(t, |v| {
+            add_light(v, json!({"type": "point"}));
+            v["nodes"][0]["extensions"]["KHR_lights_punctual"]["light"] = json!(4);
+        })
+    });
     m.insert("plain_glb_scene_node_missing", |t| {
         plain_glb(t, |v| v["scenes"][0]["nodes"] = json!([7]))
     });
@@ -1134,6 +1170,19 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
 }
 
 /// Turns the first glb into a plain glTF (no splat extension) and applies `f` to its JSON.
+/// Gives the first primitive of a plain glb the material `m` (as material 0).
+fn add_material(v: &mut Value, m: Value) {
+    v["materials"] = json!([m]);
+    v["meshes"][0]["primitives"][0]["material"] = json!(0);
+}
+
+/// Declares `KHR_lights_punctual` with the one light `l`, placed by node 0.
+fn add_light(v: &mut Value, l: Value) {
+    v["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    v["extensions"]["KHR_lights_punctual"] = json!({"lights": [l]});
+    v["nodes"][0]["extensions"]["KHR_lights_punctual"] = json!({"light": 0});
+}
+
 fn plain_glb(t: &Ts, f: impl FnOnce(&mut Value)) {
     t.edit_glb(|v| {
         let prim = v["meshes"][0]["primitives"][0].as_object_mut().unwrap();

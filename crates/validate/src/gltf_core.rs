@@ -1,5 +1,5 @@
 //! Core glTF 2.0 structure checks for contents without splats: accessors inside their buffer
-//! views, mesh primitives, nodes (a forest, no cycles), scenes (glTF 2.0 sec. 3.5-3.7, 5).
+//! views, mesh primitives, nodes (a forest, no cycles), scenes; then materials and lights.
 
 use super::context::Ctx;
 use super::issues::Issue;
@@ -110,6 +110,8 @@ pub(crate) fn check_structure(ctx: &mut Ctx<'_>, raw: &Value, name: &str) {
             format!("scene {s} does not exist ({} scenes)", scenes.len()),
         ));
     }
+    super::gltf_materials::check_materials(ctx, raw, &at);
+    super::gltf_materials::check_lights(ctx, raw, &at);
 }
 
 fn check_accessor<'a>(

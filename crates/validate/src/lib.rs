@@ -12,6 +12,7 @@ mod cut;
 mod declarations;
 mod glb_buffers;
 mod gltf_core;
+mod gltf_materials;
 pub mod issues;
 mod json;
 mod layered;
