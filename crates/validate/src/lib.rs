@@ -93,8 +93,14 @@ fn run(bytes: &[u8], dir: &Path, file: Option<(&Path, String)>, opts: &ValidateO
             layered::validate(&mut ctx, path);
         }
     }
+    // Refused for its size or depth, the file was JSON: those are findings (exit 1), while a
+    // file that is not JSON at all (or a broken compressed stream) could not be read.
+    let over_limits = ctx
+        .issues
+        .last()
+        .is_some_and(|i| matches!(i.code.as_str(), "JSON_TOO_LARGE" | "JSON_NESTING_TOO_DEEP"));
     let mut report = Report::new(ctx.issues);
-    report.unreadable = !parsed;
+    report.unreadable = !parsed && !over_limits;
     report
 }
 

@@ -25,8 +25,8 @@ pub struct Report {
     pub num_infos: usize,
     /// Every issue, in the order found.
     pub issues: Vec<Issue>,
-    /// The tileset file itself could not be read as JSON (not JSON, too deep, too large, a bad
-    /// gzip stream): nothing of the tileset was checked. Not part of the JSON report.
+    /// The tileset file itself could not be read as JSON (not JSON, a bad compressed stream;
+    /// not a file refused for its size or depth): nothing of it was checked. Not in the JSON.
     #[serde(skip)]
     pub unreadable: bool,
 }

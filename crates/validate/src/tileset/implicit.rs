@@ -346,7 +346,13 @@ impl Walk<'_> {
             ));
             return vec![];
         }
-        if !ctx.exists(&file) {
+        // Something that is not a regular file (a FIFO, a device) is read below and refused
+        // there with its reason; only an absent file is "missing".
+        let absent = !ctx.exists(&file)
+            && (ctx.memory.is_some()
+                || std::fs::symlink_metadata(&file)
+                    .is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound));
+        if absent {
             if is_root {
                 // As Cesium's validator: without its root subtree the implicit root is unusable.
                 ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
