@@ -10,7 +10,7 @@ use splat2tiles_core::splat::Splats;
 use splat2tiles_render::Image;
 use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
 use splat2tiles_tiles::geometry::{
-    content_model, frame_centres, select_tiles, tileset_bounds, tileset_up,
+    Instances, content_model, frame_centres, select_tiles, tileset_bounds, tileset_up,
 };
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 
@@ -84,6 +84,14 @@ pub fn open_tileset(path: &Path) -> anyhow::Result<LoadedTileset> {
 /// The camera `splat2tiles render` would use for this tileset and these arguments: an auto view
 /// frames the splat centres of the tiles it selects ([`frame_centres`]).
 pub fn tileset_camera(ts: &LoadedTileset, v: &ViewArgs) -> anyhow::Result<Camera> {
+    Ok(tileset_view(ts, v)?.0)
+}
+
+/// [`tileset_camera`] with the contents it selects (tile paths, decoded instances).
+pub fn tileset_view(
+    ts: &LoadedTileset,
+    v: &ViewArgs,
+) -> anyhow::Result<(Camera, Vec<PathBuf>, Instances)> {
     let up = match &v.up_axis {
         Some(s) => camera::parse_axis(s)
             .with_context(|| format!("--up-axis '{s}': expected one of +x,-x,+y,-y,+z,-z"))?,
@@ -91,15 +99,17 @@ pub fn tileset_camera(ts: &LoadedTileset, v: &ViewArgs) -> anyhow::Result<Camera
     };
     let req = v.camera_request();
     let cam = resolve_camera(&req, up, tileset_bounds(ts))?;
+    let picked = select_tiles(ts, &cam, v.max_sse);
     if v.auto_view.is_none() {
-        return Ok(cam);
+        let instances = load_instances(ts, &picked)?;
+        return Ok((cam, picked, instances));
     }
-    let (cam, _) = frame_centres(
+    let (cam, instances) = frame_centres(
         cam,
         |cam| load_instances(ts, &select_tiles(ts, cam, v.max_sse)),
         |bounds| Ok(resolve_camera(&req, up, Some(bounds))?),
     )?;
-    Ok(cam)
+    Ok((cam, select_tiles(ts, &cam, v.max_sse), instances))
 }
 
 /// Reads and decodes tile contents (any variant) with their tile-to-world matrices.
@@ -167,9 +177,7 @@ pub struct StaticSummary {
 /// `--headless` with `--camera`/`--auto-view`: one frame to `out/frame_0000.png`.
 pub fn run_static(tileset: &Path, v: &ViewArgs, out: &Path) -> anyhow::Result<StaticSummary> {
     let ts = open_tileset(tileset)?;
-    let cam = tileset_camera(&ts, v)?;
-    let picked = select_tiles(&ts, &cam, v.max_sse);
-    let instances = load_instances(&ts, &picked)?;
+    let (cam, picked, instances) = tileset_view(&ts, v)?;
     let gpu = crate::gpu::headless()?;
     let cfg = RendererConfig {
         background: v.background_rgb()?,

@@ -444,16 +444,26 @@ enum JsonContent {
     GeoJson,
 }
 
-/// Tells an external tileset from glTF JSON and GeoJSON by its name and top-level members.
+/// The top-level members that tell JSON contents apart; the rest is skipped unparsed.
+#[derive(serde::Deserialize)]
+#[allow(non_snake_case)]
+struct JsonTop {
+    root: Option<serde::de::IgnoredAny>,
+    geometricError: Option<serde::de::IgnoredAny>,
+    asset: Option<serde::de::IgnoredAny>,
+    meshes: Option<serde::de::IgnoredAny>,
+    scenes: Option<serde::de::IgnoredAny>,
+    nodes: Option<serde::de::IgnoredAny>,
+    buffers: Option<serde::de::IgnoredAny>,
+    accessors: Option<serde::de::IgnoredAny>,
+    bufferViews: Option<serde::de::IgnoredAny>,
+    #[serde(rename = "type")]
+    kind: Option<Value>,
+}
+
+/// Tells an external tileset from glTF JSON and GeoJSON by its name and top-level members
+/// (read without building the document: an external tileset is parsed once, by its own check).
 fn json_content_kind(bytes: &[u8], lower_uri: &str) -> JsonContent {
-    const GLTF_MEMBERS: [&str; 6] = [
-        "meshes",
-        "scenes",
-        "nodes",
-        "buffers",
-        "accessors",
-        "bufferViews",
-    ];
     const GEOJSON_TYPES: [&str; 9] = [
         "FeatureCollection",
         "Feature",
@@ -468,22 +478,31 @@ fn json_content_kind(bytes: &[u8], lower_uri: &str) -> JsonContent {
     if lower_uri.ends_with(".gltf") {
         return JsonContent::Gltf;
     }
-    // serde_json stops at 128 levels of nesting: a deep file is an error here, then reported by
-    // the external tileset's own bounded parse.
-    let Ok(Value::Object(top)) = serde_json::from_slice::<Value>(bytes) else {
+    // Anything unreadable here (bad syntax, past serde_json's 128 levels, duplicate members) is
+    // left to the external tileset's own bounded parse, which reports it.
+    let Ok(top) = serde_json::from_slice::<JsonTop>(bytes) else {
         return JsonContent::Tileset;
     };
-    if top.contains_key("root") || top.contains_key("geometricError") {
+    if top.root.is_some() || top.geometricError.is_some() {
         return JsonContent::Tileset;
     }
-    if GLTF_MEMBERS.iter().any(|m| top.contains_key(*m)) {
+    let gltf = [
+        &top.meshes,
+        &top.scenes,
+        &top.nodes,
+        &top.buffers,
+        &top.accessors,
+        &top.bufferViews,
+    ];
+    if gltf.iter().any(|m| m.is_some()) {
         return JsonContent::Gltf;
     }
     let geojson_type = top
-        .get("type")
+        .kind
+        .as_ref()
         .and_then(Value::as_str)
         .is_some_and(|t| GEOJSON_TYPES.contains(&t));
-    if geojson_type || (lower_uri.ends_with(".geojson") && !top.contains_key("asset")) {
+    if geojson_type || (lower_uri.ends_with(".geojson") && top.asset.is_none()) {
         return JsonContent::GeoJson;
     }
     JsonContent::Tileset
