@@ -1087,6 +1087,15 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
     m.insert("b3dm_batch_length_missing", |t| {
         write_legacy(t, b"b3dm", 1, "{}", true, 0)
     });
+    m.insert("pnts_positions", |t| {
+        write_pnts(t, r#"{"POINTS_LENGTH":2,"POSITION":{"byteOffset":0}}"#, 24)
+    });
+    m.insert("pnts_position_past_binary", |t| {
+        write_pnts(t, r#"{"POINTS_LENGTH":2,"POSITION":{"byteOffset":0}}"#, 16)
+    });
+    m.insert("pnts_position_misaligned", |t| {
+        write_pnts(t, r#"{"POINTS_LENGTH":1,"POSITION":{"byteOffset":2}}"#, 16)
+    });
     m.insert("pnts_position_missing", |t| {
         write_legacy(t, b"pnts", 1, r#"{"POINTS_LENGTH":0}"#, false, 0)
     });
@@ -1249,6 +1258,24 @@ fn padded_b3dm() -> Vec<u8> {
     out.extend_from_slice(ft);
     out.extend_from_slice(&glb);
     out
+}
+
+/// A pnts with feature table JSON `ft` (padded) and `binary` zero bytes of feature table binary.
+fn write_pnts(t: &Ts, ft: &str, binary: usize) {
+    let mut ft = ft.as_bytes().to_vec();
+    while !(28 + ft.len()).is_multiple_of(8) {
+        ft.push(b' ');
+    }
+    let total = 28 + ft.len() + binary;
+    let mut out = b"pnts".to_vec();
+    out.extend_from_slice(&1u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(ft.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(binary as u32).to_le_bytes());
+    out.extend_from_slice(&[0u8; 8]);
+    out.extend_from_slice(&ft);
+    out.extend(std::iter::repeat_n(0u8, binary));
+    std::fs::write(t.dir.join("content.pnts"), out).unwrap();
 }
 
 fn write_legacy(t: &Ts, magic: &[u8; 4], version: u32, ft: &str, glb: bool, extra: usize) {

@@ -87,50 +87,7 @@ fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
         ));
         return;
     }
-    // Feature table JSON, feature table binary, batch table JSON, batch table binary: the JSON
-    // parts are padded so that each part after the first starts on an 8-byte boundary.
-    let mut at = header;
-    for (i, what) in [
-        "feature table JSON",
-        "feature table binary",
-        "batch table JSON",
-        "batch table binary",
-    ]
-    .iter()
-    .enumerate()
-    {
-        if i > 0 && lens[i] > 0 && !at.is_multiple_of(8) {
-            ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
-                format!("{name}@byte {at}"),
-                format!("the {what} starts at byte {at}, not on an 8-byte boundary"),
-            ));
-        }
-        at += lens[i];
-    }
-    let ft_json = &b[header..header + lens[0]];
-    let ft: Value = if ft_json.is_empty() {
-        Value::Object(Default::default())
-    } else {
-        match serde_json::from_slice(ft_json) {
-            Ok(v) => v,
-            Err(e) => {
-                ctx.push(Issue::JSON_PARSE_ERROR(
-                    format!("{name}@byte {header}"),
-                    format!("feature table JSON: {e}"),
-                ));
-                Value::Null
-            }
-        }
-    };
-    let bt_at = header + lens[0] + lens[1];
-    if lens[2] > 0
-        && let Err(e) = serde_json::from_slice::<Value>(&b[bt_at..bt_at + lens[2]])
-    {
-        ctx.push(Issue::JSON_PARSE_ERROR(
-            format!("{name}@byte {bt_at}"),
-            format!("batch table JSON: {e}"),
-        ));
-    }
+    let ft = tables(ctx, b, header, &lens, name);
     let global = |ft: &Value, ctx: &mut Ctx<'_>, key: &str| {
         if ft.is_object() && ft.get(key).and_then(Value::as_u64).is_none() {
             ctx.push(Issue::PROPERTY_MISSING(
@@ -157,6 +114,14 @@ fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
         "i3dm" => {
             global(&ft, ctx, "INSTANCES_LENGTH");
             position(&ft, ctx);
+            semantics(
+                ctx,
+                &ft,
+                I3DM,
+                "INSTANCES_LENGTH",
+                (header + lens[0], lens[1]),
+                name,
+            );
             match u32_at(b, 28) {
                 1 => glb_payload(ctx, payload, name, header + body),
                 0 => {}
@@ -169,6 +134,140 @@ fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
         _ => {
             global(&ft, ctx, "POINTS_LENGTH");
             position(&ft, ctx);
+            semantics(
+                ctx,
+                &ft,
+                PNTS,
+                "POINTS_LENGTH",
+                (header + lens[0], lens[1]),
+                name,
+            );
+        }
+    }
+}
+
+/// The feature and batch tables of a b3dm / i3dm / pnts whose header is `header` bytes and whose
+/// table lengths are `lens`: their 8-byte alignment and JSON; returns the feature table JSON
+/// (`Null` when it does not parse).
+fn tables(ctx: &mut Ctx<'_>, b: &[u8], header: usize, lens: &[usize], name: &str) -> Value {
+    // Feature table JSON, feature table binary, batch table JSON, batch table binary: the JSON
+    // parts are padded so that each part after the first starts on an 8-byte boundary.
+    let mut at = header;
+    for (i, what) in [
+        "feature table JSON",
+        "feature table binary",
+        "batch table JSON",
+        "batch table binary",
+    ]
+    .iter()
+    .enumerate()
+    {
+        if i > 0 && lens[i] > 0 && !at.is_multiple_of(8) {
+            ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
+                format!("{name}@byte {at}"),
+                format!("the {what} starts at byte {at}, not on an 8-byte boundary"),
+            ));
+        }
+        at += lens[i];
+    }
+    let bt_at = header + lens[0] + lens[1];
+    if lens[2] > 0
+        && let Err(e) = serde_json::from_slice::<Value>(&b[bt_at..bt_at + lens[2]])
+    {
+        ctx.push(Issue::JSON_PARSE_ERROR(
+            format!("{name}@byte {bt_at}"),
+            format!("batch table JSON: {e}"),
+        ));
+    }
+    let ft_json = &b[header..header + lens[0]];
+    if ft_json.is_empty() {
+        return Value::Object(Default::default());
+    }
+    serde_json::from_slice(ft_json).unwrap_or_else(|e| {
+        ctx.push(Issue::JSON_PARSE_ERROR(
+            format!("{name}@byte {header}"),
+            format!("feature table JSON: {e}"),
+        ));
+        Value::Null
+    })
+}
+
+/// Per-instance / per-point feature table semantics: (name, bytes per element, alignment).
+/// BATCH_ID's size comes from its componentType (default UNSIGNED_SHORT).
+const I3DM: &[(&str, usize, usize)] = &[
+    ("POSITION", 12, 4),
+    ("POSITION_QUANTIZED", 6, 2),
+    ("NORMAL_UP", 12, 4),
+    ("NORMAL_RIGHT", 12, 4),
+    ("NORMAL_UP_OCT32P", 4, 2),
+    ("NORMAL_RIGHT_OCT32P", 4, 2),
+    ("SCALE", 4, 4),
+    ("SCALE_NON_UNIFORM", 12, 4),
+    ("BATCH_ID", 2, 2),
+];
+const PNTS: &[(&str, usize, usize)] = &[
+    ("POSITION", 12, 4),
+    ("POSITION_QUANTIZED", 6, 2),
+    ("RGBA", 4, 1),
+    ("RGB", 3, 1),
+    ("RGB565", 2, 2),
+    ("NORMAL", 12, 4),
+    ("NORMAL_OCT16P", 2, 1),
+    ("BATCH_ID", 2, 2),
+];
+
+/// Checks that each binary semantic of the feature table (`{"byteOffset": N}`) lies inside the
+/// feature table's binary body (`body` = its start in the file and its length) for `count_key`
+/// elements and starts aligned to its component size (3D Tiles 1.0 Feature Table).
+fn semantics(
+    ctx: &mut Ctx<'_>,
+    ft: &Value,
+    table: &[(&str, usize, usize)],
+    count_key: &str,
+    body: (usize, usize),
+    name: &str,
+) {
+    let Some(count) = ft.get(count_key).and_then(Value::as_u64) else {
+        return;
+    };
+    for &(semantic, size, align) in table {
+        let Some(offset) = ft.get(semantic).and_then(|p| p.get("byteOffset")) else {
+            continue;
+        };
+        let (size, align) = match ft.pointer(&format!("/{semantic}/componentType")) {
+            Some(Value::String(c)) if semantic == "BATCH_ID" => match c.as_str() {
+                "UNSIGNED_BYTE" => (1, 1),
+                "UNSIGNED_INT" => (4, 4),
+                _ => (2, 2),
+            },
+            _ => (size, align),
+        };
+        let Some(offset) = offset.as_u64() else {
+            ctx.push(Issue::TYPE_MISMATCH(
+                format!("{name}@byte {}", body.0),
+                format!("{semantic}.byteOffset must be a non-negative integer"),
+            ));
+            continue;
+        };
+        let at = format!("{name}@byte {}", (body.0 as u64).saturating_add(offset));
+        if !offset.is_multiple_of(align as u64) {
+            ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
+                at.clone(),
+                format!("{semantic} starts at byteOffset {offset}, not a multiple of {align}"),
+            ));
+        }
+        let end = count
+            .checked_mul(size as u64)
+            .and_then(|n| n.checked_add(offset));
+        if end.is_none_or(|e| e > body.1 as u64) {
+            ctx.push(Issue::BINARY_INVALID_LENGTH(
+                at,
+                format!(
+                    "{semantic}: {count} x {size} bytes from byteOffset {offset} run past the \
+                     {}-byte feature table binary",
+                    body.1
+                ),
+            ));
         }
     }
 }
