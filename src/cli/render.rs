@@ -14,7 +14,7 @@ use splat2tiles_render::metrics;
 use splat2tiles_render::raster::{RenderOptions, render_with_stats};
 use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
 use splat2tiles_tiles::geometry::{
-    Instances, content_model, finite_bounds, frame_centres, select_tiles, tileset_bounds,
+    Instances, finite_bounds, frame_centres, load_instances, select_tiles, tileset_bounds,
     tileset_up,
 };
 
@@ -198,16 +198,7 @@ fn tileset_instances(
             ts, cam, max_sse,
         )?);
     }
-    let picked = select_tiles(ts, cam, max_sse);
-    let mut instances = Vec::with_capacity(picked.len());
-    for path in &picked {
-        let bytes = splat2tiles_io::read_file(path, splat2tiles_tiles::tiling::load::CONTENT_FILE)?;
-        // Any variant: plain, EXT_meshopt_compression or SPZ_2 compressed.
-        let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
-            .with_context(|| format!("{}", path.display()))?;
-        instances.push((splats, content_model(ts, &node)));
-    }
-    Ok(instances)
+    Ok(load_instances(ts, &select_tiles(ts, cam, max_sse))?)
 }
 
 /// SSIM and PSNR of two PNG files.

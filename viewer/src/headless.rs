@@ -10,7 +10,7 @@ use splat2tiles_core::splat::Splats;
 use splat2tiles_render::Image;
 use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
 use splat2tiles_tiles::geometry::{
-    Instances, content_model, frame_centres, select_tiles, tileset_bounds, tileset_up,
+    Instances, frame_centres, select_tiles, tileset_bounds, tileset_up,
 };
 use splat2tiles_tiles::tiling::load::{LoadedTileset, load_tileset};
 
@@ -113,20 +113,8 @@ pub fn tileset_view(
 }
 
 /// Reads and decodes tile contents (any variant) with their tile-to-world matrices.
-pub fn load_instances(
-    ts: &LoadedTileset,
-    paths: &[PathBuf],
-) -> anyhow::Result<Vec<(Splats, DMat4)>> {
-    paths
-        .iter()
-        .map(|p| {
-            let bytes =
-                splat2tiles_io::read_file(p, splat2tiles_tiles::tiling::load::CONTENT_FILE)?;
-            let (splats, node) = splat2tiles_tiles::variants::decode_variant(&bytes)
-                .with_context(|| format!("{}: cannot decode the tile", p.display()))?;
-            Ok((splats, content_model(ts, &node)))
-        })
-        .collect()
+pub fn load_instances(ts: &LoadedTileset, paths: &[PathBuf]) -> anyhow::Result<Instances> {
+    Ok(splat2tiles_tiles::geometry::load_instances(ts, paths)?)
 }
 
 /// Renders `instances` seen by `cam` once (tiles fully faded in, sort finished) and reads the

@@ -67,6 +67,27 @@ pub fn centre_bounds(instances: &[(Splats, glam::DMat4)]) -> Option<(DVec3, DVec
         })
 }
 
+/// Reads and decodes the contents at `paths` (any variant: plain, meshopt or SPZ_2), each with
+/// its content-to-world matrix.
+pub fn load_instances(
+    ts: &LoadedTileset,
+    paths: &[PathBuf],
+) -> Result<Instances, crate::tiling::load::LoadError> {
+    use crate::tiling::load::{CONTENT_FILE, LoadError};
+    paths
+        .iter()
+        .map(|p| {
+            let bytes = splat2tiles_io::read_file(p, CONTENT_FILE)?;
+            let (splats, node) =
+                crate::variants::decode_variant(&bytes).map_err(|source| LoadError::Content {
+                    path: p.clone(),
+                    source,
+                })?;
+            Ok((splats, content_model(ts, &node)))
+        })
+        .collect()
+}
+
 /// World matrix of a tile's content: root transform, then glTF y-up -> 3D Tiles z-up, then the
 /// glb node matrix.
 pub fn content_model(ts: &LoadedTileset, node: &[f64; 16]) -> glam::DMat4 {
