@@ -67,19 +67,31 @@ pub fn centre_bounds(instances: &[(Splats, glam::DMat4)]) -> Option<(DVec3, DVec
         })
 }
 
+/// Why [`load_instances`] could not give the splats of a content.
+#[derive(Debug, thiserror::Error)]
+pub enum ContentError {
+    /// The content file could not be read (missing, too large, not a regular file).
+    #[error(transparent)]
+    Read(#[from] splat2tiles_io::BoundedReadError),
+    /// A tile content file is not a glb of splats in any variant.
+    #[error("{path}: cannot decode the tile: {source}")]
+    Decode {
+        /// File.
+        path: PathBuf,
+        /// Decoding error.
+        source: crate::encode::glb::GlbError,
+    },
+}
+
 /// Reads and decodes the contents at `paths` (any variant: plain, meshopt or SPZ_2), each with
 /// its content-to-world matrix.
-pub fn load_instances(
-    ts: &LoadedTileset,
-    paths: &[PathBuf],
-) -> Result<Instances, crate::tiling::load::LoadError> {
-    use crate::tiling::load::{CONTENT_FILE, LoadError};
+pub fn load_instances(ts: &LoadedTileset, paths: &[PathBuf]) -> Result<Instances, ContentError> {
     paths
         .iter()
         .map(|p| {
-            let bytes = splat2tiles_io::read_file(p, CONTENT_FILE)?;
+            let bytes = splat2tiles_io::read_file(p, crate::tiling::load::CONTENT_FILE)?;
             let (splats, node) =
-                crate::variants::decode_variant(&bytes).map_err(|source| LoadError::Content {
+                crate::variants::decode_variant(&bytes).map_err(|source| ContentError::Decode {
                     path: p.clone(),
                     source,
                 })?;

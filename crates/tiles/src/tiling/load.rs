@@ -97,14 +97,6 @@ pub enum LoadError {
         /// Framing error.
         source: subtree::SubtreeError,
     },
-    /// A tile content file is not a glb of splats in any variant.
-    #[error("{path}: cannot decode the tile: {source}")]
-    Content {
-        /// File.
-        path: PathBuf,
-        /// Decoding error.
-        source: crate::encode::glb::GlbError,
-    },
 }
 
 /// Substitutes `{level}`, `{x}`, `{y}`, `{z}` in a template URI.
