@@ -572,6 +572,12 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             v["root"]["implicitTiling"]["subtrees"]["uri"] = json!(format!("../{u}"));
         })
     });
+    m.insert("subtree_uri_without_z", |t| {
+        t.edit_tileset(|v| {
+            v["root"]["implicitTiling"]["subtrees"]["uri"] =
+                json!("subtrees/{level}/{x}/{y}.subtree")
+        })
+    });
     m.insert("extension_required_not_used", |t| {
         t.edit_tileset(|v| v["extensionsRequired"] = json!(["3DTILES_content_gltf"]))
     });
@@ -1054,6 +1060,32 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
     m.insert("zip_content", |t| {
         std::fs::write(t.dir.join("a.3tz"), b"PK\x03\x04\x14\x00\x00\x00\x00\x00").unwrap();
     });
+    m.insert("b3dm_batch_table_valid", |t| {
+        let ft = r#"{"BATCH_LENGTH":2,"RTC_CENTER":[1,2,3]}"#;
+        write_legacy_tables(t, b"b3dm", 1, (ft, r#"{"height":[1.5,2.5]}"#), true, 0)
+    });
+    m.insert("b3dm_batch_table_short_array", |t| {
+        let ft = r#"{"BATCH_LENGTH":2}"#;
+        write_legacy_tables(t, b"b3dm", 1, (ft, r#"{"height":[1.5]}"#), true, 0)
+    });
+    m.insert("b3dm_batch_table_binary_past_end", |t| {
+        let bt = r#"{"id":{"byteOffset":0,"componentType":"UNSIGNED_INT","type":"SCALAR"}}"#;
+        write_legacy_tables(t, b"b3dm", 1, (r#"{"BATCH_LENGTH":2}"#, bt), true, 0)
+    });
+    m.insert("i3dm_normal_up_without_right", |t| {
+        let ft = r#"{"INSTANCES_LENGTH":1,"POSITION":[0,0,0],"NORMAL_UP":[0,0,1]}"#;
+        write_legacy(t, b"i3dm", 1, ft, true, 0)
+    });
+    m.insert("pnts_feature_property_unknown", |t| {
+        write_pnts(
+            t,
+            r#"{"POINTS_LENGTH":2,"POSITION":{"byteOffset":0},"COLOUR":[1,2]}"#,
+            24,
+        )
+    });
+    m.insert("zip_3tz_valid", |t| write_3tz(t, Some(1.0)));
+    m.insert("zip_3tz_inner_error", |t| write_3tz(t, Some(-1.0)));
+    m.insert("zip_3tz_without_tileset", |t| write_3tz(t, None));
     m.insert("b3dm_valid", |t| {
         write_legacy(t, b"b3dm", 1, r#"{"BATCH_LENGTH":0}"#, true, 0)
     });
@@ -1242,6 +1274,47 @@ fn deep_tree(t: &Ts, levels: usize) {
 /// an embedded minimal glb) into a `files` tileset; `extra` bytes beyond byteLength.
 /// A b3dm whose glb (52 bytes, so 4 mod 8) is followed by 4 zero bytes that bring the tile's
 /// byteLength to a multiple of 8, as the b3dm layout asks.
+/// Writes `a.3tz`: a zip holding `tileset.json` (stored; its root geometric error `root_error`,
+/// no tileset when `None`) whose root content is `triangle.gltf` (deflated) with its buffer
+/// `triangle.bin` (stored): the two compression methods 3tz writers use.
+fn write_3tz(t: &Ts, root_error: Option<f64>) {
+    use std::io::Write;
+    use zip::write::SimpleFileOptions;
+    let pos: Vec<u8> = [0f32, 0., 0., 1., 0., 0., 0., 1., 0.]
+        .iter()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    let gltf = json!({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "buffers": [{"uri": "triangle.bin", "byteLength": pos.len()}],
+        "bufferViews": [{"buffer": 0, "byteLength": pos.len()}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]}]
+    });
+    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let stored = SimpleFileOptions::default().compression_method(zip::CompressionMethod::Stored);
+    let deflated =
+        SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
+    if let Some(e) = root_error {
+        let inner = json!({
+            "asset": {"version": "1.1"}, "geometricError": 10.0,
+            "root": {"boundingVolume": {"box": [0.5, 0.5, 0, 0.5, 0, 0, 0, 0.5, 0, 0, 0, 0.5]},
+                     "geometricError": e, "refine": "REPLACE",
+                     "content": {"uri": "triangle.gltf"}}
+        });
+        zip.start_file("tileset.json", stored).unwrap();
+        zip.write_all(&serde_json::to_vec(&inner).unwrap()).unwrap();
+    }
+    zip.start_file("triangle.gltf", deflated).unwrap();
+    zip.write_all(&serde_json::to_vec(&gltf).unwrap()).unwrap();
+    zip.start_file("triangle.bin", stored).unwrap();
+    zip.write_all(&pos).unwrap();
+    let bytes = zip.finish().unwrap().into_inner();
+    std::fs::write(t.dir.join("a.3tz"), bytes).unwrap();
+}
+
 fn padded_b3dm() -> Vec<u8> {
     // A 29-byte JSON chunk, padded to 32: a 52-byte glb.
     let mut glb = write_glb(br#"{"asset": {"version": "2.0"}}"#, None).unwrap();
@@ -1279,27 +1352,48 @@ fn write_pnts(t: &Ts, ft: &str, binary: usize) {
 }
 
 fn write_legacy(t: &Ts, magic: &[u8; 4], version: u32, ft: &str, glb: bool, extra: usize) {
+    write_legacy_tables(t, magic, version, (ft, ""), glb, extra)
+}
+
+/// A b3dm / i3dm / pnts with the feature table JSON `tables.0` and the batch table JSON
+/// `tables.1` (each padded with spaces to 8 bytes; no binary parts), then an embedded empty glb
+/// when `glb`, then `extra` zero bytes.
+fn write_legacy_tables(
+    t: &Ts,
+    magic: &[u8; 4],
+    version: u32,
+    (ft, bt): (&str, &str),
+    glb: bool,
+    extra: usize,
+) {
     let header = if magic == b"i3dm" { 32 } else { 28 };
     let mut ft = ft.as_bytes().to_vec();
     while !(header + ft.len()).is_multiple_of(8) {
         ft.push(b' ');
+    }
+    let mut bt = bt.as_bytes().to_vec();
+    while !bt.len().is_multiple_of(8) {
+        bt.push(b' ');
     }
     let payload = if glb {
         write_glb(br#"{"asset":{"version":"2.0"}}"#, None).unwrap()
     } else {
         vec![]
     };
-    let total = header + ft.len() + payload.len();
+    let total = header + ft.len() + bt.len() + payload.len();
     let mut out = Vec::new();
     out.extend_from_slice(magic);
     out.extend_from_slice(&version.to_le_bytes());
     out.extend_from_slice(&(total as u32).to_le_bytes());
     out.extend_from_slice(&(ft.len() as u32).to_le_bytes());
-    out.extend_from_slice(&[0u8; 12]);
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&(bt.len() as u32).to_le_bytes());
+    out.extend_from_slice(&0u32.to_le_bytes());
     if header == 32 {
         out.extend_from_slice(&1u32.to_le_bytes());
     }
     out.extend_from_slice(&ft);
+    out.extend_from_slice(&bt);
     out.extend_from_slice(&payload);
     out.extend(std::iter::repeat_n(0u8, extra));
     let name = format!("content.{}", String::from_utf8_lossy(magic));

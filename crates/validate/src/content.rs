@@ -4,7 +4,7 @@
 use super::context::{ContentGeom, Ctx};
 use super::issues::Issue;
 use glam::{DMat4, DQuat, DVec3};
-use splat2tiles_tiles::encode::glb::{GlbError, parse_json, read_glb};
+use splat2tiles_tiles::encode::glb::{GlbChunks, GlbError, parse_json, read_glb};
 use splat2tiles_tiles::encode::gltf::{Gltf, KHR_GAUSSIAN_SPLATTING, KHR_MESH_QUANTIZATION};
 
 fn glb_issue(name: &str, e: GlbError) -> Issue {
@@ -89,7 +89,35 @@ pub(crate) fn validate_glb(
             return None;
         }
     };
-    let doc = match parse_json(&chunks) {
+    validate_gltf(ctx, &chunks, name, want_shapes)
+}
+
+/// Validates one glTF JSON content (`.gltf`): the same checks as a glb's, with every buffer
+/// read from its `uri` (a data URI or a file beside the content).
+pub(crate) fn validate_gltf_json(
+    ctx: &mut Ctx<'_>,
+    bytes: &[u8],
+    name: &str,
+    want_shapes: bool,
+) -> Option<ContentGeom> {
+    let chunks = GlbChunks {
+        json: bytes,
+        json_offset: 0,
+        bin: None,
+        bin_offset: 0,
+    };
+    validate_gltf(ctx, &chunks, name, want_shapes)
+}
+
+/// The checks of a glTF asset once framed: JSON, extension declarations, buffers, then either
+/// the plain glTF structure or each splat primitive.
+fn validate_gltf(
+    ctx: &mut Ctx<'_>,
+    chunks: &GlbChunks<'_>,
+    name: &str,
+    want_shapes: bool,
+) -> Option<ContentGeom> {
+    let doc = match parse_json(chunks) {
         Ok(d) => d,
         Err(e) => {
             ctx.push(glb_issue(name, e));
@@ -129,6 +157,7 @@ pub(crate) fn validate_glb(
         }
     }
 
+    undeclared_extensions(ctx, &doc, &raw, name);
     let buffers = super::glb_buffers::check_buffers(ctx, &doc, chunks.bin, &fallback_buffers, name);
 
     // Find the splat primitives.
@@ -154,7 +183,7 @@ pub(crate) fn validate_glb(
         super::gltf_core::check_structure(ctx, &raw, name);
         ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
             name,
-            "a glb without KHR_gaussian_splatting: its framing, buffers, bufferViews, accessors, meshes, nodes and scenes were checked, not its materials, textures, animations or data values",
+            "a glTF without KHR_gaussian_splatting: its framing, buffers, bufferViews, accessors, meshes, nodes, scenes, materials, textures, samplers, images and lights were checked, not its animations, skins or data values",
         ));
         return None;
     }
@@ -164,16 +193,6 @@ pub(crate) fn validate_glb(
             "no mesh primitive has the KHR_gaussian_splatting extension",
         ));
         return None;
-    }
-    if !doc
-        .extensions_used
-        .iter()
-        .any(|e| e == KHR_GAUSSIAN_SPLATTING)
-    {
-        ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
-            at("/extensionsUsed"),
-            "KHR_gaussian_splatting is used by a primitive but not listed in extensionsUsed",
-        ));
     }
     let quantized = doc
         .extensions_used
@@ -200,4 +219,18 @@ pub(crate) fn validate_glb(
         decoded_any |= decoded;
     }
     decoded_any.then_some(geom)
+}
+
+/// Every extension object in the glTF JSON `raw` must be named in its `extensionsUsed` (glTF 2.0
+/// sec. 3.12; the Khronos validator's UNDECLARED_EXTENSION).
+fn undeclared_extensions(ctx: &mut Ctx<'_>, doc: &Gltf, raw: &serde_json::Value, name: &str) {
+    let (found, _) = super::declarations::found_extensions(raw);
+    for (ext, pointer) in found {
+        if !doc.extensions_used.contains(&ext) {
+            ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
+                format!("{name}#{pointer}"),
+                format!("'{ext}' is used but not listed in the glTF's extensionsUsed"),
+            ));
+        }
+    }
 }

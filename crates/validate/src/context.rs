@@ -74,6 +74,10 @@ pub(crate) struct Ctx<'a> {
     pub issues: Vec<Issue>,
     /// An in-memory file standing in for the disk (single-file validation and fuzzing).
     pub memory: Option<(PathBuf, Vec<u8>)>,
+    /// The files of the 3tz archives being validated, at `ARCHIVE/NAME`.
+    pub archive: std::collections::HashMap<PathBuf, Vec<u8>>,
+    /// The 3tz archives being validated (outermost first): nothing under them is on disk.
+    pub archives: Vec<PathBuf>,
     /// Quality-variant URI templates (name, template) declared by the tileset's `splatVariants`
     /// metadata (spec/quality-variants.md): each content tile's variant files are checked too.
     pub variant_templates: Vec<(String, String)>,
@@ -136,6 +140,8 @@ impl<'a> Ctx<'a> {
             opts,
             issues: Vec::new(),
             memory: None,
+            archive: Default::default(),
+            archives: Vec::new(),
             variant_templates: Vec::new(),
             layered_seen: false,
             cut: Vec::new(),
@@ -218,6 +224,13 @@ impl<'a> Ctx<'a> {
             let bytes = bytes.clone();
             return self.decompress(bytes, name);
         }
+        if self.in_archive(file) {
+            let Some(bytes) = self.archive.get(file).cloned() else {
+                self.push(Issue::IO_ERROR(name, "no such entry in the 3tz archive"));
+                return None;
+            };
+            return self.decompress(bytes, name);
+        }
         let real = match self.checked(file) {
             Ok(real) => real,
             Err(Refused::Outside(why)) => {
@@ -275,7 +288,14 @@ impl<'a> Ctx<'a> {
 
     /// Whether `file` exists (in memory or on disk) as a regular file.
     pub fn exists(&self, file: &Path) -> bool {
-        self.memory.as_ref().is_some_and(|(p, _)| p == file) || file.is_file()
+        self.memory.as_ref().is_some_and(|(p, _)| p == file)
+            || self.archive.contains_key(file)
+            || (!self.in_archive(file) && file.is_file())
+    }
+
+    /// Whether `file` lies inside a 3tz archive being validated (so never on disk).
+    pub fn in_archive(&self, file: &Path) -> bool {
+        self.archives.iter().any(|a| file.starts_with(a))
     }
 
     /// Decompresses `bytes` when they start with gzip or zstd magic; other bytes pass through.

@@ -13,7 +13,7 @@ const KNOWN: &[&str] = &[
     "3DTILES_implicit_tiling",
     "3DTILES_metadata",
     "3DTILES_multiple_contents",
-    // Its declaration rules are checked; the archives' entries are noted as not opened.
+    // Its declaration rules are checked and each archive's tileset is validated (archive.rs).
     "MAXAR_content_3tz",
 ];
 
@@ -77,20 +77,21 @@ pub(crate) fn found_extensions(
 }
 
 /// Reads `key` as an array of unique strings; reports type errors and duplicates.
-fn names<'v>(ctx: &mut Ctx<'_>, v: &'v Value, key: &str) -> Vec<&'v str> {
+/// `base` is the JSON pointer of the object holding the array.
+fn names<'v>(ctx: &mut Ctx<'_>, v: &'v Value, base: &str, key: &str) -> Vec<&'v str> {
     let Some(a) = v.get(key) else {
         return vec![];
     };
     let Some(a) = a.as_array() else {
         ctx.push(Issue::TYPE_MISMATCH(
-            ctx.at(&format!("/{key}")),
+            ctx.at(&format!("{base}/{key}")),
             format!("{key} must be an array of strings"),
         ));
         return vec![];
     };
     if a.is_empty() {
         ctx.push(Issue::ARRAY_LENGTH_MISMATCH(
-            ctx.at(&format!("/{key}")),
+            ctx.at(&format!("{base}/{key}")),
             format!("{key}, when present, must not be empty"),
         ));
     }
@@ -98,11 +99,11 @@ fn names<'v>(ctx: &mut Ctx<'_>, v: &'v Value, key: &str) -> Vec<&'v str> {
     for (i, e) in a.iter().enumerate() {
         match e.as_str() {
             None => ctx.push(Issue::TYPE_MISMATCH(
-                ctx.at(&format!("/{key}/{i}")),
+                ctx.at(&format!("{base}/{key}/{i}")),
                 format!("{key} must hold strings"),
             )),
             Some(s) if out.contains(&s) => ctx.push(Issue::ARRAY_ELEMENT_NOT_UNIQUE(
-                ctx.at(&format!("/{key}/{i}")),
+                ctx.at(&format!("{base}/{key}/{i}")),
                 format!("'{s}' is listed twice in {key}"),
             )),
             Some(s) => out.push(s),
@@ -114,8 +115,11 @@ fn names<'v>(ctx: &mut Ctx<'_>, v: &'v Value, key: &str) -> Vec<&'v str> {
 /// Checks the declarations of the tileset JSON `v`; returns the names in `extensionsUsed` and
 /// the extensions found in `v` (for [`unfound`], once the external tilesets are walked).
 pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> (Vec<String>, BTreeSet<String>) {
-    let used = names(ctx, v, "extensionsUsed");
-    let required = names(ctx, v, "extensionsRequired");
+    let used = names(ctx, v, "", "extensionsUsed");
+    let required = names(ctx, v, "", "extensionsRequired");
+    if let Some(gltf) = v.pointer("/extensions/3DTILES_content_gltf") {
+        content_gltf(ctx, gltf);
+    }
     for (i, r) in required.iter().enumerate() {
         if !used.contains(r) {
             ctx.push(Issue::EXTENSION_REQUIRED_BUT_NOT_USED(
@@ -164,6 +168,22 @@ pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> (Vec<String>, BTreeS
         used.into_iter().map(str::to_string).collect(),
         found.into_keys().collect(),
     )
+}
+
+/// The `3DTILES_content_gltf` object: its `extensionsUsed` and `extensionsRequired` (the glTF
+/// extensions the contents use) are unique strings, and every required one is also used.
+fn content_gltf(ctx: &mut Ctx<'_>, gltf: &Value) {
+    const BASE: &str = "/extensions/3DTILES_content_gltf";
+    let used = names(ctx, gltf, BASE, "extensionsUsed");
+    let required = names(ctx, gltf, BASE, "extensionsRequired");
+    for (i, r) in required.iter().enumerate() {
+        if !used.contains(r) {
+            ctx.push(Issue::EXTENSION_REQUIRED_BUT_NOT_USED(
+                ctx.at(&format!("{BASE}/extensionsRequired/{i}")),
+                format!("glTF extension '{r}' is required but not in extensionsUsed"),
+            ));
+        }
+    }
 }
 
 /// After the walk of a tileset: every extension found in the external tilesets below it

@@ -111,6 +111,9 @@ pub(super) fn read_uri_buffer(
     byte_length: u64,
     path: &str,
 ) -> Option<Vec<u8>> {
+    if uri.len() >= 5 && uri[..5].eq_ignore_ascii_case("data:") {
+        return data_uri(ctx, uri, byte_length, path);
+    }
     let rel = if dir.is_empty() {
         uri.to_string()
     } else {
@@ -131,4 +134,45 @@ pub(super) fn read_uri_buffer(
         ));
     }
     data
+}
+
+/// The bytes of a buffer embedded as a base64 data URI (`data:MEDIATYPE;base64,DATA`, the form
+/// glTF 2.0 sec. 3.6.1.1 allows), checked against `byteLength` as a file would be.
+fn data_uri(ctx: &mut Ctx<'_>, uri: &str, byte_length: u64, path: &str) -> Option<Vec<u8>> {
+    use base64::Engine;
+    let at = format!("{path}/uri");
+    let Some((head, payload)) = uri.split_once(',') else {
+        ctx.push(Issue::URI_INVALID(
+            at,
+            "a data URI without ',' before its data",
+        ));
+        return None;
+    };
+    if !head.to_ascii_lowercase().ends_with(";base64") {
+        ctx.push(Issue::URI_INVALID(
+            at,
+            "a glTF buffer data URI must be base64-encoded (';base64,')",
+        ));
+        return None;
+    }
+    let data = match base64::engine::general_purpose::STANDARD.decode(payload) {
+        Ok(d) => d,
+        Err(e) => {
+            ctx.push(Issue::URI_INVALID(
+                at,
+                format!("the base64 data does not decode: {e}"),
+            ));
+            return None;
+        }
+    };
+    if (data.len() as u64) < byte_length {
+        ctx.push(Issue::BUFFERS_INCONSISTENT(
+            format!("{path}/byteLength"),
+            format!(
+                "byteLength {byte_length} exceeds the {} bytes of the data URI",
+                data.len()
+            ),
+        ));
+    }
+    Some(data)
 }

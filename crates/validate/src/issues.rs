@@ -100,6 +100,16 @@ catalogue! {
     EXTERNAL_TILESET_VALIDATION_WARNING => Warning,
     /// An external tileset has only notes (listed as causes).
     EXTERNAL_TILESET_VALIDATION_INFO => Info,
+    /// A tile content (glb, glTF, b3dm, i3dm, pnts, cmpt, 3tz, GeoJSON) has errors (listed as
+    /// causes).
+    CONTENT_VALIDATION_ERROR => Error,
+    /// A tile content has warnings but no errors (listed as causes).
+    CONTENT_VALIDATION_WARNING => Warning,
+    /// A tile content has only notes (listed as causes).
+    CONTENT_VALIDATION_INFO => Info,
+    /// A b3dm / i3dm / pnts feature or batch table property that its format does not define, of
+    /// the wrong shape, or outside its binary body.
+    CONTENT_JSON_INVALID => Error,
     /// An external tileset refers back to itself or to a tileset that refers to it (a cycle).
     EXTERNAL_TILESET_CYCLE => Error,
     /// External tilesets nest deeper than --max-external-depth; the deeper ones are not opened.

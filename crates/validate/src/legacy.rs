@@ -87,7 +87,8 @@ fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
         ));
         return;
     }
-    let ft = tables(ctx, b, header, &lens, name);
+    let (ft, bt) = tables(ctx, b, header, &lens, name);
+    properties(ctx, (&ft, &bt), &kind, &lens, name);
     let global = |ft: &Value, ctx: &mut Ctx<'_>, key: &str| {
         if ft.is_object() && ft.get(key).and_then(Value::as_u64).is_none() {
             ctx.push(Issue::PROPERTY_MISSING(
@@ -147,9 +148,15 @@ fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
 }
 
 /// The feature and batch tables of a b3dm / i3dm / pnts whose header is `header` bytes and whose
-/// table lengths are `lens`: their 8-byte alignment and JSON; returns the feature table JSON
-/// (`Null` when it does not parse).
-fn tables(ctx: &mut Ctx<'_>, b: &[u8], header: usize, lens: &[usize], name: &str) -> Value {
+/// table lengths are `lens`: their 8-byte alignment and JSON; returns the feature table JSON and
+/// the batch table JSON (`Null` when absent or when it does not parse).
+fn tables(
+    ctx: &mut Ctx<'_>,
+    b: &[u8],
+    header: usize,
+    lens: &[usize],
+    name: &str,
+) -> (Value, Value) {
     // Feature table JSON, feature table binary, batch table JSON, batch table binary: the JSON
     // parts are padded so that each part after the first starts on an 8-byte boundary.
     let mut at = header;
@@ -162,7 +169,10 @@ fn tables(ctx: &mut Ctx<'_>, b: &[u8], header: usize, lens: &[usize], name: &str
     .iter()
     .enumerate()
     {
-        if i > 0 && lens[i] > 0 && !at.is_multiple_of(8) {
+        // A binary part must start aligned even when it is empty (as Cesium's validator
+        // checks); the batch table JSON only when present.
+        let binary = i % 2 == 1;
+        if i > 0 && (binary || lens[i] > 0) && !at.is_multiple_of(8) {
             ctx.push(Issue::BINARY_INVALID_ALIGNMENT(
                 format!("{name}@byte {at}"),
                 format!("the {what} starts at byte {at}, not on an 8-byte boundary"),
@@ -171,25 +181,57 @@ fn tables(ctx: &mut Ctx<'_>, b: &[u8], header: usize, lens: &[usize], name: &str
         at += lens[i];
     }
     let bt_at = header + lens[0] + lens[1];
-    if lens[2] > 0
-        && let Err(e) = serde_json::from_slice::<Value>(&b[bt_at..bt_at + lens[2]])
-    {
-        ctx.push(Issue::JSON_PARSE_ERROR(
-            format!("{name}@byte {bt_at}"),
-            format!("batch table JSON: {e}"),
-        ));
-    }
+    let bt = match serde_json::from_slice::<Value>(&b[bt_at..bt_at + lens[2]]) {
+        _ if lens[2] == 0 => Value::Null,
+        Ok(v) => v,
+        Err(e) => {
+            ctx.push(Issue::JSON_PARSE_ERROR(
+                format!("{name}@byte {bt_at}"),
+                format!("batch table JSON: {e}"),
+            ));
+            Value::Null
+        }
+    };
     let ft_json = &b[header..header + lens[0]];
     if ft_json.is_empty() {
-        return Value::Object(Default::default());
+        return (Value::Object(Default::default()), bt);
     }
-    serde_json::from_slice(ft_json).unwrap_or_else(|e| {
+    let ft = serde_json::from_slice(ft_json).unwrap_or_else(|e| {
         ctx.push(Issue::JSON_PARSE_ERROR(
             format!("{name}@byte {header}"),
             format!("feature table JSON: {e}"),
         ));
         Value::Null
-    })
+    });
+    (ft, bt)
+}
+
+/// The feature table's and batch table's properties (`legacy_tables`), counted by the format's
+/// length global (a pnts batch table by BATCH_LENGTH when present).
+fn properties(
+    ctx: &mut Ctx<'_>,
+    (ft, bt): (&Value, &Value),
+    kind: &str,
+    lens: &[usize],
+    name: &str,
+) {
+    let count_key = match kind {
+        "b3dm" => "BATCH_LENGTH",
+        "i3dm" => "INSTANCES_LENGTH",
+        _ => "POINTS_LENGTH",
+    };
+    let Some(count) = ft.get(count_key).and_then(Value::as_u64) else {
+        return;
+    };
+    super::legacy_tables::feature_table(ctx, ft, kind, count, lens[1], name);
+    let features = match kind {
+        "pnts" => ft
+            .get("BATCH_LENGTH")
+            .and_then(Value::as_u64)
+            .unwrap_or(count),
+        _ => count,
+    };
+    super::legacy_tables::batch_table(ctx, bt, features, lens[3], name);
 }
 
 /// Per-instance / per-point feature table semantics: (name, bytes per element, alignment).

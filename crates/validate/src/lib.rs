@@ -6,6 +6,7 @@
 //! failure, and a [`Report`] that serialises like that validator's JSON report. Every rule, its
 //! code and the spec sentence it enforces are listed in `spec/validation.md`.
 
+mod archive;
 mod content;
 mod context;
 mod cut;
@@ -17,6 +18,7 @@ pub mod issues;
 mod json;
 mod layered;
 mod legacy;
+mod legacy_tables;
 mod metadata;
 pub mod report;
 mod splat_primitive;

@@ -82,7 +82,7 @@ pub(super) fn check(
     let at = |p: &str| format!("{name}#{p}");
     let pp = format!("/meshes/{m}/primitives/{p}");
     let ep = format!("{pp}/extensions/{KHR_GAUSSIAN_SPLATTING}");
-    let compressed = check_extension(ctx, g.doc, name, &pp, &ep, prim, ext);
+    let compressed = check_extension(ctx, name, &pp, &ep, prim, ext);
     let attrs = &prim.attributes;
     check_attribute_set(ctx, name, &pp, attrs, compressed);
     let views = check_accessors(ctx, g, &pp, attrs, compressed);
@@ -121,7 +121,6 @@ pub(super) fn check(
 /// its child extensions; true when a child extension compresses the attribute data.
 fn check_extension(
     ctx: &mut Ctx<'_>,
-    doc: &Gltf,
     name: &str,
     pp: &str,
     ep: &str,
@@ -176,26 +175,11 @@ fn check_extension(
             format!("sortingMethod '{v}' is not \"cameraDistance\""),
         ));
     }
-    // Child extensions must also be in extensionsUsed.
-    let mut compressed = false;
-    for child in ext.extensions.iter().flat_map(|e| e.keys()) {
-        compressed |= child == KHR_GAUSSIAN_SPLATTING_SPZ_2 || child.contains("compression");
-        if !doc.extensions_used.contains(child) {
-            ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
-                at(&format!("{ep}/extensions/{child}")),
-                format!("child extension '{child}' is not listed in extensionsUsed"),
-            ));
-        }
-    }
-    for other in prim.extensions.iter().flat_map(|e| e.other.keys()) {
-        if !doc.extensions_used.contains(other) {
-            ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
-                at(&format!("{pp}/extensions/{other}")),
-                format!("extension '{other}' is not listed in extensionsUsed"),
-            ));
-        }
-    }
-    compressed
+    // Declarations of these extensions are checked for the whole glTF (content.rs).
+    ext.extensions
+        .iter()
+        .flat_map(|e| e.keys())
+        .any(|child| child == KHR_GAUSSIAN_SPLATTING_SPZ_2 || child.contains("compression"))
 }
 
 /// Required attributes present, names the extension defines, SH degrees complete.

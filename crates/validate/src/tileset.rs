@@ -1,13 +1,13 @@
 //! `tileset.json` rules (3D Tiles 1.1 "Tileset", "Tile", "Bounding volumes", "Geometric error",
 //! "Transforms", "Refinement"): one function per spec object, each continuing after a failure.
 
-mod external;
+pub(crate) mod external;
 mod implicit;
 
 use super::content::validate_glb;
 use super::context::{Ctx, MAX_CACHED_CENTRES};
 use super::declarations::declarations;
-use super::issues::Issue;
+use super::issues::{Issue, Severity};
 use super::metadata::entity::entity;
 use super::metadata::{Schema, validate_schema};
 use super::volume::{Volume, parse_box, parse_region, parse_sphere};
@@ -543,39 +543,20 @@ pub(crate) fn content_file(
         return;
     };
     let first = bytes.iter().find(|b| !b.is_ascii_whitespace()).copied();
-    if first == Some(b'{') {
-        match json_content_kind(&bytes, &lower) {
-            JsonContent::Gltf => ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
-                uri,
-                "a glTF JSON content: only glb contents are validated",
-            )),
-            JsonContent::GeoJson => ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
-                uri,
-                "a GeoJSON content (MAXAR_content_geojson): not validated",
-            )),
-            JsonContent::Tileset => external(ctx, &file, &bytes, uri, path, world),
-        }
+    let json = (first == Some(b'{')).then(|| json_content_kind(&bytes, &lower));
+    if let Some(JsonContent::Tileset) = json {
+        external(ctx, &file, &bytes, uri, path, world);
         return;
     }
     if bytes.starts_with(b"PK\x03\x04") {
-        ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
-            uri,
-            "a zip archive (3tz): its entries are not opened",
-        ));
+        folded(ctx, uri, path, |ctx| {
+            super::archive::archive(ctx, &file, &bytes, uri, path, world);
+        });
         return;
     }
-    if [&b"b3dm"[..], b"i3dm", b"pnts", b"cmpt"]
-        .iter()
-        .any(|m| bytes.starts_with(m))
-    {
-        super::legacy::legacy_content(ctx, &bytes, uri);
-        return;
-    }
-    let extent = ctx.opts.check_extent;
-    let Some(geom) = validate_glb(ctx, &bytes, uri, extent) else {
-        return;
-    };
+    let geom = folded(ctx, uri, path, |ctx| content_data(ctx, &bytes, uri, json));
     drop(bytes);
+    let Some(geom) = geom else { return };
     let geom = std::rc::Rc::new(geom);
     if ctx.cached_centres + geom.centres.len() <= MAX_CACHED_CENTRES {
         ctx.cached_centres += geom.centres.len();
@@ -583,6 +564,58 @@ pub(crate) fn content_file(
     }
     let Some(volume) = volume else { return };
     containment(ctx, uri, &geom, &volume, &world);
+}
+
+/// Checks one content's own data (everything but an external tileset, which
+/// [`external`] checks): a glb's splat geometry comes back for the containment check.
+fn content_data(
+    ctx: &mut Ctx<'_>,
+    bytes: &[u8],
+    uri: &str,
+    json: Option<JsonContent>,
+) -> Option<super::context::ContentGeom> {
+    if let Some(kind) = json {
+        match kind {
+            JsonContent::Gltf => {
+                let extent = ctx.opts.check_extent;
+                return super::content::validate_gltf_json(ctx, bytes, uri, extent);
+            }
+            JsonContent::GeoJson => ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
+                uri,
+                "a GeoJSON content (MAXAR_content_geojson): not validated",
+            )),
+            JsonContent::Tileset => {}
+        }
+        return None;
+    }
+    if [&b"b3dm"[..], b"i3dm", b"pnts", b"cmpt"]
+        .iter()
+        .any(|m| bytes.starts_with(m))
+    {
+        super::legacy::legacy_content(ctx, bytes, uri);
+        return None;
+    }
+    let extent = ctx.opts.check_extent;
+    validate_glb(ctx, bytes, uri, extent)
+}
+
+/// Runs `check` on one content with the issues set aside: what it finds becomes the causes of
+/// one CONTENT_VALIDATION_* issue on the referring tile (`path`), as the reference validator
+/// reports a content's issues.
+fn folded<R>(ctx: &mut Ctx<'_>, uri: &str, path: &str, check: impl FnOnce(&mut Ctx<'_>) -> R) -> R {
+    let saved = std::mem::take(&mut ctx.issues);
+    let out = check(ctx);
+    let causes = std::mem::replace(&mut ctx.issues, saved);
+    let summary = |what: &str| format!("content '{uri}' has {what} (see causes)");
+    let issue = match causes.iter().map(|i| i.severity).min() {
+        None => return out,
+        Some(Severity::Error) => Issue::CONTENT_VALIDATION_ERROR(path, summary("errors")),
+        Some(Severity::Warning) => Issue::CONTENT_VALIDATION_WARNING(path, summary("warnings")),
+        Some(Severity::Info) => Issue::CONTENT_VALIDATION_INFO(path, summary("notes")),
+    };
+    // Pushed directly: its causes were already counted against the issue limit.
+    ctx.issues.push(issue.with_causes(causes));
+    out
 }
 
 /// Checks that splat centres (and, with --check-extent, 3-sigma ellipsoids) lie in `volume`.

@@ -108,9 +108,9 @@ fn root_rules(
         }
     }
     if let Some(Volume::Sphere { .. }) = volume {
-        ctx.push(Issue::BOUNDING_VOLUME_INVALID(
+        ctx.push(Issue::TILE_IMPLICIT_ROOT_INVALID(
             format!("{path}/boundingVolume/sphere"),
-            "implicit tiling does not allow sphere bounding volumes",
+            "implicit tiling does not allow sphere bounding volumes (box, region or S2 only)",
         ));
     }
     templates
@@ -350,6 +350,7 @@ impl Walk<'_> {
         // there with its reason; only an absent file is "missing".
         let absent = !ctx.exists(&file)
             && (ctx.memory.is_some()
+                || ctx.in_archive(&file)
                 || std::fs::symlink_metadata(&file)
                     .is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound));
         if absent {
