@@ -9,6 +9,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 /// Extensions whose rules this validator applies (or that need no object in the tileset).
 const KNOWN: &[&str] = &[
+    "3DTILES_bounding_volume_S2",
     "3DTILES_content_gltf",
     "3DTILES_implicit_tiling",
     "3DTILES_metadata",
@@ -17,8 +18,9 @@ const KNOWN: &[&str] = &[
     "MAXAR_content_3tz",
 ];
 
-/// Extensions declared without any object in the tileset JSON (they act on the content).
-const WITHOUT_OBJECT: &[&str] = &["3DTILES_content_gltf", "MAXAR_content_3tz"];
+/// Extensions declared without any object in the tileset JSON (they act on the content; see
+/// [`unfound`] for `3DTILES_content_gltf`).
+const WITHOUT_OBJECT: &[&str] = &["MAXAR_content_3tz"];
 
 /// Extensions that change how contents must be read, so a client without them cannot load the
 /// tileset: when used they must also be required (as Cesium's validator requires).
@@ -135,8 +137,12 @@ pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> (Vec<String>, BTreeS
             ));
         }
     }
+    // A 3D Tiles 1.0 tileset with glTF contents needs 3DTILES_content_gltf: clients of 1.0 read
+    // only b3dm/i3dm/pnts/cmpt, so it must be required too (as Cesium's validator checks).
+    let v1_0 = v.pointer("/asset/version").and_then(Value::as_str) == Some("1.0");
     for (i, u) in used.iter().enumerate() {
-        if MUST_BE_REQUIRED.contains(u) && !required.contains(u) {
+        let must = MUST_BE_REQUIRED.contains(u) || (v1_0 && *u == "3DTILES_content_gltf");
+        if must && !required.contains(u) {
             ctx.push(Issue::EXTENSION_REQUIRED_BUT_NOT_DECLARED(
                 ctx.at(&format!("/extensionsUsed/{i}")),
                 format!(
@@ -189,11 +195,13 @@ fn content_gltf(ctx: &mut Ctx<'_>, gltf: &Value) {
 /// After the walk of a tileset: every extension found in the external tilesets below it
 /// (`below`) must be in its `used` too, and every extension it declares must be found in it or
 /// below it (3D Tiles 1.1 "Extensions": a tileset declares what it and its external tilesets use).
+/// In a 3D Tiles 1.0 tileset (`v1_0`) `3DTILES_content_gltf` needs no object: its glTF contents
+/// use it; in 1.1 glTF contents need no extension, so only its object uses it.
 pub(crate) fn unfound(
     ctx: &mut Ctx<'_>,
     used: &[String],
-    found: &BTreeSet<String>,
-    below: &BTreeSet<String>,
+    (found, below): (&BTreeSet<String>, &BTreeSet<String>),
+    v1_0: bool,
 ) {
     for name in below {
         if !used.contains(name) && !found.contains(name) {
@@ -207,7 +215,11 @@ pub(crate) fn unfound(
         }
     }
     for (i, u) in used.iter().enumerate() {
-        if !found.contains(u) && !below.contains(u) && !WITHOUT_OBJECT.contains(&u.as_str()) {
+        let without_object = match u.as_str() {
+            "3DTILES_content_gltf" => v1_0,
+            u => WITHOUT_OBJECT.contains(&u),
+        };
+        if !found.contains(u) && !below.contains(u) && !without_object {
             ctx.push(Issue::EXTENSION_USED_BUT_NOT_FOUND(
                 ctx.at(&format!("/extensionsUsed/{i}")),
                 format!(

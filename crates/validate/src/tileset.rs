@@ -689,8 +689,13 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value, world: DMat4) {
     let error = non_negative(ctx, v, "geometricError", path);
     let (used, found) = declarations(ctx, v);
     let outer_below = std::mem::take(&mut ctx.found_below);
-    ctx.gltf_undeclared = v.pointer("/asset/version").and_then(Value::as_str) == Some("1.0")
-        && !used.iter().any(|u| u == "3DTILES_content_gltf");
+    let v1_0 = v.pointer("/asset/version").and_then(Value::as_str) == Some("1.0");
+    // A required-but-unused 3DTILES_content_gltf is reported once, by `declarations`.
+    let required = v
+        .get("extensionsRequired")
+        .and_then(Value::as_array)
+        .is_some_and(|r| r.iter().any(|e| e == "3DTILES_content_gltf"));
+    ctx.gltf_undeclared = v1_0 && !required && !used.iter().any(|u| u == "3DTILES_content_gltf");
     if v.get("schema").is_some() && v.get("schemaUri").is_some() {
         ctx.push(Issue::ONE_OF_ERROR(
             path,
@@ -757,7 +762,7 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value, world: DMat4) {
         }
     }
     let below = std::mem::replace(&mut ctx.found_below, outer_below);
-    super::declarations::unfound(ctx, &used, &found, &below);
+    super::declarations::unfound(ctx, &used, (&found, &below), v1_0);
     // What this tileset and those below it use, for the tileset that refers to this one.
     ctx.found_below.extend(found.into_iter().chain(below));
 }
