@@ -578,6 +578,18 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
                 json!("subtrees/{level}/{x}/{y}.subtree")
         })
     });
+    m.insert("subtrees_uri_not_string", |t| {
+        t.edit_tileset(|v| v["root"]["implicitTiling"]["subtrees"]["uri"] = json!(17))
+    });
+    m.insert("subdivision_scheme_not_string", |t| {
+        t.edit_tileset(|v| v["root"]["implicitTiling"]["subdivisionScheme"] = json!(8))
+    });
+    m.insert("subtree_levels_string", |t| {
+        t.edit_tileset(|v| v["root"]["implicitTiling"]["subtreeLevels"] = json!("2"))
+    });
+    m.insert("box_element_string", |t| {
+        t.edit_tileset(|v| v["root"]["boundingVolume"]["box"][3] = json!("10"))
+    });
     m.insert("extension_required_not_used", |t| {
         t.edit_tileset(|v| v["extensionsRequired"] = json!(["3DTILES_content_gltf"]))
     });

@@ -117,6 +117,9 @@ catalogue! {
     /// Two properties of which at most one may be present are both present (content and
     /// contents, schema and schemaUri).
     ONE_OF_ERROR => Error,
+    /// An element of an array has the wrong JSON type (a string in a bounding box, a child tile
+    /// that is not an object).
+    ARRAY_ELEMENT_TYPE_MISMATCH => Error,
     /// An array whose elements must be unique has a duplicate (extensionsUsed, extensionsRequired).
     ARRAY_ELEMENT_NOT_UNIQUE => Error,
     /// A required property is missing.

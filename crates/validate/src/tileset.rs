@@ -23,7 +23,10 @@ pub(crate) fn numbers(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Option<Vec<f6
     };
     let out: Option<Vec<f64>> = a.iter().map(Value::as_f64).collect();
     if out.is_none() {
-        ctx.push(Issue::TYPE_MISMATCH(path, "expected an array of numbers"));
+        ctx.push(Issue::ARRAY_ELEMENT_TYPE_MISMATCH(
+            path,
+            "expected an array of numbers: an element is not a number",
+        ));
     }
     out
 }
@@ -115,28 +118,46 @@ pub(crate) fn bounding_volume(ctx: &mut Ctx<'_>, v: &Value, path: &str) -> Optio
 /// Validates the `3DTILES_bounding_volume_S2` object: a hexadecimal cell token and heights
 /// (its geometry is not used for containment checks).
 fn s2_volume(ctx: &mut Ctx<'_>, v: &Value, path: &str) {
-    match v.get("token").and_then(Value::as_str) {
-        Some(t) if (1..=16).contains(&t.len()) && t.chars().all(|c| c.is_ascii_hexdigit()) => {}
-        Some(t) => ctx.push(Issue::BOUNDING_VOLUME_INVALID(
+    match v.get("token").map(Value::as_str) {
+        Some(Some(t))
+            if (1..=16).contains(&t.len()) && t.chars().all(|c| c.is_ascii_hexdigit()) => {}
+        Some(Some(t)) => ctx.push(Issue::BOUNDING_VOLUME_INVALID(
             format!("{path}/token"),
             format!("S2 token '{t}' is not 1 to 16 hexadecimal digits"),
+        )),
+        Some(None) => ctx.push(Issue::TYPE_MISMATCH(
+            format!("{path}/token"),
+            "the S2 token must be a string",
         )),
         None => ctx.push(Issue::PROPERTY_MISSING(
             path,
             "an S2 volume needs a string 'token'",
         )),
     }
-    let h = |k: &str| v.get(k).and_then(Value::as_f64);
-    match (h("minimumHeight"), h("maximumHeight")) {
-        (Some(lo), Some(hi)) if lo > hi => ctx.push(Issue::BOUNDING_VOLUME_INVALID(
+    let mut h = |k: &str| match v.get(k).map(Value::as_f64) {
+        Some(Some(x)) => Some(x),
+        Some(None) => {
+            ctx.push(Issue::TYPE_MISMATCH(
+                format!("{path}/{k}"),
+                format!("the S2 {k} must be a number"),
+            ));
+            None
+        }
+        None => {
+            ctx.push(Issue::PROPERTY_MISSING(
+                path,
+                format!("an S2 volume needs a number '{k}'"),
+            ));
+            None
+        }
+    };
+    if let (Some(lo), Some(hi)) = (h("minimumHeight"), h("maximumHeight"))
+        && lo > hi
+    {
+        ctx.push(Issue::BOUNDING_VOLUME_INVALID(
             path,
             format!("minimumHeight {lo} is greater than maximumHeight {hi}"),
-        )),
-        (Some(_), Some(_)) => {}
-        _ => ctx.push(Issue::PROPERTY_MISSING(
-            path,
-            "an S2 volume needs numbers minimumHeight and maximumHeight",
-        )),
+        ));
     }
 }
 
@@ -244,7 +265,14 @@ pub(crate) fn tile(
     depth: usize,
 ) {
     let Some(obj) = v.as_object() else {
-        ctx.push(Issue::TYPE_MISMATCH(path, "a tile must be an object"));
+        if is_root {
+            ctx.push(Issue::TYPE_MISMATCH(path, "a tile must be an object"));
+        } else {
+            ctx.push(Issue::ARRAY_ELEMENT_TYPE_MISMATCH(
+                path,
+                "an element of children is not a tile object",
+            ));
+        }
         return;
     };
     let volume = match obj.get("boundingVolume") {
@@ -814,6 +842,13 @@ fn legacy_properties(ctx: &mut Ctx<'_>, v: &Value, path: &str) {
     };
     for (name, p) in props {
         let pp = format!("{path}/{name}");
+        if !p.is_object() {
+            ctx.push(Issue::TYPE_MISMATCH(
+                pp,
+                "a properties entry must be an object with minimum and maximum",
+            ));
+            continue;
+        }
         let mut bound = |key: &str| match p.get(key) {
             None => {
                 ctx.push(Issue::PROPERTY_MISSING(

@@ -116,6 +116,22 @@ fn root_rules(
     templates
 }
 
+/// The `subtrees` object's `uri` template (`subtrees` is the member, absent or not).
+fn subtrees_uri(ctx: &mut Ctx<'_>, subtrees: Option<&Value>, ip: &str) -> Option<String> {
+    const WHAT: &str = "'subtrees' must be an object with a string 'uri' template";
+    let issue = match subtrees {
+        None => Issue::PROPERTY_MISSING(ip, WHAT),
+        Some(s) if !s.is_object() => Issue::TYPE_MISMATCH(format!("{ip}/subtrees"), WHAT),
+        Some(s) => match s.get("uri") {
+            Some(Value::String(u)) => return Some(u.clone()),
+            None => Issue::PROPERTY_MISSING(format!("{ip}/subtrees"), WHAT),
+            Some(_) => Issue::TYPE_MISMATCH(format!("{ip}/subtrees/uri"), WHAT),
+        },
+    };
+    ctx.push(issue);
+    None
+}
+
 /// The `implicitTiling` object's rules (scheme, level counts, subtree URI template and the
 /// content templates' variables, the walk's limits); returns the scheme, subtree levels,
 /// available levels and the subtrees' URI template when they allow a walk.
@@ -129,13 +145,13 @@ fn tiling_params(
         ctx.push(Issue::TYPE_MISMATCH(ip, "implicitTiling must be an object"));
         return None;
     };
-    let scheme = match obj.get("subdivisionScheme").and_then(Value::as_str) {
-        Some("QUADTREE") => Some(Scheme::Quadtree),
-        Some("OCTREE") => Some(Scheme::Octree),
+    let scheme = match obj.get("subdivisionScheme") {
+        Some(Value::String(s)) if s == "QUADTREE" => Some(Scheme::Quadtree),
+        Some(Value::String(s)) if s == "OCTREE" => Some(Scheme::Octree),
         Some(s) => {
             ctx.push(Issue::VALUE_NOT_IN_LIST(
                 format!("{ip}/subdivisionScheme"),
-                format!("'{s}' is not QUADTREE or OCTREE"),
+                format!("{s} is not \"QUADTREE\" or \"OCTREE\""),
             ));
             None
         }
@@ -155,6 +171,13 @@ fn tiling_params(
             ));
             None
         }
+        Some(v) if !v.is_number() => {
+            ctx.push(Issue::TYPE_MISMATCH(
+                format!("{ip}/{key}"),
+                format!("{key} must be an integer"),
+            ));
+            None
+        }
         Some(v) => match v.as_u64() {
             Some(n) if n >= 1 => Some(n),
             _ => {
@@ -168,19 +191,7 @@ fn tiling_params(
     };
     let subtree_levels = levels("subtreeLevels");
     let available_levels = levels("availableLevels");
-    let subtrees_uri = match obj
-        .get("subtrees")
-        .map(|s| s.get("uri").and_then(Value::as_str))
-    {
-        Some(Some(u)) => Some(u.to_string()),
-        _ => {
-            ctx.push(Issue::PROPERTY_MISSING(
-                format!("{ip}/subtrees"),
-                "'subtrees.uri' is required",
-            ));
-            None
-        }
-    };
+    let subtrees_uri = subtrees_uri(ctx, obj.get("subtrees"), ip);
     let scheme = scheme?;
     let octree = scheme == Scheme::Octree;
     if let Some(u) = &subtrees_uri {
