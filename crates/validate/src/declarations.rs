@@ -14,13 +14,15 @@ const KNOWN: &[&str] = &[
     "3DTILES_implicit_tiling",
     "3DTILES_metadata",
     "3DTILES_multiple_contents",
+    // GeoJSON contents are told apart from tilesets and noted, not checked inside.
+    "MAXAR_content_geojson",
     // Its declaration rules are checked and each archive's tileset is validated (archive.rs).
     "MAXAR_content_3tz",
 ];
 
 /// Extensions declared without any object in the tileset JSON (they act on the content; see
 /// [`unfound`] for `3DTILES_content_gltf`).
-const WITHOUT_OBJECT: &[&str] = &["MAXAR_content_3tz"];
+const WITHOUT_OBJECT: &[&str] = &["MAXAR_content_3tz", "MAXAR_content_geojson"];
 
 /// Extensions that change how contents must be read, so a client without them cannot load the
 /// tileset: when used they must also be required (as Cesium's validator requires).
@@ -128,14 +130,18 @@ pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> (Vec<String>, BTreeS
                 ctx.at(&format!("/extensionsRequired/{i}")),
                 format!("'{r}' is required but not in extensionsUsed"),
             ));
-        } else if !KNOWN.contains(r) {
-            ctx.push(Issue::EXTENSION_REQUIRED_NOT_SUPPORTED(
-                ctx.at(&format!("/extensionsRequired/{i}")),
-                format!(
-                    "'{r}' is required but this validator does not know it: its rules are not checked, and clients without it must refuse the tileset"
-                ),
-            ));
         }
+    }
+    for (i, u) in used.iter().enumerate().filter(|(_, u)| !KNOWN.contains(u)) {
+        let required = if required.contains(u) {
+            ", and it is required: clients without it must refuse the tileset"
+        } else {
+            ""
+        };
+        ctx.push(Issue::EXTENSION_NOT_SUPPORTED(
+            ctx.at(&format!("/extensionsUsed/{i}")),
+            format!("this validator does not know '{u}': its objects are not checked{required}"),
+        ));
     }
     // A 3D Tiles 1.0 tileset with glTF contents needs 3DTILES_content_gltf: clients of 1.0 read
     // only b3dm/i3dm/pnts/cmpt, so it must be required too (as Cesium's validator checks).

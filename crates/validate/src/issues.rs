@@ -176,8 +176,8 @@ catalogue! {
     EXTRAS_UNEXPECTED_TYPE => Warning,
     /// An extension is in extensionsUsed but no object of the tileset carries it.
     EXTENSION_USED_BUT_NOT_FOUND => Warning,
-    /// A required extension is unknown to this validator: not checked, and clients may refuse it.
-    EXTENSION_REQUIRED_NOT_SUPPORTED => Warning,
+    /// An extension in extensionsUsed is unknown to this validator: its objects are not checked.
+    EXTENSION_NOT_SUPPORTED => Warning,
     /// A binary file has a bad magic or version.
     BINARY_INVALID => Error,
     /// A binary header's lengths disagree with the file size.
