@@ -202,6 +202,8 @@ catalogue! {
     CLASS_PROPERTY_TYPE_ERROR => Error,
     /// A property with a built-in semantic has the wrong type for that semantic.
     METADATA_SEMANTIC_INVALID => Error,
+    /// A class property's semantic is not one of the 3D Metadata Semantic Reference.
+    METADATA_SEMANTIC_UNKNOWN => Warning,
     /// A property table names an unknown class or property, or a missing bufferView.
     PROPERTY_TABLE_INVALID => Error,
     /// A property table's count differs from the number of available tiles or contents.

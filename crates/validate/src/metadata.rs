@@ -96,6 +96,40 @@ fn is_identifier(s: &str) -> bool {
         && c.all(|x| x.is_ascii_alphanumeric() || x == '_')
 }
 
+/// The semantics of the 3D Metadata Semantic Reference (general, tileset, tile and content),
+/// with `TILESET_TILE_COUNT` of the 3DTILES_metadata draft that 1.0 tilesets use.
+const KNOWN_SEMANTICS: &[&str] = &[
+    "ID",
+    "NAME",
+    "DESCRIPTION",
+    "ATTRIBUTION_IDS",
+    "ATTRIBUTION_STRINGS",
+    "TILESET_FEATURE_ID_LABELS",
+    "TILESET_CRS_GEOCENTRIC",
+    "TILESET_CRS_COORDINATE_EPOCH",
+    "TILESET_TILE_COUNT",
+    "TILE_BOUNDING_BOX",
+    "TILE_BOUNDING_REGION",
+    "TILE_BOUNDING_SPHERE",
+    "TILE_BOUNDING_S2_CELL",
+    "TILE_MINIMUM_HEIGHT",
+    "TILE_MAXIMUM_HEIGHT",
+    "TILE_HORIZON_OCCLUSION_POINT",
+    "TILE_GEOMETRIC_ERROR",
+    "TILE_REFINE",
+    "TILE_TRANSFORM",
+    "CONTENT_BOUNDING_BOX",
+    "CONTENT_BOUNDING_REGION",
+    "CONTENT_BOUNDING_SPHERE",
+    "CONTENT_BOUNDING_S2_CELL",
+    "CONTENT_MINIMUM_HEIGHT",
+    "CONTENT_MAXIMUM_HEIGHT",
+    "CONTENT_HORIZON_OCCLUSION_POINT",
+    "CONTENT_FEATURE_ID_LABELS",
+    "CONTENT_URI",
+    "CONTENT_GROUP_ID",
+];
+
 /// What a built-in semantic requires: (array count, None = not an array).
 fn semantic_shape(semantic: &str) -> Option<Option<u64>> {
     Some(match semantic {
@@ -276,6 +310,14 @@ fn class_property(
     }
     if let Some(s) = p.get("semantic").and_then(Value::as_str) {
         prop.semantic = Some(s.to_string());
+        if !KNOWN_SEMANTICS.contains(&s) {
+            ctx.push(Issue::METADATA_SEMANTIC_UNKNOWN(
+                format!("{pp}/semantic"),
+                format!(
+                    "'{s}' is not a semantic of the 3D Metadata Semantic Reference: clients give it no meaning"
+                ),
+            ));
+        }
         if let Some(shape) = semantic_shape(s) {
             let float = matches!(prop.component.as_deref(), Some("FLOAT32" | "FLOAT64"));
             let ok = prop.kind == "SCALAR"
