@@ -1074,19 +1074,48 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
     });
     m.insert("b3dm_batch_table_valid", |t| {
         let ft = r#"{"BATCH_LENGTH":2,"RTC_CENTER":[1,2,3]}"#;
-        write_legacy_tables(t, b"b3dm", 1, (ft, r#"{"height":[1.5,2.5]}"#), true, 0)
+        write_legacy_tables(
+            t,
+            b"b3dm",
+            1,
+            (ft, r#"{"height":[1.5,2.5]}"#),
+            &glb_payload(true),
+            0,
+        )
     });
     m.insert("b3dm_batch_table_short_array", |t| {
         let ft = r#"{"BATCH_LENGTH":2}"#;
-        write_legacy_tables(t, b"b3dm", 1, (ft, r#"{"height":[1.5]}"#), true, 0)
+        write_legacy_tables(
+            t,
+            b"b3dm",
+            1,
+            (ft, r#"{"height":[1.5]}"#),
+            &glb_payload(true),
+            0,
+        )
     });
     m.insert("b3dm_batch_table_binary_past_end", |t| {
         let bt = r#"{"id":{"byteOffset":0,"componentType":"UNSIGNED_INT","type":"SCALAR"}}"#;
-        write_legacy_tables(t, b"b3dm", 1, (r#"{"BATCH_LENGTH":2}"#, bt), true, 0)
+        write_legacy_tables(
+            t,
+            b"b3dm",
+            1,
+            (r#"{"BATCH_LENGTH":2}"#, bt),
+            &glb_payload(true),
+            0,
+        )
     });
     m.insert("i3dm_normal_up_without_right", |t| {
         let ft = r#"{"INSTANCES_LENGTH":1,"POSITION":[0,0,0],"NORMAL_UP":[0,0,1]}"#;
         write_legacy(t, b"i3dm", 1, ft, true, 0)
+    });
+    m.insert("i3dm_gltf_by_uri", |t| {
+        let ft = r#"{"INSTANCES_LENGTH":1,"POSITION":[0,0,0]}"#;
+        write_legacy_tables(t, b"i3dm", 1, (ft, ""), b"triangle.gltf   ", 0)
+    });
+    m.insert("i3dm_gltf_uri_missing", |t| {
+        let ft = r#"{"INSTANCES_LENGTH":1,"POSITION":[0,0,0]}"#;
+        write_legacy_tables(t, b"i3dm", 1, (ft, ""), b"missing.glb\0\0\0\0\0", 0)
     });
     m.insert("pnts_feature_property_unknown", |t| {
         write_pnts(
@@ -1364,18 +1393,27 @@ fn write_pnts(t: &Ts, ft: &str, binary: usize) {
 }
 
 fn write_legacy(t: &Ts, magic: &[u8; 4], version: u32, ft: &str, glb: bool, extra: usize) {
-    write_legacy_tables(t, magic, version, (ft, ""), glb, extra)
+    write_legacy_tables(t, magic, version, (ft, ""), &glb_payload(glb), extra)
+}
+
+/// An empty glb (`glb`) or nothing.
+fn glb_payload(glb: bool) -> Vec<u8> {
+    if glb {
+        write_glb(br#"{"asset":{"version":"2.0"}}"#, None).unwrap()
+    } else {
+        vec![]
+    }
 }
 
 /// A b3dm / i3dm / pnts with the feature table JSON `tables.0` and the batch table JSON
-/// `tables.1` (each padded with spaces to 8 bytes; no binary parts), then an embedded empty glb
-/// when `glb`, then `extra` zero bytes.
+/// `tables.1` (each padded with spaces to 8 bytes; no binary parts), then `payload` (an embedded
+/// glb, or for an i3dm a glTF URI: gltfFormat 0), then `extra` zero bytes.
 fn write_legacy_tables(
     t: &Ts,
     magic: &[u8; 4],
     version: u32,
     (ft, bt): (&str, &str),
-    glb: bool,
+    payload: &[u8],
     extra: usize,
 ) {
     let header = if magic == b"i3dm" { 32 } else { 28 };
@@ -1387,11 +1425,6 @@ fn write_legacy_tables(
     while !bt.len().is_multiple_of(8) {
         bt.push(b' ');
     }
-    let payload = if glb {
-        write_glb(br#"{"asset":{"version":"2.0"}}"#, None).unwrap()
-    } else {
-        vec![]
-    };
     let total = header + ft.len() + bt.len() + payload.len();
     let mut out = Vec::new();
     out.extend_from_slice(magic);
@@ -1402,11 +1435,12 @@ fn write_legacy_tables(
     out.extend_from_slice(&(bt.len() as u32).to_le_bytes());
     out.extend_from_slice(&0u32.to_le_bytes());
     if header == 32 {
-        out.extend_from_slice(&1u32.to_le_bytes());
+        let gltf_format = u32::from(payload.starts_with(b"glTF"));
+        out.extend_from_slice(&gltf_format.to_le_bytes());
     }
     out.extend_from_slice(&ft);
     out.extend_from_slice(&bt);
-    out.extend_from_slice(&payload);
+    out.extend_from_slice(payload);
     out.extend(std::iter::repeat_n(0u8, extra));
     let name = format!("content.{}", String::from_utf8_lossy(magic));
     std::fs::write(t.dir.join(name), out).unwrap();

@@ -125,7 +125,7 @@ fn tile(ctx: &mut Ctx<'_>, b: &[u8], name: &str, depth: usize) {
             );
             match u32_at(b, 28) {
                 1 => glb_payload(ctx, payload, name, header + body),
-                0 => {}
+                0 => glb_by_uri(ctx, payload, name, header + body),
                 f => ctx.push(Issue::BINARY_INVALID(
                     format!("{name}@byte 28"),
                     format!("gltfFormat {f} is neither 0 (uri) nor 1 (embedded glb)"),
@@ -330,6 +330,39 @@ fn glb_payload(ctx: &mut Ctx<'_>, payload: &[u8], name: &str, offset: usize) {
         ));
     }
     validate_glb(ctx, unpadded_glb(payload), &format!("{name}@glb"), false);
+}
+
+/// Checks the glTF (glb or JSON) an i3dm with `gltfFormat` 0 names: `payload` (at byte `offset`) is its URI,
+/// relative to the i3dm, padded with spaces or zeros.
+fn glb_by_uri(ctx: &mut Ctx<'_>, payload: &[u8], name: &str, offset: usize) {
+    let uri = std::str::from_utf8(payload)
+        .map(|u| u.trim_end_matches([' ', '\0']))
+        .unwrap_or("");
+    if uri.is_empty() {
+        ctx.push(Issue::BINARY_INVALID(
+            format!("{name}@byte {offset}"),
+            "gltfFormat 0 needs a UTF-8 glTF URI after the tables; there is none",
+        ));
+        return;
+    }
+    let dir = std::path::Path::new(name)
+        .parent()
+        .map(|p| p.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let rel = if dir.is_empty() {
+        uri.to_string()
+    } else {
+        format!("{dir}/{uri}")
+    };
+    let at = format!("{name}@byte {offset}");
+    let Some(bytes) = ctx.resolve(&rel, &at).and_then(|f| ctx.read(&f, &rel)) else {
+        return;
+    };
+    if bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
+        super::content::validate_gltf_json(ctx, &bytes, &rel, false);
+    } else {
+        validate_glb(ctx, unpadded_glb(&bytes), &rel, false);
+    }
 }
 
 /// The glb at the start of `payload` without the zero padding (fewer than 8 bytes) that brings
