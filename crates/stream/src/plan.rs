@@ -114,6 +114,18 @@ impl Planner {
         }
     }
 
+    /// The planner a name stands for, case-insensitive: `dc-dp` (or `dp`), `greedy-deadline`,
+    /// `greedy-quality`, `distance-based` (the names of [`Self::name`] lowercased).
+    pub fn from_name(name: &str) -> Option<Planner> {
+        let n = name.trim().to_ascii_lowercase();
+        if n == "dp" {
+            return Some(Planner::Dp);
+        }
+        Planner::ALL
+            .into_iter()
+            .find(|p| p.name().to_ascii_lowercase() == n)
+    }
+
     /// Solves a request.
     pub fn solve(self, req: &PlanRequest) -> Plan {
         match self {
@@ -496,4 +508,25 @@ pub fn execute(req: &PlanRequest, plan: &Plan, bandwidth: &[f64]) -> Outcome {
     }
     o.misses = on_time.iter().filter(|&&x| !x).count();
     o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Planner;
+
+    #[test]
+    fn planner_names_round_trip() {
+        for p in Planner::ALL {
+            assert_eq!(Planner::from_name(p.name()), Some(p));
+            assert_eq!(Planner::from_name(&p.name().to_lowercase()), Some(p));
+        }
+        assert_eq!(Planner::from_name("DC-DP"), Some(Planner::Dp));
+        assert_eq!(Planner::from_name("dp"), Some(Planner::Dp));
+        assert_eq!(
+            Planner::from_name("greedy-deadline"),
+            Some(Planner::GreedyDeadline)
+        );
+        assert_eq!(Planner::from_name("greedy"), None);
+        assert_eq!(Planner::from_name(""), None);
+    }
 }

@@ -11,21 +11,18 @@
 
 use super::SimulateArgs;
 use crate::sim::network::{Network, log_files, read_log};
-use crate::sim::score::{Chr, EventRule, Ratio, Truth, WarmUp, Waste, events};
-use crate::sim::score::{cache_hits_with, link_warm_up};
-use crate::sim::score::{drawn_is_needed_at_best, held_tiles, tick_views, time_to_quality, wasted};
-use crate::sim::session::{SessionLog, SessionOptions, run_session};
+use crate::sim::report::{self, GOOD, QH, QW, TGQ_HZ, TGQ_WINDOW_S, quality, session_numbers, tgq};
+use crate::sim::score::{Chr, Ratio, Truth, Waste};
+use crate::sim::session::SessionLog;
 use crate::sim::stream_city::{BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set};
 use crate::sim::svg::{Series, write_time_plots};
-use crate::sim::transport::{NetModel, Outcome};
+use crate::sim::transport::NetModel;
 use anyhow::Context;
 use glam::DVec3;
-use splat2tiles_render::{Image, ssim};
+use splat2tiles_render::Image;
 use splat2tiles_stream::catalog::Level;
-use splat2tiles_stream::client::{ClientConfig, PredictorKind};
-use splat2tiles_stream::geom::ViewPose;
+use splat2tiles_stream::client::ClientConfig;
 use splat2tiles_stream::plan::Planner;
-use splat2tiles_stream::predict::{Oracle, Predictor};
 use splat2tiles_stream::split::EvaluationSet;
 use splat2tiles_stream::trace::{self, Trace};
 use splat2tiles_tiles::tiling::TileKey;
@@ -50,15 +47,6 @@ pub const PER_KIND: usize = 2;
 const TABLE5_S: f64 = 30.0;
 /// Quality samples per second on the plot trace.
 const QUALITY_HZ: f64 = 1.0;
-/// Quality samples per second after an event (TGQ).
-const TGQ_HZ: f64 = 4.0;
-/// Seconds after an event within which TGQ is looked for (not reached: counted as this).
-const TGQ_WINDOW_S: f64 = 5.0;
-/// Quality render size (the client's 1280x720 view at half size).
-const QW: u32 = 640;
-const QH: u32 = 360;
-/// SSIM counted as good quality.
-const GOOD: f64 = 0.9;
 
 /// The Table 4 predictors; "tcn" is the committed learned model; "oracle, mirrored"
 /// is the oracle of the trace turned 180 degrees about its start: a damaged predictor the setup
@@ -72,22 +60,8 @@ const PREDICTORS: [&str; 6] = [
     "oracle, mirrored",
 ];
 
-/// A trace mirrored about its first position (heading turned by 180 degrees).
-fn mirrored(poses: &[ViewPose]) -> Vec<ViewPose> {
-    let Some(o) = poses.first().map(|p| p.pos) else {
-        return vec![];
-    };
-    poses
-        .iter()
-        .map(|p| ViewPose {
-            pos: DVec3::new(2.0 * o.x - p.pos.x, 2.0 * o.y - p.pos.y, p.pos.z),
-            yaw: p.yaw + std::f64::consts::PI,
-            ..*p
-        })
-        .collect()
-}
-
-/// One session of `predictor` (a `PREDICTORS` name) planned by `planner`.
+/// One session of `predictor` (a `PREDICTORS` name) planned by `planner`
+/// ([`report::session`] on the trace's poses).
 pub fn session(
     dir: &Path,
     tr: &Trace,
@@ -96,25 +70,7 @@ pub fn session(
     net: &NetModel,
     budget: u64,
 ) -> SessionLog {
-    // The oracles run on a reactive config with their own predictor (below).
-    let kind = PredictorKind::from_name(predictor).unwrap_or(PredictorKind::Reactive);
-    let oracle: Option<Vec<ViewPose>> = match predictor {
-        "oracle" => Some(tr.poses.clone()),
-        "oracle, mirrored" => Some(mirrored(&tr.poses)),
-        _ => None,
-    };
-    let mut cfg = ClientConfig {
-        max_concurrent: 4,
-        predictor: kind,
-        memory_budget_bytes: budget,
-        ..ClientConfig::default()
-    };
-    cfg.plan.planner = planner;
-    let opts = SessionOptions {
-        predictor: oracle.map(|trace| Box::new(Oracle { trace }) as Box<dyn Predictor + Send>),
-        record_inputs: false,
-    };
-    run_session(dir, cfg, &tr.poses, net, opts)
+    report::session(dir, &tr.poses, predictor, planner, net, budget)
 }
 
 /// A trace cut to its first `s` seconds.
@@ -175,17 +131,7 @@ struct Scored {
 }
 
 fn needed_cuts(truth: &Truth, tr: &Trace) -> Vec<Vec<TileKey>> {
-    let c = ClientConfig::default();
-    tr.poses.iter().map(|p| truth.needed_at(&c, p)).collect()
-}
-
-/// Completed content downloads `(tile, bytes, end)`.
-fn downloads(log: &SessionLog) -> Vec<(TileKey, u64, f64)> {
-    log.requests
-        .iter()
-        .filter(|r| r.outcome == Outcome::Done)
-        .filter_map(|r| Some((r.key?, r.bytes, r.end_s?)))
-        .collect()
+    report::needed_cuts(truth, &ClientConfig::default(), &tr.poses)
 }
 
 /// Utility held at first-time entries: the sum over entries of the utility of the level held
@@ -217,79 +163,6 @@ fn entry_utility(
         prev = now;
     }
     (sum, r)
-}
-
-/// Quality at tick `k` of a session: SSIM at QWxQH of what it drew against the needed cut at
-/// Best (1 without rendering when it drew exactly that).
-fn quality(truth: &mut Truth, sc: &mut Scored, log: &SessionLog, k: usize) -> anyhow::Result<f64> {
-    let needed = &sc.needed[k];
-    let drawn: Vec<(TileKey, Level)> = log.ticks[k].drawn.iter().map(|d| (d.0, d.1)).collect();
-    if needed.is_empty() {
-        return Ok(1.0);
-    }
-    if drawn_is_needed_at_best(needed, &drawn) {
-        return Ok(1.0);
-    }
-    let c = ClientConfig::default();
-    let cam = splat2tiles_core::camera::Camera::from_pose(
-        c.width,
-        c.height,
-        c.fov_y_deg,
-        truth.root_transform() * log.ticks[k].pose.world_from_camera(),
-    )
-    .resized(QW, QH);
-    if let std::collections::hash_map::Entry::Vacant(e) = sc.refs.entry(k) {
-        let best: Vec<(TileKey, Level)> = needed.iter().map(|k| (*k, Level::Best)).collect();
-        e.insert(truth.render(&best, &cam)?);
-    }
-    let got = truth.render(&drawn, &cam)?;
-    Ok(ssim(&got, &sc.refs[&k])?)
-}
-
-/// TGQ of one session per event (`score::events`): quality sampled at [`TGQ_HZ`] from the event
-/// until it reaches [`GOOD`], the next event or [`TGQ_WINDOW_S`] (`None`: not reached). The
-/// first event (the cold start) comes back apart. Also returns the samples rendered.
-fn tgq(
-    truth: &mut Truth,
-    sc: &mut Scored,
-    log: &SessionLog,
-) -> anyhow::Result<(Option<f64>, Vec<Option<f64>>, usize)> {
-    let ev = {
-        let held = held_tiles(log);
-        let vs = tick_views(log, sc.needed.iter().map(Vec::as_slice), &held);
-        let yaw: Vec<f64> = log.ticks.iter().map(|t| t.pose.yaw.to_degrees()).collect();
-        events(&vs, &yaw, &EventRule::default())
-    };
-    let mut out = vec![];
-    let mut rendered = 0;
-    for (j, &e) in ev.iter().enumerate() {
-        let end = ev
-            .get(j + 1)
-            .copied()
-            .unwrap_or(f64::INFINITY)
-            .min(e + TGQ_WINDOW_S);
-        let mut samples = vec![];
-        let mut next = e;
-        for k in 0..log.ticks.len() {
-            let t = log.ticks[k].t;
-            if t + 1e-9 < next {
-                continue;
-            }
-            if t >= end {
-                break;
-            }
-            next = t + 1.0 / TGQ_HZ;
-            let q = quality(truth, sc, log, k)?;
-            rendered += 1;
-            samples.push((t, q));
-            if q >= GOOD {
-                break;
-            }
-        }
-        out.push(time_to_quality(&[e], &samples, GOOD)[0]);
-    }
-    let cold = if out.is_empty() { None } else { out.remove(0) };
-    Ok((cold, out, rendered))
 }
 
 /// Sums of one Table 4 row over traces.
@@ -416,19 +289,10 @@ impl Table4<'_> {
         let t_s = Instant::now();
         let log = session(self.dir, &sc.trace, p, Planner::Dp, &net10, BUDGET);
         let session_s = t_s.elapsed().as_secs_f64();
-        let held = held_tiles(&log);
-        let vs = tick_views(&log, sc.needed.iter().map(Vec::as_slice), &held);
         // Warm from the time the link needs for the first cut at Low (the same for every
         // predictor and planner).
-        let warm_at = link_warm_up(
-            &vs,
-            |k| self.low_bytes.get(k).copied().unwrap_or(0),
-            net10.rate(0.0),
-            net10.rtt_s,
-        );
-        let c = cache_hits_with(&vs, WarmUp::At(warm_at));
-        let w = wasted(&downloads(&log), &vs);
-        drop(vs);
+        let n = session_numbers(&log, &sc.needed, self.low_bytes, &net10);
+        let (c, w) = (n.chr, n.waste);
         eprintln!(
             "simulate: city {p} on {}: session {session_s:.1} s",
             self.names[ti]
@@ -442,8 +306,8 @@ impl Table4<'_> {
         r.waste.bytes += w.bytes;
         r.waste.wasted_tiles += w.wasted_tiles;
         r.waste.wasted_bytes += w.wasted_bytes;
-        r.mb += log.ticks.last().map_or(0, |t| t.bytes_down) as f64 / 1e6;
-        r.evictions += log.evictions;
+        r.mb += n.bytes_down as f64 / 1e6;
+        r.evictions += n.evictions;
         r.sessions += 1;
         if ti == self.plot_trace && p != "oracle, mirrored" {
             let t0 = log.ticks.first().map_or(0.0, |t| t.t);
@@ -453,7 +317,10 @@ impl Table4<'_> {
             for k in 0..log.ticks.len() {
                 if log.ticks[k].t + 1e-9 >= next {
                     next += 1.0 / QUALITY_HZ;
-                    q.push((log.ticks[k].t - t0, quality(truth, sc, &log, k)?));
+                    q.push((
+                        log.ticks[k].t - t0,
+                        quality(truth, &sc.needed, &mut sc.refs, &log, k)?,
+                    ));
                 }
             }
             eprintln!(
@@ -473,7 +340,7 @@ impl Table4<'_> {
         }
         if self.tgq_traces.contains(&ti) {
             let t_q = Instant::now();
-            let (cold, later, n) = tgq(truth, sc, &log)?;
+            let (cold, later, n) = tgq(truth, &sc.needed, &mut sc.refs, &log)?;
             eprintln!(
                 "simulate: city {p} TGQ on {}: cold {cold:?}, events {later:?} ({n} samples in {:.1} s)",
                 self.names[ti],

@@ -3,6 +3,7 @@
 
 pub mod misses;
 pub mod network;
+pub mod report;
 pub mod score;
 pub mod session;
 pub mod stream_city;
