@@ -1109,6 +1109,11 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
         let ft = r#"{"INSTANCES_LENGTH":1,"POSITION":[0,0,0],"NORMAL_UP":[0,0,1]}"#;
         write_legacy(t, b"i3dm", 1, ft, true, 0)
     });
+    m.insert("b3dm_glb_version_3", |t| {
+        let mut glb = glb_payload(true);
+        glb[4] = 3;
+        write_legacy_tables(t, b"b3dm", 1, (r#"{"BATCH_LENGTH":0}"#, ""), &glb, 0)
+    });
     m.insert("i3dm_gltf_by_uri", |t| {
         let ft = r#"{"INSTANCES_LENGTH":1,"POSITION":[0,0,0]}"#;
         write_legacy_tables(t, b"i3dm", 1, (ft, ""), b"triangle.gltf   ", 0)
