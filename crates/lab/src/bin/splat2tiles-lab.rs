@@ -20,7 +20,15 @@ enum Command {
 
 fn main() {
     let Command::Simulate(a) = Cli::parse().command;
-    if let Err(e) = simulate::run(&a) {
+    let done = if a.tileset.is_some() {
+        splat2tiles_lab::experiments::simulate_tool::run_tool(&a).map(|run| {
+            print!("{}", run.summary);
+            println!("report: {}", a.report_dir.join("report.md").display());
+        })
+    } else {
+        simulate::run(&a)
+    };
+    if let Err(e) = done {
         eprintln!("splat2tiles-lab: {e:#}");
         std::process::exit(2);
     }

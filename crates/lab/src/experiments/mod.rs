@@ -4,6 +4,9 @@
 pub mod simulate;
 pub mod simulate_city;
 mod simulate_layers;
+pub mod simulate_tool;
+pub mod tool_args;
+pub mod tool_report;
 
 use std::path::PathBuf;
 
@@ -42,4 +45,58 @@ pub struct SimulateArgs {
     /// Splats per tile when tiling the shared scenes.
     #[arg(long, default_value_t = 4096)]
     pub max_splats: u32,
+    /// Simulate the client on this tileset (a folder, its tileset.json, or an http:// URL)
+    /// instead of running an experiment; needs --trace.
+    #[arg(long, help_heading = "Your own tileset")]
+    pub tileset: Option<String>,
+    /// Camera path: a splat2tiles-trace v1 CSV or an EyeNavGS CSV (spec/camera-trace.md).
+    #[arg(long, help_heading = "Your own tileset")]
+    pub trace: Option<PathBuf>,
+    /// Bandwidth log (lines `TIME_S MBPS`, looped); replaces --bandwidth.
+    #[arg(long, help_heading = "Your own tileset")]
+    pub network: Option<PathBuf>,
+    /// Constant link rate (e.g. 10Mbit, 500kbit, 1Gbit).
+    #[arg(long, default_value = "10Mbit", help_heading = "Your own tileset")]
+    pub bandwidth: String,
+    /// Round trip per request (e.g. 40ms).
+    #[arg(long, default_value = "40ms", help_heading = "Your own tileset")]
+    pub rtt: String,
+    /// Predictor: reactive, constant-velocity, linear, tcn or oracle (the trace itself).
+    #[arg(long, default_value = "linear", help_heading = "Your own tileset")]
+    pub predictor: String,
+    /// Planner: dc-dp, greedy-deadline, greedy-quality or distance-based.
+    #[arg(long, default_value = "dc-dp", help_heading = "Your own tileset")]
+    pub planner: String,
+    /// Client memory budget (e.g. 256MiB).
+    #[arg(long, default_value = "256MiB", help_heading = "Your own tileset")]
+    pub budget: String,
+    /// Client viewport in pixels.
+    #[arg(long, default_value = "1280x720", help_heading = "Your own tileset")]
+    pub viewport: String,
+    /// Requests in flight at most.
+    #[arg(long, default_value_t = 4, help_heading = "Your own tileset")]
+    pub max_concurrent: usize,
+    /// Quality samples per second (rendered; 0: no quality, no TGQ).
+    #[arg(long, default_value_t = 1.0, help_heading = "Your own tileset")]
+    pub quality_hz: f64,
+    /// Where report.md, report.json and the plots go.
+    #[arg(
+        long,
+        default_value = "target/sim/report",
+        help_heading = "Your own tileset"
+    )]
+    pub report_dir: PathBuf,
+    /// EyeNavGS traces: tileset-frame position of the session's start, x,y,z (default: the
+    /// centre of the tileset's content bounds at their lowest z).
+    #[arg(long, help_heading = "Your own tileset")]
+    pub anchor: Option<String>,
+    /// EyeNavGS traces: rotation of the path about z, degrees.
+    #[arg(long, default_value_t = 0.0, help_heading = "Your own tileset")]
+    pub heading: f64,
+    /// EyeNavGS traces: horizontal scale of the path.
+    #[arg(long, default_value_t = 1.0, help_heading = "Your own tileset")]
+    pub h_scale: f64,
+    /// EyeNavGS traces: eye height above the anchor, metres.
+    #[arg(long, default_value_t = 1.7, help_heading = "Your own tileset")]
+    pub eye_height: f64,
 }
