@@ -3,12 +3,13 @@
 //!
 //! The numbers are those of the city experiment (`sim::report`), against the needed cut of the
 //! client's viewport at every trace tick; `spec/camera-trace.md` defines them and the trace
-//! formats. An `http://` tileset is mirrored first (`sim::mirror`), since the simulated transport
-//! reads local files.
+//! formats. An `http://` tileset is mirrored first (`sim::mirror`, into `REPORT_DIR/mirror`,
+//! removed after the run), since the simulated transport reads local files.
 
 use super::SimulateArgs;
 use super::tool_args::parse_viewport;
 use super::tool_args::{parse_bytes, parse_duration_s, parse_point, parse_rate_mbps};
+use crate::sim::mirror::mirror;
 use crate::sim::network::read_log;
 use crate::sim::report::{self, SessionNumbers, client_setup, known_predictor, session_numbers};
 use crate::sim::score::{Ratio, Truth};
@@ -315,7 +316,13 @@ pub fn run_tool(args: &SimulateArgs) -> anyhow::Result<ToolRun> {
         .with_context(|| format!("--report-dir {}", args.report_dir.display()))?;
     let remote = source.starts_with("http://") || source.starts_with("https://");
     let dir = if remote {
-        bail!("--tileset {source}: http tilesets are not supported yet; pass a folder");
+        // The simulated transport reads files: copy the tileset next to the report first.
+        let dir = args.report_dir.join("mirror");
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir).with_context(|| dir.display().to_string())?;
+        }
+        mirror(&source, &dir).with_context(|| format!("--tileset {source}"))?;
+        dir
     } else {
         let p = PathBuf::from(&source);
         if p.is_file() {
@@ -324,7 +331,12 @@ pub fn run_tool(args: &SimulateArgs) -> anyhow::Result<ToolRun> {
             p
         }
     };
-    let run = simulate(inputs(args, &source, &dir)?)?;
+    let run = simulate(inputs(args, &source, &dir)?);
+    if remote {
+        // The mirror was only for this run (keep the report folder small).
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    let run = run?;
     super::tool_report::write(&run, &args.report_dir)?;
     Ok(run)
 }
