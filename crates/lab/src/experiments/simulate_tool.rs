@@ -9,12 +9,13 @@
 use super::SimulateArgs;
 use super::tool_args::parse_viewport;
 use super::tool_args::{parse_bytes, parse_duration_s, parse_point, parse_rate_mbps};
+pub use super::tool_report::{ToolInputs, ToolRun};
 use crate::sim::mirror::mirror;
 use crate::sim::network::read_log;
-use crate::sim::report::{self, SessionNumbers, client_setup, known_predictor, session_numbers};
+use crate::sim::report::{self, client_setup, known_predictor, session_numbers};
 use crate::sim::score::{Ratio, Truth};
-use crate::sim::session::{SessionLog, run_session};
-use crate::sim::summary::{Summary, summarize};
+use crate::sim::session::run_session;
+use crate::sim::summary::summarize;
 use crate::sim::transport::NetModel;
 use anyhow::{Context, bail};
 use splat2tiles_stream::catalog::{Level, TileCatalog};
@@ -26,52 +27,6 @@ use splat2tiles_tiles::tiling::TileKey;
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-/// Everything a tool run reads, resolved from the options.
-#[derive(Debug)]
-pub struct ToolInputs {
-    /// Local tileset folder simulated (the mirror for a URL).
-    pub dir: PathBuf,
-    /// The tileset as the user named it (folder or URL).
-    pub source: String,
-    /// The camera path.
-    pub trace: Trace,
-    /// The trace file.
-    pub trace_file: PathBuf,
-    /// The link.
-    pub net: NetModel,
-    /// How the link was given (for the report).
-    pub net_desc: String,
-    /// Predictor name (`PredictorKind::from_name` or an oracle).
-    pub predictor: String,
-    /// Planner.
-    pub planner: Planner,
-    /// Client memory budget, bytes.
-    pub budget: u64,
-    /// The client before predictor, planner and budget (viewport, requests in flight).
-    pub base: ClientConfig,
-    /// Quality samples per second (0: no rendering).
-    pub quality_hz: f64,
-}
-
-/// What a tool run produced.
-#[derive(Debug)]
-pub struct ToolRun {
-    /// The inputs.
-    pub inputs: ToolInputs,
-    /// The session.
-    pub log: SessionLog,
-    /// Its numbers against the needed cuts.
-    pub numbers: SessionNumbers,
-    /// Against the client's own view sets (`sim::summary`).
-    pub own: Summary,
-    /// Quality over time `(s, SSIM)` (empty without rendering).
-    pub quality: Vec<(f64, f64)>,
-    /// TGQ: cold start and later events (`None`: not reached), when quality is rendered.
-    pub tgq: Option<(Option<f64>, Vec<Option<f64>>)>,
-    /// A few lines for the terminal.
-    pub summary: String,
-}
 
 /// Reads a camera path: the splat2tiles-trace v1 CSV, or an EyeNavGS CSV (`t_s,x,y,z,qx,qy,qz,qw`)
 /// placed by `pl`.

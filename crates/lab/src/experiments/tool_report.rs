@@ -1,14 +1,66 @@
 //! The report of `simulate --tileset`: `report.json` (inputs and results), `report.md` (the same
 //! as tables, with the metric definitions of `spec/camera-trace.md`) and SVG plots over time.
 
-use super::simulate_tool::ToolRun;
-use crate::sim::report::{GOOD, QH, QW, TGQ_HZ, TGQ_WINDOW_S};
+use crate::sim::report::{GOOD, QH, QW, SessionNumbers, TGQ_HZ, TGQ_WINDOW_S};
 use crate::sim::score::Ratio;
+use crate::sim::session::SessionLog;
+use crate::sim::summary::Summary;
 use crate::sim::svg::line_chart;
+use crate::sim::transport::NetModel;
 use anyhow::Context;
 use serde_json::{Value, json};
+use splat2tiles_stream::client::ClientConfig;
+use splat2tiles_stream::plan::Planner;
+use splat2tiles_stream::trace::Trace;
 use std::fmt::Write as _;
 use std::path::Path;
+use std::path::PathBuf;
+
+/// Everything a tool run reads, resolved from the options.
+#[derive(Debug)]
+pub struct ToolInputs {
+    /// Local tileset folder simulated (the mirror for a URL).
+    pub dir: PathBuf,
+    /// The tileset as the user named it (folder or URL).
+    pub source: String,
+    /// The camera path.
+    pub trace: Trace,
+    /// The trace file.
+    pub trace_file: PathBuf,
+    /// The link.
+    pub net: NetModel,
+    /// How the link was given (for the report).
+    pub net_desc: String,
+    /// Predictor name (`PredictorKind::from_name` or an oracle).
+    pub predictor: String,
+    /// Planner.
+    pub planner: Planner,
+    /// Client memory budget, bytes.
+    pub budget: u64,
+    /// The client before predictor, planner and budget (viewport, requests in flight).
+    pub base: ClientConfig,
+    /// Quality samples per second (0: no rendering).
+    pub quality_hz: f64,
+}
+
+/// What a tool run produced.
+#[derive(Debug)]
+pub struct ToolRun {
+    /// The inputs.
+    pub inputs: ToolInputs,
+    /// The session.
+    pub log: SessionLog,
+    /// Its numbers against the needed cuts.
+    pub numbers: SessionNumbers,
+    /// Against the client's own view sets (`sim::summary`).
+    pub own: Summary,
+    /// Quality over time `(s, SSIM)` (empty without rendering).
+    pub quality: Vec<(f64, f64)>,
+    /// TGQ: cold start and later events (`None`: not reached), when quality is rendered.
+    pub tgq: Option<(Option<f64>, Vec<Option<f64>>)>,
+    /// A few lines for the terminal.
+    pub summary: String,
+}
 
 /// Version of `report.json`'s layout.
 pub const REPORT_VERSION: u32 = 1;

@@ -8,3 +8,4 @@ mod module_cycles;
 mod sim_city;
 mod sim_score;
 mod sim_session;
+mod simulate_tool;
