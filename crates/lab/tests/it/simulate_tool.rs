@@ -332,3 +332,48 @@ fn simulate_tool_matches_the_city_experiment() {
         );
     }
 }
+
+#[test]
+fn simulate_tool_places_an_eyenav_trace() {
+    use splat2tiles_lab::experiments::simulate_tool::read_trace;
+    use splat2tiles_stream::eyenav::Placement;
+    let tmp = tempfile::tempdir().unwrap();
+    let csv = tmp.path().join("user1_scene.csv");
+    // Unity frame (y up): walking 1 m along Unity +z (our +y) in 1 s, head at a constant 1.6 m,
+    // looking along +z.
+    let mut text = String::from("t_s,x,y,z,qx,qy,qz,qw\n");
+    for k in 0..=12 {
+        let t = k as f64 / 12.0;
+        text.push_str(&format!("{t},0,1.6,{t},0,0,0,1\n"));
+    }
+    std::fs::write(&csv, &text).unwrap();
+    let pl = Placement {
+        anchor: glam::DVec3::new(10.0, 20.0, 3.0),
+        heading_deg: 90.0,
+        ..Placement::default()
+    };
+    let tr = read_trace(&csv, &pl).unwrap();
+    assert_eq!(tr.poses.len(), 13);
+    let (a, b) = (tr.poses[0], tr.poses[12]);
+    assert!(
+        (a.pos - glam::DVec3::new(10.0, 20.0, 4.7)).length() < 1e-9,
+        "{a:?}"
+    );
+    // Turned by 90 degrees: +y becomes -x.
+    assert!(
+        (b.pos - glam::DVec3::new(9.0, 20.0, 4.7)).length() < 1e-9,
+        "{b:?}"
+    );
+    assert!(
+        (a.yaw.to_degrees() - 180.0).abs() < 1e-6,
+        "{}",
+        a.yaw.to_degrees()
+    );
+    // A malformed row is refused with the file and the line.
+    std::fs::write(&csv, text + "2.0,0,1.6\n").unwrap();
+    let err = format!("{:#}", read_trace(&csv, &pl).unwrap_err());
+    assert!(
+        err.contains("user1_scene.csv") && err.contains("line 15"),
+        "{err}"
+    );
+}
