@@ -253,6 +253,7 @@ fn simulate_tool_refuses_bad_input_with_the_culprit_named() {
         (vec!["--planner", "nope"], "--planner 'nope'".into()),
     ];
     let good = common::repo().join("traces/plant_dolly.csv");
+    default_anchor(&plant, rep);
     for (extra, want) in cases {
         let mut list = vec!["--tileset", p, "--report-dir", rep];
         if !extra.contains(&"--trace") {
@@ -262,6 +263,36 @@ fn simulate_tool_refuses_bad_input_with_the_culprit_named() {
         let err = format!("{:#}", tool(&list).unwrap_err());
         assert!(err.contains(&want), "{list:?}: {err}");
     }
+}
+
+/// An EyeNavGS trace without `--anchor` starts at the centre of the content bounds, at their
+/// lowest z plus the eye height.
+fn default_anchor(plant: &Path, rep: &str) {
+    let csv = plant.parent().unwrap().join("eyenav.csv");
+    let rows: String = (0..=24)
+        .map(|k| format!("{},0.1,1.6,0,0,0,0,1\n", k as f64 / 12.0))
+        .collect();
+    std::fs::write(&csv, format!("t_s,x,y,z,qx,qy,qz,qw\n{rows}")).unwrap();
+    let run = tool(&[
+        "--tileset",
+        plant.to_str().unwrap(),
+        "--trace",
+        csv.to_str().unwrap(),
+        "--eye-height",
+        "0.5",
+        "--quality-hz",
+        "0",
+        "--report-dir",
+        rep,
+    ])
+    .expect("an EyeNavGS trace");
+    let ts = splat2tiles_tiles::tiling::load::load_tileset(&plant.join("tileset.json")).unwrap();
+    let (lo, hi) =
+        splat2tiles_stream::catalog::TileCatalog::from_loaded(&ts.tiles, |_| Some(1)).bounds();
+    let want = glam::DVec3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), lo.z + 0.5);
+    let p = run.inputs.trace.poses[0].pos;
+    assert!((p - want).length() < 1e-9, "{p} vs {want}");
+    assert_eq!(run.log.ticks.len(), 25);
 }
 
 #[test]
