@@ -14,7 +14,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Run the streaming experiments (trace-driven client simulator) and write tables and plots.
+    /// Run the streaming experiments (trace-driven client simulator) and write tables and plots,
+    /// or, with --tileset and --trace, the client on your own tileset and camera path.
     Simulate(simulate::SimulateArgs),
 }
 

@@ -14,7 +14,7 @@ use std::path::PathBuf;
 #[derive(Debug, clap::Args)]
 pub struct SimulateArgs {
     /// Which experiment: table5, table4, dolly, visibility, traces, city, layers or all (all but
-    /// city and layers).
+    /// city and layers); not used with --tileset.
     #[arg(long, default_value = "all")]
     pub experiment: String,
     /// Folder of the shared scenes (plant.splat, donut_fused_sh0.ply, biker.spz).
@@ -88,10 +88,15 @@ pub struct SimulateArgs {
     pub report_dir: PathBuf,
     /// EyeNavGS traces: tileset-frame position of the session's start, x,y,z (default: the
     /// centre of the tileset's content bounds at their lowest z).
-    #[arg(long, help_heading = "Your own tileset")]
+    #[arg(long, allow_hyphen_values = true, help_heading = "Your own tileset")]
     pub anchor: Option<String>,
     /// EyeNavGS traces: rotation of the path about z, degrees.
-    #[arg(long, default_value_t = 0.0, help_heading = "Your own tileset")]
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_hyphen_values = true,
+        help_heading = "Your own tileset"
+    )]
     pub heading: f64,
     /// EyeNavGS traces: horizontal scale of the path.
     #[arg(long, default_value_t = 1.0, help_heading = "Your own tileset")]
