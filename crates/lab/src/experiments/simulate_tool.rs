@@ -228,7 +228,7 @@ fn summary_lines(run: &ToolRun) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{} on {} ({}, {} planner, {} s of trace)",
+        "{} on {} ({}, {} planner, {:.1} s of trace)",
         run.inputs.predictor,
         run.inputs.source,
         run.inputs.net_desc,
