@@ -23,8 +23,11 @@ fn main() {
     let Command::Simulate(a) = Cli::parse().command;
     let done = if a.tileset.is_some() {
         splat2tiles_lab::experiments::simulate_tool::run_tool(&a).map(|run| {
-            print!("{}", run.summary);
-            println!("report: {}", a.report_dir.join("report.md").display());
+            // A closed stdout (`| head`) is not an error of the simulation.
+            use std::io::Write as _;
+            let mut out = std::io::stdout().lock();
+            let _ = write!(out, "{}", run.summary);
+            let _ = writeln!(out, "report: {}", a.report_dir.join("report.md").display());
         })
     } else {
         simulate::run(&a)
