@@ -6,7 +6,6 @@
 //! failure, and a [`Report`] that serialises like that validator's JSON report. Every rule, its
 //! code and the spec sentence it enforces are listed in `spec/validation.md`.
 
-mod archive;
 mod content;
 mod context;
 mod cut;

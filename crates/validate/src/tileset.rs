@@ -1,7 +1,8 @@
 //! `tileset.json` rules (3D Tiles 1.1 "Tileset", "Tile", "Bounding volumes", "Geometric error",
 //! "Transforms", "Refinement"): one function per spec object, each continuing after a failure.
 
-pub(crate) mod external;
+mod archive;
+mod external;
 mod implicit;
 
 use super::content::validate_glb;
@@ -578,7 +579,7 @@ pub(crate) fn content_file(
     }
     if bytes.starts_with(b"PK\x03\x04") {
         folded(ctx, uri, path, |ctx| {
-            super::archive::archive(ctx, &file, &bytes, uri, path, world);
+            archive::archive(ctx, &file, &bytes, uri, path, world);
         });
         return;
     }

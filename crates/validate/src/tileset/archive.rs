@@ -1,8 +1,8 @@
 //! 3D Tiles archives (`MAXAR_content_3tz`): a content that is a zip is opened, its entries held in
 //! memory under the archive's path, and the `tileset.json` at its root validated as a tileset.
 
-use super::context::Ctx;
-use super::issues::Issue;
+use crate::context::Ctx;
+use crate::issues::Issue;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -35,7 +35,7 @@ pub(crate) fn archive(
         ctx.archive.insert(file.join(name), data);
     }
     ctx.archives.push(file.to_path_buf());
-    super::tileset::external::external(ctx, &inner, &tileset, uri, path, world);
+    super::external::external(ctx, &inner, &tileset, uri, path, world);
     ctx.archives.pop();
     for k in added {
         ctx.archive.remove(&k);
