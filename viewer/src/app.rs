@@ -2,6 +2,7 @@
 //! shift faster), tiles streamed for the moving camera, a status line (with the camera) per second.
 
 use std::collections::HashSet;
+use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -108,6 +109,8 @@ struct App {
     log_at: f64,
     frames: u32,
     bytes_at_log: u64,
+    /// `--record`: the camera path since the window opened (12 Hz) and its start time.
+    record: Option<(crate::record::Recorder, f64)>,
 }
 
 impl App {
@@ -167,6 +170,12 @@ impl App {
         let fast =
             self.keys.contains(&KeyCode::ShiftLeft) || self.keys.contains(&KeyCode::ShiftRight);
         self.fly.step(fwd, right, up, fast, dt);
+        if let Some((rec, t0)) = self.record.as_mut() {
+            rec.record(ViewPose {
+                t: now - *t0,
+                ..self.fly.pose
+            });
+        }
         let Some(g) = self.gfx.as_mut() else { return };
         let cam = self.fly.camera(g.config.width, g.config.height, self.root);
         let mut ups = std::mem::take(&mut self.pending);
@@ -309,8 +318,9 @@ pub fn camera_spec(cam: &Camera, root: glam::DMat4) -> String {
 }
 
 /// Opens the window on `url` (a path, `file://` or `http://` tileset.json), starting at the camera
-/// of `v` (as `splat2tiles render` resolves it against the tileset's root box).
-pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
+/// of `v` (as `splat2tiles render` resolves it against the tileset's root box). `record`: the
+/// camera path is written there as a trace CSV when the window closes (whole or not at all).
+pub fn run_window(url: &str, v: &ViewArgs, record: Option<&Path>) -> anyhow::Result<()> {
     let (w, h) = (v.width.unwrap_or(1280), v.height.unwrap_or(720));
     let mut driver = crate::stream::driver(url, w, h, v.fov, v.max_sse);
     let (pending, _) =
@@ -373,8 +383,25 @@ pub fn run_window(url: &str, v: &ViewArgs) -> anyhow::Result<()> {
         log_at: now,
         frames: 0,
         bytes_at_log: 0,
+        record: record.map(|_| {
+            let h = crate::headless::recording_headers(url, v.fov, w, h);
+            (crate::record::Recorder::at_trace_rate(&h), now)
+        }),
     };
-    event_loop.run_app(&mut app).context("window event loop")?;
+    let ran = event_loop.run_app(&mut app).context("window event loop");
+    // The path walked so far is kept even when the window ended on an error.
+    if let (Some(path), Some((rec, _))) = (record, &app.record)
+        && !rec.is_empty()
+    {
+        crate::record::write_atomic(path, &rec.csv())?;
+        eprintln!(
+            "splat2tiles-viewer: recorded {} poses ({:.1} s) -> {}",
+            rec.len(),
+            rec.duration(),
+            path.display()
+        );
+    }
+    ran?;
     match app.error {
         Some(e) => Err(e),
         None => Ok(()),

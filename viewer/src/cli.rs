@@ -49,6 +49,11 @@ pub struct Cli {
     /// Output folder of the headless modes (frame_0000.png, ...).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Record the camera path (12 Hz, at most one hour) to this CSV (splat2tiles trace, for
+    /// `splat2tiles-lab simulate --trace`), written when the window closes; with
+    /// --camera-trace, the poses drawn.
+    #[arg(long, value_name = "PATH")]
+    pub record: Option<PathBuf>,
 }
 
 impl Cli {
@@ -71,12 +76,25 @@ impl Cli {
 
 /// Runs the parsed command line.
 pub fn run(cli: &Cli) -> anyhow::Result<()> {
+    if let Some(path) = &cli.record {
+        if cli.headless && cli.camera_trace.is_none() {
+            bail!("--record works in the window and with --headless --camera-trace");
+        }
+        // Refused before the session, not after it.
+        crate::record::check_path(path)?;
+    }
     if cli.headless {
         let Some(out) = &cli.out else {
             bail!("--headless needs --out DIR");
         };
         if let Some(trace) = &cli.camera_trace {
-            let s = run_trace(&cli.tileset, trace, &cli.view_args(), out)?;
+            let s = run_trace(
+                &cli.tileset,
+                trace,
+                &cli.view_args(),
+                out,
+                cli.record.as_deref(),
+            )?;
             println!(
                 "splat2tiles-viewer: {} | {} frames, peak {} resident splats, {:.1} MB streamed, {:.1} ms/frame -> {}",
                 s.adapter,
@@ -108,5 +126,5 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    crate::app::run_window(&cli.tileset, &cli.view_args())
+    crate::app::run_window(&cli.tileset, &cli.view_args(), cli.record.as_deref())
 }

@@ -217,11 +217,15 @@ pub const POSE_SETTLE_S: f64 = 30.0;
 /// ticked until idle (all it wants for that pose is resident) or [`POSE_SETTLE_S`]. The renderer
 /// (fades) runs on the pose times alone: what arrives while waiting at pose k is inserted at pose
 /// k's time and the frame is drawn at it, so frames do not depend on how fast the machine is.
+///
+/// `record`: the poses drawn are also written there as a trace CSV (`--record`), whole or not at
+/// all, once every frame is written.
 pub fn run_trace(
     url: &str,
     trace_path: &Path,
     v: &ViewArgs,
     out: &Path,
+    record: Option<&Path>,
 ) -> anyhow::Result<TraceSummary> {
     let text = std::fs::read_to_string(trace_path)
         .with_context(|| format!("{}: cannot read", trace_path.display()))?;
@@ -256,7 +260,9 @@ pub fn run_trace(
     let mut t_render = t_first;
     let mut peak = 0;
     let mut scene = crate::layered::SceneSync::default();
+    let mut rec = crate::record::Recorder::new(0.0, &recording_headers(url, fov, w, h));
     for (k, pose) in trace.poses.iter().enumerate() {
+        rec.record(*pose);
         clock = clock.max(pose.t);
         let cam = Camera::from_pose(w, h, fov, root * pose.world_from_camera());
         // Fades run on the trace's own times (kept monotonic).
@@ -284,6 +290,9 @@ pub fn run_trace(
             .save_png(&png)
             .with_context(|| format!("{}: cannot write", png.display()))?;
     }
+    if let Some(path) = record {
+        crate::record::write_atomic(path, &rec.csv())?;
+    }
     let n = trace.poses.len();
     let s = d.stats();
     Ok(TraceSummary {
@@ -294,4 +303,14 @@ pub fn run_trace(
         mean_ms: (crate::clock::now_ms() - wall0) / n as f64,
         errors: s.last_errors,
     })
+}
+
+/// The headers of a native `--record` CSV: the viewer, the tileset, the field of view and aspect.
+pub fn recording_headers(url: &str, fov: f64, w: u32, h: u32) -> Vec<(&'static str, String)> {
+    vec![
+        ("viewer", "splat2tiles-viewer".into()),
+        ("tileset", url.into()),
+        ("fov_y_deg", format!("{fov}")),
+        ("aspect", format!("{:.4}", w as f64 / h.max(1) as f64)),
+    ]
 }

@@ -16,6 +16,7 @@ pub mod gpu;
 pub mod headless;
 pub mod layered;
 pub mod nav;
+pub mod record;
 pub mod renderer;
 pub mod sort;
 mod sort_job;

@@ -223,3 +223,69 @@ fn errors_name_the_file_and_exit_2() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("t.csv"));
 }
+
+/// `--record` with `--headless --camera-trace`: the CSV written holds the poses drawn, which are
+/// the input trace's (the first poses of `traces/plant_dolly.csv`); a folder is refused before any
+/// work, and `--record` without a camera trace in the headless mode is refused.
+#[test]
+fn record_writes_the_drawn_camera_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let ts = convert_to(
+        &scene("plant.splat"),
+        dir.path(),
+        &ConvertOptions::default(),
+    );
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let dolly = std::fs::read_to_string(repo.join("traces/plant_dolly.csv")).unwrap();
+    let mut input = Trace::from_csv(&dolly).unwrap();
+    input.poses.truncate(6);
+    let csv = dir.path().join("dolly6.csv");
+    std::fs::write(&csv, input.to_csv()).unwrap();
+    let rec = dir.path().join("recorded.csv");
+    let o = bin()
+        .arg(&ts)
+        .args(["--headless", "--width", "96", "--height", "54"])
+        .arg("--camera-trace")
+        .arg(&csv)
+        .arg("--out")
+        .arg(dir.path().join("frames"))
+        .arg("--record")
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got = Trace::from_csv(&std::fs::read_to_string(&rec).unwrap()).unwrap();
+    assert_eq!(got.header("kind"), Some("recorded"));
+    assert_eq!(got.header("fov_y_deg"), Some("50"));
+    assert_eq!(got.poses.len(), 6);
+    for (a, b) in got.poses.iter().zip(&input.poses) {
+        assert!((a.t - b.t).abs() < 1e-4, "{a:?} vs {b:?}");
+        assert!((a.pos - b.pos).length() < 1e-3, "{a:?} vs {b:?}");
+        assert!((a.yaw - b.yaw).abs() < 1e-4 && (a.pitch - b.pitch).abs() < 1e-4);
+    }
+    // A folder as PATH: exit 2 before rendering anything.
+    let out = dir.path().join("refused");
+    let o = bin()
+        .arg(&ts)
+        .args(["--headless", "--camera-trace"])
+        .arg(&csv)
+        .arg("--out")
+        .arg(&out)
+        .arg("--record")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("is a folder"));
+    assert!(!out.exists(), "nothing rendered");
+    let o = bin()
+        .arg(&ts)
+        .args(["--headless", "--auto-view", "0", "--out"])
+        .arg(&out)
+        .arg("--record")
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--camera-trace"));
+}
