@@ -779,6 +779,120 @@ fn web_viewer_runs_the_tcn_predictor() {
     assert_eq!(u(&v["stats"]["errors"]), 0, "{v:#}");
 }
 
+/// Camera paths from the web viewer replay in `simulate` (issue 49): the viewer opened at
+/// autoView 0 records from its first frame; after a walk forward and a turn,
+/// `window.splat2tiles.recording()` is a splat2tiles trace whose first pose is the start camera
+/// (the page's own, and the auto view 0 that `render --auto-view 0` frames from the root box) and
+/// whose later poses moved and turned; R stops it and downloads the same CSV; `simulate --tileset
+/// --trace` on the file steps through exactly those poses.
+#[test]
+fn web_viewer_records_a_camera_path_that_simulate_replays() {
+    use clap::Parser;
+    use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+    use splat2tiles_core::view_spec::ViewSpec;
+    use splat2tiles_stream::geom::ViewPose;
+    use splat2tiles_stream::trace::Trace;
+    use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
+    #[derive(Parser)]
+    struct Lab {
+        #[command(flatten)]
+        args: splat2tiles_lab::experiments::SimulateArgs,
+    }
+    require_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("plant");
+    run(Command::new(bin())
+        .arg("convert")
+        .arg(scene("plant.splat"))
+        .arg("-o")
+        .arg(&dir));
+    let (w, h) = (160u32, 120u32);
+    let viewing = view(&dir, &tmp.path().join("view.log"));
+    let o = Command::new("node")
+        .arg(js_dir().join("web_record.mjs"))
+        .arg(&viewing.base)
+        .args(["--width", &w.to_string(), "--height", &h.to_string()])
+        .args(["--timeout", "120"])
+        .output()
+        .expect("cannot run `node` (install Node >= 20)");
+    drop(viewing);
+    let v = json_of(&o, "web_record.mjs");
+    assert_clean_run(&o, &v, "web_record.mjs");
+    let csv = v["csv"].as_str().unwrap();
+    // R saves the recording, which went on after `recording()` was read.
+    let saved = v["downloaded"].as_str().unwrap_or_default();
+    assert!(
+        saved.starts_with(csv),
+        "downloaded:\n{saved}\nrecorded:\n{csv}"
+    );
+    assert_eq!(v["stats"]["recording"], false, "R stopped the recording");
+    let trace = Trace::from_csv(csv).unwrap_or_else(|e| panic!("{e}:\n{csv}"));
+    assert_eq!(trace.header("kind"), Some("recorded"), "{csv}");
+    // At most 12 poses a second; SwiftShader on a busy machine draws about 1 frame a second
+    // while tiles decode, so at least: the start, walking, turned.
+    let n = trace.poses.len();
+    assert!(
+        n >= 3 && n as f64 <= trace.duration() * 12.0 + 1.0,
+        "{n} poses:\n{csv}"
+    );
+    assert_eq!(trace.poses[0].t, 0.0);
+    // The start camera in the tileset frame (z up; yaw from +x towards +y, pitch up).
+    let ts = splat2tiles_tiles::tiling::load::load_tileset(&dir.join("tileset.json")).unwrap();
+    let (root, up) = (ts.root_transform, tileset_up(&ts));
+    let in_tileset = |m: glam::DMat4| {
+        let local = root.inverse() * m;
+        let pos = local.w_axis.truncate();
+        ViewPose::looking_at(0.0, pos, pos + local.z_axis.truncate())
+    };
+    let (lo, hi) = tileset_bounds(&ts).unwrap();
+    let auto0 = auto_views_with(lo, hi, up, w, h, DEFAULT_FOV_Y_DEG)[0];
+    let page = ViewSpec::parse(v["startCamera"].as_str().unwrap())
+        .unwrap()
+        .camera(w, h, DEFAULT_FOV_Y_DEG, up);
+    let first = trace.poses[0];
+    for (what, cam) in [("auto view 0", auto0), ("the page's start camera", page)] {
+        let p = in_tileset(cam.world_from_camera);
+        let d = (p.pos - first.pos).length();
+        let turn = splat2tiles_stream::geom::wrap_angle(p.yaw - first.yaw).abs();
+        assert!(
+            d < 2e-3 && turn < 1e-4 && (p.pitch - first.pitch).abs() < 1e-4,
+            "first pose {first:?} vs {what} {p:?}"
+        );
+    }
+    let last = trace.poses[n - 1];
+    assert!(
+        (last.pos - first.pos).length() > 0.1,
+        "W moved: {first:?} -> {last:?}"
+    );
+    let turned = splat2tiles_stream::geom::wrap_angle(last.yaw - first.yaw).to_degrees();
+    assert!((turned - 30.0).abs() < 0.1, "turned {turned} deg");
+    // The file replays in simulate, pose for pose.
+    let file = tmp.path().join("recorded.csv");
+    std::fs::write(&file, csv).unwrap();
+    let report = tmp.path().join("report");
+    let args = Lab::try_parse_from([
+        "simulate",
+        "--tileset",
+        dir.to_str().unwrap(),
+        "--trace",
+        file.to_str().unwrap(),
+        "--bandwidth",
+        "100Mbit",
+        "--quality-hz",
+        "0",
+        "--report-dir",
+        report.to_str().unwrap(),
+    ])
+    .unwrap()
+    .args;
+    let sim = splat2tiles_lab::experiments::simulate_tool::run_tool(&args).expect("simulate");
+    assert_eq!(sim.log.ticks.len(), n);
+    for (tick, pose) in sim.log.ticks.iter().zip(&trace.poses).take(3) {
+        assert_eq!(tick.pose, *pose);
+    }
+    assert!(sim.numbers.bytes_down > 0 && report.join("report.json").is_file());
+}
+
 /// Layered content in the web viewer (`spec/layered-content.md`, "Viewers"): a camera dolly
 /// across a level change (the root's screen-space error from 0.8 to 2.4 x maxSse over 40 poses,
 /// as `viewer/tests/layered.rs` does natively), each pose streamed until idle and settled and

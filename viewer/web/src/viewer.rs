@@ -11,6 +11,7 @@ use splat2tiles_core::view_spec::{ViewSpec, is_georeferenced};
 use splat2tiles_stream::Level;
 use splat2tiles_stream::client::{ClientConfig, PredictorKind, StreamClient};
 use splat2tiles_viewer::layered::{BlendMode, SceneSync};
+use splat2tiles_viewer::record::{Recorder, pose_of};
 use splat2tiles_viewer::{RendererConfig, SplatRenderer};
 use wasm_bindgen::prelude::*;
 use web_sys::HtmlCanvasElement;
@@ -34,6 +35,9 @@ struct Options {
     /// Layered tilesets: blend levels (`blend=continuous`, default) or swap them at once
     /// (`blend=hard`, the control of the continuity test).
     blend: BlendMode,
+    /// Record the camera path from the first frame (`record`, default true; `record=0`: only
+    /// once R or `window.splat2tiles.record(true)` starts it).
+    record: bool,
 }
 
 impl Options {
@@ -98,6 +102,7 @@ impl Options {
                 "hard" => BlendMode::HardSwap,
                 other => return Err(format!("unknown blend '{other}' (continuous, hard)")),
             },
+            record: v.get("record").and_then(|r| r.as_bool()).unwrap_or(true),
             predictor: {
                 let name = v
                     .get("predictor")
@@ -153,6 +158,11 @@ pub struct WebViewer {
     frames: u64,
     drawn: usize,
     sort_ms: f64,
+    /// The camera path (tileset frame, 12 Hz, at most an hour) and the page time of its first
+    /// pose; recorded while `recording`.
+    recorder: Recorder,
+    recording: bool,
+    rec_t0: Option<f64>,
 }
 
 fn js(e: impl std::fmt::Display) -> JsValue {
@@ -225,6 +235,13 @@ impl WebViewer {
             ..ClientConfig::default()
         };
         let client = StreamClient::new(&tileset_url, ccfg);
+        let recorder = Recorder::at_trace_rate(&[
+            ("viewer", "splat2tiles-web".to_string()),
+            ("tileset", tileset_url.clone()),
+            ("fov_y_deg", format!("{}", options.fov)),
+            ("aspect", format!("{:.4}", width as f64 / height as f64)),
+        ]);
+        let recording = options.record;
         Ok(WebViewer {
             shared: Rc::new(RefCell::new(Shared::new(client))),
             surface,
@@ -246,6 +263,9 @@ impl WebViewer {
             frames: 0,
             drawn: 0,
             sort_ms: 0.0,
+            recorder,
+            recording,
+            rec_t0: None,
         })
     }
 
@@ -382,6 +402,7 @@ impl WebViewer {
             c.advance(dt);
         }
         let cam = self.camera();
+        self.record_pose(now_s, &cam);
         // Streaming: the client decides, the page fetches.
         let actions = {
             let mut s = self.shared.borrow_mut();
@@ -442,6 +463,38 @@ impl WebViewer {
             self.sort_ms = stats.sort_ms;
         }
         Ok(())
+    }
+
+    /// Adds the camera at page time `now_s` to the recording (once the controls exist: the
+    /// first pose is the start camera), in the tileset frame, times from its first pose.
+    fn record_pose(&mut self, now_s: f64, cam: &Camera) {
+        if !self.recording || self.controls.is_none() {
+            return;
+        }
+        let t0 = *self.rec_t0.get_or_insert(now_s);
+        let root = self.shared.borrow().client.root_transform();
+        self.recorder
+            .record(pose_of(now_s - t0, cam.world_from_camera, root));
+    }
+
+    /// The camera path recorded so far as a `splat2tiles-trace: 1` CSV (what
+    /// `splat2tiles-lab simulate --trace` replays; `spec/camera-trace.md`).
+    pub fn recording_csv(&self) -> String {
+        self.recorder.csv()
+    }
+
+    /// Starts a new recording (the old one is forgotten) or stops the current one (kept).
+    pub fn set_recording(&mut self, on: bool) {
+        if on {
+            self.recorder.clear();
+            self.rec_t0 = None;
+        }
+        self.recording = on;
+    }
+
+    /// The camera path is being recorded.
+    pub fn is_recording(&self) -> bool {
+        self.recording
     }
 
     fn camera(&self) -> Camera {
@@ -548,6 +601,9 @@ impl WebViewer {
                 && !self.ramping
                 && self.steady,
             "layered": s.client.is_layered(),
+            "recording": self.recording,
+            "recordedPoses": self.recorder.len(),
+            "recordedSeconds": self.recorder.duration(),
             "layerBlends": self.layer_blends,
         })
     }
@@ -563,7 +619,7 @@ impl WebViewer {
         let v = self.stats_value();
         let f = |k: &str| v[k].as_f64().unwrap_or(0.0);
         format!(
-            "{:5.1} fps   {:>9} splats   sort {:.1} ms\ncache {:.1} MB   {:.2} MB/s   {} pending   {} paused{}\n{} {:.1} m/s   camera={}",
+            "{:5.1} fps   {:>9} splats   sort {:.1} ms\ncache {:.1} MB   {:.2} MB/s   {} pending   {} paused{}\n{} {:.1} m/s   camera={}\n{}",
             f("fps"),
             v["residentSplats"],
             f("sortMs"),
@@ -578,6 +634,17 @@ impl WebViewer {
             v["mode"].as_str().unwrap_or_default(),
             f("speed"),
             self.camera_short(),
+            if self.recording {
+                format!(
+                    "recording the camera path: {:.1} s (R: stop and save)",
+                    self.recorder.duration()
+                )
+            } else {
+                format!(
+                    "not recording ({} poses kept; R: record anew)",
+                    self.recorder.len()
+                )
+            },
         )
     }
 
