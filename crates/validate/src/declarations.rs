@@ -116,9 +116,21 @@ fn names<'v>(ctx: &mut Ctx<'_>, v: &'v Value, base: &str, key: &str) -> Vec<&'v 
     out
 }
 
-/// Checks the declarations of the tileset JSON `v`; returns the names in `extensionsUsed` and
-/// the extensions found in `v` (for [`unfound`], once the external tilesets are walked).
-pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> (Vec<String>, BTreeSet<String>) {
+/// What [`declarations`] read from a tileset JSON, for [`unfound`] once the external tilesets
+/// are walked.
+pub(crate) struct Declared {
+    /// The names in `extensionsUsed`.
+    pub used: Vec<String>,
+    /// The extensions whose objects appear in the tileset JSON.
+    pub found: BTreeSet<String>,
+    /// `asset.version` is "1.0".
+    pub v1_0: bool,
+}
+
+/// Checks the declarations of the tileset JSON `v`. Also sets `ctx.gltf_undeclared` for a 1.0
+/// tileset that neither uses nor requires `3DTILES_content_gltf` (a required-but-unused one is
+/// reported here, once).
+pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> Declared {
     let used = names(ctx, v, "", "extensionsUsed");
     let required = names(ctx, v, "", "extensionsRequired");
     if let Some(gltf) = v.pointer("/extensions/3DTILES_content_gltf") {
@@ -146,8 +158,10 @@ pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> (Vec<String>, BTreeS
     // A 3D Tiles 1.0 tileset with glTF contents needs 3DTILES_content_gltf: clients of 1.0 read
     // only b3dm/i3dm/pnts/cmpt, so it must be required too (as Cesium's validator checks).
     let v1_0 = v.pointer("/asset/version").and_then(Value::as_str) == Some("1.0");
+    const GLTF: &str = "3DTILES_content_gltf";
+    ctx.gltf_undeclared = v1_0 && !used.contains(&GLTF) && !required.contains(&GLTF);
     for (i, u) in used.iter().enumerate() {
-        let must = MUST_BE_REQUIRED.contains(u) || (v1_0 && *u == "3DTILES_content_gltf");
+        let must = MUST_BE_REQUIRED.contains(u) || (v1_0 && *u == GLTF);
         if must && !required.contains(u) {
             ctx.push(Issue::EXTENSION_REQUIRED_BUT_NOT_DECLARED(
                 ctx.at(&format!("/extensionsUsed/{i}")),
@@ -176,10 +190,11 @@ pub(crate) fn declarations(ctx: &mut Ctx<'_>, v: &Value) -> (Vec<String>, BTreeS
             ));
         }
     }
-    (
-        used.into_iter().map(str::to_string).collect(),
-        found.into_keys().collect(),
-    )
+    Declared {
+        used: used.into_iter().map(str::to_string).collect(),
+        found: found.into_keys().collect(),
+        v1_0,
+    }
 }
 
 /// The `3DTILES_content_gltf` object: its `extensionsUsed` and `extensionsRequired` (the glTF
@@ -201,14 +216,10 @@ fn content_gltf(ctx: &mut Ctx<'_>, gltf: &Value) {
 /// After the walk of a tileset: every extension found in the external tilesets below it
 /// (`below`) must be in its `used` too, and every extension it declares must be found in it or
 /// below it (3D Tiles 1.1 "Extensions": a tileset declares what it and its external tilesets use).
-/// In a 3D Tiles 1.0 tileset (`v1_0`) `3DTILES_content_gltf` needs no object: its glTF contents
-/// use it; in 1.1 glTF contents need no extension, so only its object uses it.
-pub(crate) fn unfound(
-    ctx: &mut Ctx<'_>,
-    used: &[String],
-    (found, below): (&BTreeSet<String>, &BTreeSet<String>),
-    v1_0: bool,
-) {
+/// In a 3D Tiles 1.0 tileset `3DTILES_content_gltf` needs no object: its glTF contents use it;
+/// in 1.1 glTF contents need no extension, so only its object uses it.
+pub(crate) fn unfound(ctx: &mut Ctx<'_>, declared: &Declared, below: &BTreeSet<String>) {
+    let Declared { used, found, v1_0 } = declared;
     for name in below {
         if !used.contains(name) && !found.contains(name) {
             ctx.push(Issue::EXTENSION_FOUND_BUT_NOT_USED(
@@ -222,7 +233,7 @@ pub(crate) fn unfound(
     }
     for (i, u) in used.iter().enumerate() {
         let without_object = match u.as_str() {
-            "3DTILES_content_gltf" => v1_0,
+            "3DTILES_content_gltf" => *v1_0,
             u => WITHOUT_OBJECT.contains(&u),
         };
         if !found.contains(u) && !below.contains(u) && !without_object {

@@ -53,11 +53,7 @@ pub(super) fn check_buffers(
                 None
             }
             (Some(uri), _, _) => {
-                let dir = std::path::Path::new(name)
-                    .parent()
-                    .map(|p| p.to_string_lossy().into_owned())
-                    .unwrap_or_default();
-                read_uri_buffer(ctx, &dir, uri, b.byte_length, &path)
+                read_uri_buffer(ctx, &super::uri::folder_of(name), uri, b.byte_length, &path)
             }
         };
         buffers.push(data);
@@ -114,11 +110,7 @@ pub(super) fn read_uri_buffer(
     if uri.len() >= 5 && uri[..5].eq_ignore_ascii_case("data:") {
         return data_uri(ctx, uri, byte_length, path);
     }
-    let rel = if dir.is_empty() {
-        uri.to_string()
-    } else {
-        format!("{dir}/{uri}")
-    };
+    let rel = super::uri::in_folder(dir, uri);
     let data = ctx
         .resolve(&rel, &format!("{path}/uri"))
         .and_then(|f| ctx.read(&f, &rel));

@@ -13,6 +13,11 @@ pub(crate) const MAX_JSON_DEPTH: usize = 1024;
 /// its text takes (`[],` is 3 bytes of text), so this caps the parse at a few hundred MiB.
 pub(crate) const MAX_JSON_VALUES: u64 = 4_000_000;
 
+/// Whether `bytes` look like a JSON object: the first byte that is not blank is `{`.
+pub(crate) fn is_object_text(bytes: &[u8]) -> bool {
+    bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{')
+}
+
 /// The nesting depth and the value count of a JSON text, counted outside strings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Shape {

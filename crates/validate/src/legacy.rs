@@ -345,20 +345,12 @@ fn glb_by_uri(ctx: &mut Ctx<'_>, payload: &[u8], name: &str, offset: usize) {
         ));
         return;
     }
-    let dir = std::path::Path::new(name)
-        .parent()
-        .map(|p| p.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let rel = if dir.is_empty() {
-        uri.to_string()
-    } else {
-        format!("{dir}/{uri}")
-    };
+    let rel = super::uri::in_folder(&super::uri::folder_of(name), uri);
     let at = format!("{name}@byte {offset}");
     let Some(bytes) = ctx.resolve(&rel, &at).and_then(|f| ctx.read(&f, &rel)) else {
         return;
     };
-    if bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
+    if super::json::is_object_text(&bytes) {
         super::content::validate_gltf_json(ctx, &bytes, &rel, false);
     } else {
         validate_glb(ctx, unpadded_glb(&bytes), &rel, false);

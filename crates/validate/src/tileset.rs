@@ -571,8 +571,7 @@ pub(crate) fn content_file(
     let Some(bytes) = ctx.read(&file, uri) else {
         return;
     };
-    let first = bytes.iter().find(|b| !b.is_ascii_whitespace()).copied();
-    let json = (first == Some(b'{')).then(|| json_content_kind(&bytes, &lower));
+    let json = super::json::is_object_text(&bytes).then(|| json_content_kind(&bytes, &lower));
     if let Some(JsonContent::Tileset) = json {
         external(ctx, &file, &bytes, uri, path, world);
         return;
@@ -716,15 +715,8 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value, world: DMat4) {
         legacy_properties(ctx, p, &format!("{path}/properties"));
     }
     let error = non_negative(ctx, v, "geometricError", path);
-    let (used, found) = declarations(ctx, v);
+    let declared = declarations(ctx, v);
     let outer_below = std::mem::take(&mut ctx.found_below);
-    let v1_0 = v.pointer("/asset/version").and_then(Value::as_str) == Some("1.0");
-    // A required-but-unused 3DTILES_content_gltf is reported once, by `declarations`.
-    let required = v
-        .get("extensionsRequired")
-        .and_then(Value::as_array)
-        .is_some_and(|r| r.iter().any(|e| e == "3DTILES_content_gltf"));
-    ctx.gltf_undeclared = v1_0 && !required && !used.iter().any(|u| u == "3DTILES_content_gltf");
     if v.get("schema").is_some() && v.get("schemaUri").is_some() {
         ctx.push(Issue::ONE_OF_ERROR(
             path,
@@ -791,9 +783,10 @@ pub(crate) fn tileset(ctx: &mut Ctx<'_>, v: &Value, world: DMat4) {
         }
     }
     let below = std::mem::replace(&mut ctx.found_below, outer_below);
-    super::declarations::unfound(ctx, &used, (&found, &below), v1_0);
+    super::declarations::unfound(ctx, &declared, &below);
     // What this tileset and those below it use, for the tileset that refers to this one.
-    ctx.found_below.extend(found.into_iter().chain(below));
+    ctx.found_below
+        .extend(declared.found.into_iter().chain(below));
 }
 
 /// Validates `asset`: an object with a string `version` ("1.0" or "1.1") and an optional

@@ -76,6 +76,24 @@ pub(crate) fn resolve_uri(root: &Path, base: &Path, uri: &str) -> Resolved {
     Resolved::Inside(out)
 }
 
+/// The folder of the file `name` (a path relative to the tileset folder; "" at its top).
+pub(crate) fn folder_of(name: &str) -> String {
+    Path::new(name)
+        .parent()
+        .map(|p| p.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// `uri` as written in a file of the folder `dir` (relative to the tileset folder), made
+/// relative to the tileset folder.
+pub(crate) fn in_folder(dir: &str, uri: &str) -> String {
+    if dir.is_empty() {
+        uri.to_string()
+    } else {
+        format!("{dir}/{uri}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

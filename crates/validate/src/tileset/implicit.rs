@@ -385,10 +385,7 @@ impl Walk<'_> {
         let Some((j, bin)) = parse_subtree(ctx, &bytes, &uri) else {
             return vec![];
         };
-        let dir_rel = std::path::Path::new(&uri)
-            .parent()
-            .map(|p| p.to_string_lossy().into_owned())
-            .unwrap_or_default();
+        let dir_rel = crate::uri::folder_of(&uri);
         let views = check_views(ctx, &j, bin, &uri, &dir_rel);
         let sp = format!("{uri}#");
         let Some(avail) = self.availabilities(ctx, &j, &views, &sp) else {
