@@ -191,16 +191,13 @@ fn pct(r: Ratio) -> String {
 
 /// Mean TGQ with events not reaching the threshold within the window counted as the window.
 fn tgq_cell(v: &[Option<f64>]) -> String {
-    if v.is_empty() {
-        return "- (0 events)".into();
+    match report::tgq_mean(v) {
+        None => "- (0 events)".into(),
+        Some((mean, missed)) => format!(
+            "{mean:.2} ({} events, {missed} > {TGQ_WINDOW_S} s)",
+            v.len()
+        ),
     }
-    let sum: f64 = v.iter().map(|x| x.unwrap_or(TGQ_WINDOW_S)).sum();
-    let missed = v.iter().filter(|x| x.is_none()).count();
-    format!(
-        "{:.2} ({} events, {missed} > {TGQ_WINDOW_S} s)",
-        sum / v.len() as f64,
-        v.len()
-    )
 }
 
 /// The networks of Table 5: constant links and the scaled real logs (name, model, note).
@@ -526,13 +523,6 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
         scored.len()
     );
     for (p, r) in PREDICTORS.iter().zip(&rows) {
-        let wd = |a: u64, b: u64| {
-            if b == 0 {
-                "-".to_string()
-            } else {
-                format!("{:.1}%", 100.0 * a as f64 / b as f64)
-            }
-        };
         let _ = writeln!(
             md,
             "| {p} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {} |",
@@ -542,8 +532,8 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
             pct(r.chr.reentry),
             tgq_cell(&r.tgq),
             tgq_cell(&r.tgq_cold),
-            wd(r.waste.wasted_tiles, r.waste.tiles),
-            wd(r.waste.wasted_bytes, r.waste.bytes),
+            report::percent(r.waste.wasted_tiles, r.waste.tiles),
+            report::percent(r.waste.wasted_bytes, r.waste.bytes),
             r.mb,
             r.evictions
         );

@@ -210,17 +210,14 @@ fn pct(r: Ratio) -> String {
 }
 
 fn tgq_text(v: &[Option<f64>]) -> String {
-    if v.is_empty() {
-        return "- (0 events)".into();
+    match report::tgq_mean(v) {
+        None => "- (0 events)".into(),
+        Some((mean, missed)) => format!(
+            "{mean:.2} s ({} events, {missed} not reached within {} s)",
+            v.len(),
+            report::TGQ_WINDOW_S
+        ),
     }
-    let sum: f64 = v.iter().map(|x| x.unwrap_or(report::TGQ_WINDOW_S)).sum();
-    let missed = v.iter().filter(|x| x.is_none()).count();
-    format!(
-        "{:.2} s ({} events, {missed} not reached within {} s)",
-        sum / v.len() as f64,
-        v.len(),
-        report::TGQ_WINDOW_S
-    )
 }
 
 fn summary_lines(run: &ToolRun) -> String {

@@ -209,22 +209,15 @@ pub fn report_md(run: &ToolRun) -> String {
             ))
         );
     }
-    let share = |a: u64, b: u64| {
-        if b == 0 {
-            "-".to_string()
-        } else {
-            format!("{:.1}%", 100.0 * a as f64 / b as f64)
-        }
-    };
     let _ = writeln!(
         md,
         "| wasted downloads, tiles | {} of {} ({}) |\n| wasted downloads, bytes | {:.2} MB of {:.2} MB ({}) |\n| stalled ticks | {} of {} |\n| evictions | {} |\n| received | {:.2} MB |\n| requests | {} ({} errors) |",
         n.waste.wasted_tiles,
         n.waste.tiles,
-        share(n.waste.wasted_tiles, n.waste.tiles),
+        crate::sim::report::percent(n.waste.wasted_tiles, n.waste.tiles),
         n.waste.wasted_bytes as f64 / 1e6,
         n.waste.bytes as f64 / 1e6,
-        share(n.waste.wasted_bytes, n.waste.bytes),
+        crate::sim::report::percent(n.waste.wasted_bytes, n.waste.bytes),
         n.stall_ticks,
         run.log.ticks.len(),
         n.evictions,

@@ -261,3 +261,23 @@ pub fn tgq(
     let cold = if out.is_empty() { None } else { out.remove(0) };
     Ok((cold, out, rendered))
 }
+
+/// Mean time to good quality over events, an event that does not reach it within
+/// [`TGQ_WINDOW_S`] counted as the window, and how many did not; `None` without events.
+pub fn tgq_mean(v: &[Option<f64>]) -> Option<(f64, usize)> {
+    if v.is_empty() {
+        return None;
+    }
+    let sum: f64 = v.iter().map(|x| x.unwrap_or(TGQ_WINDOW_S)).sum();
+    let missed = v.iter().filter(|x| x.is_none()).count();
+    Some((sum / v.len() as f64, missed))
+}
+
+/// `a` as a percentage of `b` with one decimal, or "-" when `b` is 0.
+pub fn percent(a: u64, b: u64) -> String {
+    if b == 0 {
+        "-".to_string()
+    } else {
+        format!("{:.1}%", 100.0 * a as f64 / b as f64)
+    }
+}
