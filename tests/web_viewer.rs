@@ -779,7 +779,7 @@ fn web_viewer_runs_the_tcn_predictor() {
     assert_eq!(u(&v["stats"]["errors"]), 0, "{v:#}");
 }
 
-/// Camera paths from the web viewer replay in `simulate` (issue 49): the viewer opened at
+/// Camera paths from the web viewer replay in `simulate`: the viewer opened at
 /// autoView 0 records from its first frame; after a walk forward and a turn,
 /// `window.splat2tiles.recording()` is a splat2tiles trace whose first pose is the start camera
 /// (the page's own, and the auto view 0 that `render --auto-view 0` frames from the root box) and
