@@ -322,7 +322,7 @@ pub fn camera_spec(cam: &Camera, root: glam::DMat4) -> String {
 /// camera path is written there as a trace CSV when the window closes (whole or not at all).
 pub fn run_window(url: &str, v: &ViewArgs, record: Option<&Path>) -> anyhow::Result<()> {
     let (w, h) = (v.width.unwrap_or(1280), v.height.unwrap_or(720));
-    let mut driver = crate::stream::driver(url, w, h, v.fov, v.max_sse);
+    let mut driver = crate::stream::driver(url, w, h, v.fov, v.max_sse, v.prefetch);
     let (pending, _) =
         crate::stream::bootstrap(&mut driver, url, crate::clock::now_ms() / 1e3, 30.0)?;
     let (bounds, up_default) = crate::stream::world_bounds(&driver);

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::bail;
 
 use crate::headless::{ViewArgs, run_static, run_trace};
+use splat2tiles_stream::client::Prefetch;
 
 /// View a splat2tiles tileset: in a window, or headless into PNG files.
 #[derive(Debug, Clone, clap::Parser)]
@@ -49,6 +50,10 @@ pub struct Cli {
     /// Output folder of the headless modes (frame_0000.png, ...).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// How far ahead the streaming client fetches the tiles its predictor says will be seen:
+    /// thrifty (1.5 s, each tile once), balanced (4 s), eager (10 s), or seconds ahead.
+    #[arg(long, default_value = "eager", value_parser = parse_prefetch)]
+    pub prefetch: Prefetch,
     /// Record the camera path (12 Hz, at most one hour) to this CSV (splat2tiles trace, for
     /// `splat2tiles-lab simulate --trace`), written when the window closes; with
     /// --camera-trace, the poses drawn.
@@ -70,8 +75,15 @@ impl Cli {
             sh_degree: self.sh_degree,
             background: self.background.clone(),
             max_sse: self.max_sse,
+            prefetch: self.prefetch,
         }
     }
+}
+
+fn parse_prefetch(s: &str) -> Result<Prefetch, String> {
+    Prefetch::from_name(s).ok_or_else(|| {
+        format!("'{s}': expected thrifty, balanced, eager or seconds ahead (e.g. 2.5)")
+    })
 }
 
 /// Runs the parsed command line.

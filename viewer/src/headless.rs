@@ -9,6 +9,7 @@ use splat2tiles_core::camera::{self, Camera};
 use splat2tiles_core::splat::Splats;
 use splat2tiles_render::Image;
 use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
+use splat2tiles_stream::client::Prefetch;
 use splat2tiles_tiles::geometry::{
     Instances, frame_centres, select_tiles, tileset_bounds, tileset_up,
 };
@@ -38,6 +39,8 @@ pub struct ViewArgs {
     pub background: String,
     /// Screen-space error threshold of the tile selection, pixels.
     pub max_sse: f64,
+    /// How far ahead the streaming client fetches predicted tiles.
+    pub prefetch: Prefetch,
 }
 
 impl Default for ViewArgs {
@@ -52,6 +55,7 @@ impl Default for ViewArgs {
             sh_degree: None,
             background: "0,0,0".into(),
             max_sse: 16.0,
+            prefetch: Prefetch::EAGER,
         }
     }
 }
@@ -249,7 +253,7 @@ pub fn run_trace(
     };
     let mut r = SplatRenderer::new(&gpu.device, &gpu.queue, OFFSCREEN_FORMAT, cfg);
     let target = Offscreen::new(&gpu.device, w, h)?;
-    let mut d = crate::stream::driver(url, w, h, fov, v.max_sse);
+    let mut d = crate::stream::driver(url, w, h, fov, v.max_sse, v.prefetch);
     let (early, t_boot) = crate::stream::bootstrap(&mut d, url, trace.poses[0].t, POSE_SETTLE_S)?;
     let t_first = trace.poses[0].t;
     crate::stream::apply_updates(&mut r, &gpu.device, &gpu.queue, early, t_first);

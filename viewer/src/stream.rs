@@ -5,7 +5,7 @@ use anyhow::bail;
 use glam::{DMat4, DVec3};
 use splat2tiles_core::camera::Camera;
 use splat2tiles_stream::client::native::Driver;
-use splat2tiles_stream::client::{ClientConfig, SceneUpdate};
+use splat2tiles_stream::client::{ClientConfig, Prefetch, SceneUpdate};
 
 /// Applies scene updates to the renderer at time `now_s` (inserts fade in, removes fade out,
 /// appends grow a tile being downloaded); a client's frames go through
@@ -13,7 +13,14 @@ use splat2tiles_stream::client::{ClientConfig, SceneUpdate};
 pub use crate::layered::apply_scene_updates as apply_updates;
 
 /// A driver for `url` (path, `file://` or `http://`) planning for `width x height` frames.
-pub fn driver(url: &str, width: u32, height: u32, fov_y_deg: f64, max_sse: f64) -> Driver {
+pub fn driver(
+    url: &str,
+    width: u32,
+    height: u32,
+    fov_y_deg: f64,
+    max_sse: f64,
+    prefetch: Prefetch,
+) -> Driver {
     Driver::new(
         url,
         ClientConfig {
@@ -21,6 +28,7 @@ pub fn driver(url: &str, width: u32, height: u32, fov_y_deg: f64, max_sse: f64) 
             height,
             fov_y_deg,
             max_sse,
+            prefetch,
             ..ClientConfig::default()
         },
     )

@@ -12,6 +12,7 @@ use splat2tiles_core::frame::geo::Geodetic;
 use splat2tiles_lab::city::{CityLayout, city_scene, generate_city, shared_sources};
 use splat2tiles_render::metrics::ssim;
 use splat2tiles_render::{Camera, Image};
+use splat2tiles_stream::client::Prefetch;
 use splat2tiles_viewer::gpu::{Headless, OFFSCREEN_FORMAT, Offscreen};
 use splat2tiles_viewer::headless::{ViewArgs, open_tileset, tileset_camera};
 use splat2tiles_viewer::renderer::{RendererConfig, SplatRenderer};
@@ -54,7 +55,14 @@ fn city(dir: &Path, name: &str, geo: bool) -> PathBuf {
 /// The frame the native streaming path draws for `cam` once the client is idle and the fades
 /// are over, and the splats resident.
 fn streamed_frame(g: &Headless, url: &str, cam: &Camera, max_sse: f64) -> (Image, usize) {
-    let mut d = driver(url, cam.width, cam.height, cam.fov_y_deg(), max_sse);
+    let mut d = driver(
+        url,
+        cam.width,
+        cam.height,
+        cam.fov_y_deg(),
+        max_sse,
+        Prefetch::EAGER,
+    );
     let (early, mut clock) = bootstrap(&mut d, url, 0.0, 60.0).expect("tileset loads");
     let cfg = RendererConfig {
         blocking_sort: true,

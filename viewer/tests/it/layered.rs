@@ -11,6 +11,7 @@ use splat2tiles_core::splat::{Splat, Splats};
 use splat2tiles_render::metrics::ssim;
 use splat2tiles_render::raster::{RenderOptions, render};
 use splat2tiles_render::{Camera, Image};
+use splat2tiles_stream::client::Prefetch;
 use splat2tiles_tiles::geometry::{tileset_bounds, tileset_up};
 use splat2tiles_tiles::layers::view::{is_layered, layered_instances};
 use splat2tiles_tiles::tiling::TileKey;
@@ -122,7 +123,7 @@ struct Frame {
 /// at each pose the client is ticked until idle (all it wants is held), then the frame is drawn
 /// at the pose's time (`FRAME_DT` apart).
 fn stream_dolly(g: &Headless, url: &str, cams: &[Camera], mode: BlendMode) -> Vec<Frame> {
-    let mut d = driver(url, W, H, FOV, MAX_SSE);
+    let mut d = driver(url, W, H, FOV, MAX_SSE, Prefetch::EAGER);
     let (early, mut clock) = bootstrap(&mut d, url, 0.0, 60.0).expect("tileset loads");
     let cfg = RendererConfig {
         blocking_sort: true,

@@ -9,7 +9,7 @@ use serde_json::json;
 use splat2tiles_core::camera::{self, Camera};
 use splat2tiles_core::view_spec::{ViewSpec, is_georeferenced};
 use splat2tiles_stream::Level;
-use splat2tiles_stream::client::{ClientConfig, PredictorKind, StreamClient};
+use splat2tiles_stream::client::{ClientConfig, PredictorKind, Prefetch, StreamClient};
 use splat2tiles_viewer::layered::{BlendMode, SceneSync};
 use splat2tiles_viewer::record::{Recorder, pose_of};
 use splat2tiles_viewer::{RendererConfig, SplatRenderer};
@@ -32,6 +32,8 @@ struct Options {
     walk: bool,
     /// The trajectory predictor (`predictor=reactive|constant-velocity|linear|tcn`).
     predictor: PredictorKind,
+    /// How far ahead predicted tiles are fetched (`prefetch=thrifty|balanced|eager|SECONDS`).
+    prefetch: Prefetch,
     /// Layered tilesets: blend levels (`blend=continuous`, default) or swap them at once
     /// (`blend=hard`, the control of the continuity test).
     blend: BlendMode,
@@ -110,6 +112,15 @@ impl Options {
                     .unwrap_or("linear");
                 PredictorKind::from_name(name).ok_or_else(|| {
                     format!("unknown predictor '{name}' (reactive, constant-velocity, linear, tcn)")
+                })?
+            },
+            prefetch: {
+                let name = v
+                    .get("prefetch")
+                    .and_then(|m| m.as_str())
+                    .unwrap_or("eager");
+                Prefetch::from_name(name).ok_or_else(|| {
+                    format!("unknown prefetch '{name}' (thrifty, balanced, eager, or seconds)")
                 })?
             },
         };
@@ -232,6 +243,7 @@ impl WebViewer {
             memory_budget_bytes: (options.budget_mb * 1048576.0) as u64,
             levels: options.levels.clone(),
             predictor: options.predictor,
+            prefetch: options.prefetch,
             ..ClientConfig::default()
         };
         let client = StreamClient::new(&tileset_url, ccfg);

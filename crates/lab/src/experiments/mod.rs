@@ -4,6 +4,7 @@
 pub mod simulate;
 pub mod simulate_city;
 mod simulate_layers;
+pub mod simulate_thrift;
 pub mod simulate_tool;
 pub mod tool_args;
 pub mod tool_report;
@@ -13,8 +14,8 @@ use std::path::PathBuf;
 /// Arguments of `simulate`.
 #[derive(Debug, clap::Args)]
 pub struct SimulateArgs {
-    /// Which experiment: table5, table4, dolly, visibility, traces, city, layers or all (all but
-    /// city and layers); not used with --tileset.
+    /// Which experiment: table5, table4, dolly, visibility, traces, city, thrift, layers or all
+    /// (all but city, thrift and layers); not used with --tileset.
     #[arg(long, default_value = "all")]
     pub experiment: String,
     /// Folder of the shared scenes (plant.splat, donut_fused_sh0.ply, biker.spz).
@@ -73,6 +74,10 @@ pub struct SimulateArgs {
     /// Client viewport in pixels.
     #[arg(long, default_value = "1280x720", help_heading = "Your own tileset")]
     pub viewport: String,
+    /// How far ahead the client fetches predicted tiles: thrifty (1.5 s, each tile once),
+    /// balanced (4 s) or eager (10 s, the client's default), or a number of seconds.
+    #[arg(long, default_value = "eager", help_heading = "Your own tileset")]
+    pub prefetch: String,
     /// Requests in flight at most.
     #[arg(long, default_value_t = 4, help_heading = "Your own tileset")]
     pub max_concurrent: usize,

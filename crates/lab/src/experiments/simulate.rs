@@ -181,6 +181,9 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     if args.experiment == "city" {
         md.push_str(&super::simulate_city::city(args)?);
     }
+    if args.experiment == "thrift" {
+        md.push_str(&super::simulate_thrift::thrift(args)?);
+    }
     if args.experiment == "layers" {
         md.push_str(&super::simulate_layers::layers(args)?);
     }

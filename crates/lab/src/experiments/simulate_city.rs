@@ -177,12 +177,12 @@ struct Row4 {
     sessions: usize,
 }
 
-fn add_ratio(a: &mut Ratio, b: Ratio) {
+pub(super) fn add_ratio(a: &mut Ratio, b: Ratio) {
     a.hits += b.hits;
     a.n += b.n;
 }
 
-fn pct(r: Ratio) -> String {
+pub(super) fn pct(r: Ratio) -> String {
     match r.rate() {
         Some(x) => format!("{:.1}% ({}/{})", 100.0 * x, r.hits, r.n),
         None => "-".into(),
@@ -190,7 +190,7 @@ fn pct(r: Ratio) -> String {
 }
 
 /// Mean TGQ with events not reaching the threshold within the window counted as the window.
-fn tgq_cell(v: &[Option<f64>]) -> String {
+pub(super) fn tgq_cell(v: &[Option<f64>]) -> String {
     match report::tgq_mean(v) {
         None => "- (0 events)".into(),
         Some((mean, missed)) => format!(

@@ -19,7 +19,7 @@ use crate::sim::summary::summarize;
 use crate::sim::transport::NetModel;
 use anyhow::{Context, bail};
 use splat2tiles_stream::catalog::{Level, TileCatalog};
-use splat2tiles_stream::client::ClientConfig;
+use splat2tiles_stream::client::{ClientConfig, Prefetch};
 use splat2tiles_stream::eyenav::{MAX_FILE_BYTES, Placement, parse_session, read_bounded};
 use splat2tiles_stream::plan::Planner;
 use splat2tiles_stream::trace::Trace;
@@ -128,10 +128,17 @@ pub fn inputs(args: &SimulateArgs, source: &str, dir: &Path) -> anyhow::Result<T
     if !(args.quality_hz.is_finite() && (0.0..=60.0).contains(&args.quality_hz)) {
         bail!("--quality-hz {}: must be 0..=60", args.quality_hz);
     }
+    let prefetch = Prefetch::from_name(&args.prefetch).with_context(|| {
+        format!(
+            "--prefetch '{}': expected thrifty, balanced, eager or seconds ahead (e.g. 2.5)",
+            args.prefetch
+        )
+    })?;
     let base = ClientConfig {
         width,
         height,
         max_concurrent: args.max_concurrent,
+        prefetch,
         ..ClientConfig::default()
     };
     Ok(ToolInputs {
@@ -142,6 +149,7 @@ pub fn inputs(args: &SimulateArgs, source: &str, dir: &Path) -> anyhow::Result<T
         net,
         net_desc,
         predictor: args.predictor.clone(),
+        prefetch: args.prefetch.clone(),
         planner,
         budget,
         base,

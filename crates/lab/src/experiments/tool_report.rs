@@ -33,6 +33,8 @@ pub struct ToolInputs {
     pub net_desc: String,
     /// Predictor name (`PredictorKind::from_name` or an oracle).
     pub predictor: String,
+    /// Prefetch setting as given (`Prefetch::from_name`).
+    pub prefetch: String,
     /// Planner.
     pub planner: Planner,
     /// Client memory budget, bytes.
@@ -137,6 +139,7 @@ pub fn report_json(run: &ToolRun) -> Value {
             "trace_duration_s": i.trace.duration(),
             "network": i.net_desc,
             "predictor": i.predictor,
+            "prefetch": i.prefetch,
             "planner": i.planner.name(),
             "budget_bytes": i.budget,
             "viewport": [i.base.width, i.base.height],
@@ -162,13 +165,14 @@ pub fn report_md(run: &ToolRun) -> String {
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "# Streaming simulation\n\nTileset `{}`; trace `{}` ({:.1} s, {} ticks); network {}; predictor {}; planner {}; memory budget {:.1} MiB; viewport {}x{}, {} deg, SSE {}; {} requests in flight. Metric definitions: `spec/camera-trace.md`.\n",
+        "# Streaming simulation\n\nTileset `{}`; trace `{}` ({:.1} s, {} ticks); network {}; predictor {}; prefetch {}; planner {}; memory budget {:.1} MiB; viewport {}x{}, {} deg, SSE {}; {} requests in flight. Metric definitions: `spec/camera-trace.md`.\n",
         i.source,
         i.trace_file.display(),
         i.trace.duration(),
         run.log.ticks.len(),
         i.net_desc,
         i.predictor,
+        i.prefetch,
         i.planner.name(),
         i.budget as f64 / (1u64 << 20) as f64,
         i.base.width,

@@ -109,3 +109,76 @@ fn oracle_beats_reactive_on_first_time_entries_in_a_small_city() {
         "oracle missed {late} entries after the first 5 s"
     );
 }
+
+/// Bytes, downloads per tile and held utility of one session on a district dolly at 200 Mbit/s.
+fn dolly_session(
+    dir: &std::path::Path,
+    truth: &Truth,
+    grid: &StreetGrid,
+    prefetch: splat2tiles_stream::client::Prefetch,
+) -> (u64, usize, Ratio) {
+    use splat2tiles_lab::experiments::simulate_thrift::district_dolly;
+    use splat2tiles_lab::sim::transport::Outcome;
+    let trace = district_dolly(grid, 1);
+    let oracle = Box::new(Oracle {
+        trace: trace.poses.clone(),
+    }) as Box<dyn splat2tiles_stream::predict::Predictor + Send>;
+    let cfg = ClientConfig {
+        prefetch,
+        ..CitySpec::small_client(PredictorKind::Reactive)
+    };
+    let opts = SessionOptions {
+        predictor: Some(oracle),
+        ..SessionOptions::default()
+    };
+    let log = run_session(
+        dir,
+        cfg.clone(),
+        &trace.poses,
+        &NetModel::constant(200.0, 0.04),
+        opts,
+    );
+    let mut done: std::collections::HashMap<_, usize> = std::collections::HashMap::new();
+    for r in log.requests.iter().filter(|r| r.outcome == Outcome::Done) {
+        if let Some(k) = r.key {
+            *done.entry(k).or_default() += 1;
+        }
+    }
+    let needed = truth.needed_per_tick(&cfg, &log);
+    let resident = held_tiles(&log);
+    let views = tick_views(&log, needed.iter().map(Vec::as_slice), &resident);
+    let bytes = log.ticks.last().map_or(0, |t| t.bytes_down);
+    let twice = done.values().filter(|&&n| n > 1).count();
+    (bytes, twice, cache_hits(&views).first)
+}
+
+#[test]
+fn thrifty_prefetch_fetches_each_tile_once_and_less_than_eager() {
+    use splat2tiles_stream::client::Prefetch;
+    let scenes = common::scenes();
+    let tmp = tempfile::tempdir().unwrap();
+    let city = build_city(&scenes, &tmp.path().join("city"), &CitySpec::small(), None).unwrap();
+    let truth = Truth::load(&city.dir.join("tileset.json")).unwrap();
+    let (eager, eager_twice, eager_chr) =
+        dolly_session(&city.dir, &truth, &city.grid, Prefetch::EAGER);
+    let (thrifty, thrifty_twice, thrifty_chr) =
+        dolly_session(&city.dir, &truth, &city.grid, Prefetch::THRIFTY);
+    eprintln!(
+        "eager {eager} B ({eager_twice} tiles downloaded twice or more, CHR {eager_chr:?}); \
+         thrifty {thrifty} B ({thrifty_twice}, {thrifty_chr:?})"
+    );
+    // Eager climbs the variant ladder on a fast link (Low or High first, Best later); thrifty
+    // keeps the first level it fetched, so no tile comes twice and fewer bytes arrive.
+    assert!(
+        eager_twice > 0,
+        "eager downloaded no tile twice: the check says nothing"
+    );
+    assert_eq!(thrifty_twice, 0);
+    assert!(thrifty < eager, "thrifty {thrifty} B, eager {eager} B");
+    // With the oracle at 200 Mbit/s the 1.5 s horizon still covers every first-time entry
+    // that eager's 10 s does.
+    assert!(
+        thrifty_chr.hits >= eager_chr.hits,
+        "{thrifty_chr:?} {eager_chr:?}"
+    );
+}

@@ -37,6 +37,73 @@ impl PredictorKind {
     }
 }
 
+/// How far ahead the client fetches what its predictor says will be seen: the data-thrift knob.
+/// Tiles predicted to enter the view later than [`Self::ahead_s`], or only at predicted poses
+/// whose one-sigma position uncertainty exceeds [`Self::max_sigma_m`], are not fetched ahead
+/// (the view set itself is always fetched). The bound is the prediction's horizon and
+/// confidence, not the free bandwidth: a fast link does not make an eager client of a thrifty one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prefetch {
+    /// Seconds ahead of now that predicted first visibilities are fetched (at most the
+    /// predictor's horizon, [`ClientConfig::predict_horizon_s`]).
+    pub ahead_s: f64,
+    /// Predicted poses more uncertain than this (metres, one sigma) are not planned for.
+    pub max_sigma_m: f64,
+    /// Whether a tile already held may be fetched again at a better level. Without upgrades
+    /// every tile is downloaded once, at the level the planner first chose for it: the fewest
+    /// bytes, and on a slow link tiles fetched at Low stay at Low.
+    pub upgrades: bool,
+}
+
+impl Prefetch {
+    /// Everything the predictor's whole horizon shows, poses up to App. C.5's 20 m sigma: the
+    /// most prefetching, the highest cache hit rate on a link that can carry it.
+    pub const EAGER: Prefetch = Prefetch {
+        ahead_s: 10.0,
+        max_sigma_m: crate::predict::BLEND_SIGMA_M,
+        upgrades: true,
+    };
+    /// The next 4 s, poses up to 10 m sigma, upgrades as eager.
+    pub const BALANCED: Prefetch = Prefetch {
+        ahead_s: 4.0,
+        max_sigma_m: 10.0,
+        upgrades: true,
+    };
+    /// The next 1.5 s, poses up to 5 m sigma, each tile fetched once: what is about to be
+    /// seen, little more.
+    pub const THRIFTY: Prefetch = Prefetch {
+        ahead_s: 1.5,
+        max_sigma_m: 5.0,
+        upgrades: false,
+    };
+
+    /// The named settings, in order of bytes fetched ahead.
+    pub const NAMED: [(&'static str, Prefetch); 3] = [
+        ("thrifty", Prefetch::THRIFTY),
+        ("balanced", Prefetch::BALANCED),
+        ("eager", Prefetch::EAGER),
+    ];
+
+    /// The setting a name stands for: `thrifty`, `balanced`, `eager`, or a number of seconds
+    /// ahead (e.g. `2.5`, with the eager sigma bound and upgrades).
+    pub fn from_name(name: &str) -> Option<Prefetch> {
+        if let Some((_, p)) = Prefetch::NAMED.iter().find(|(n, _)| *n == name) {
+            return Some(*p);
+        }
+        let s: f64 = name.trim_end_matches('s').parse().ok()?;
+        (s.is_finite() && s >= 0.0).then_some(Prefetch {
+            ahead_s: s,
+            ..Prefetch::EAGER
+        })
+    }
+}
+
+impl Default for Prefetch {
+    fn default() -> Self {
+        Prefetch::EAGER
+    }
+}
+
 /// Client settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClientConfig {
@@ -81,6 +148,8 @@ pub struct ClientConfig {
     pub predict_horizon_s: f64,
     /// Seconds between predicted poses.
     pub predict_step_s: f64,
+    /// How far ahead predicted tiles are fetched ([`Prefetch::EAGER`] by default).
+    pub prefetch: Prefetch,
     /// When the link cannot carry the missing tiles (in view: due now; predicted: due at their
     /// first predicted view) by their deadlines even at Low (earliest deadline first over the
     /// forecast), ask the prefetches at Low: coverage before quality, upgrades later (on by
@@ -127,6 +196,7 @@ impl Default for ClientConfig {
             predictor: PredictorKind::Linear,
             predict_horizon_s: 10.0,
             predict_step_s: 0.5,
+            prefetch: Prefetch::EAGER,
             low_under_overload: true,
             set_aside_late: true,
             max_retries: 3,
@@ -253,4 +323,27 @@ pub struct ClientStats {
     /// Plans made while the link could not carry the missing prefetches by their deadlines
     /// even at Low (`planning::overloaded`).
     pub overload_plans: u64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prefetch_names_and_seconds() {
+        assert_eq!(Prefetch::from_name("thrifty"), Some(Prefetch::THRIFTY));
+        assert_eq!(Prefetch::from_name("balanced"), Some(Prefetch::BALANCED));
+        assert_eq!(Prefetch::from_name("eager"), Some(Prefetch::EAGER));
+        let p = Prefetch::from_name("2.5s").unwrap();
+        assert_eq!((p.ahead_s, p.upgrades), (2.5, true));
+        assert_eq!(Prefetch::from_name("0").unwrap().ahead_s, 0.0);
+        for bad in ["", "-1", "NaN", "inf", "fast"] {
+            assert_eq!(Prefetch::from_name(bad), None, "{bad}");
+        }
+        // The client's default is eager, which is what every earlier measurement ran.
+        assert_eq!(ClientConfig::default().prefetch, Prefetch::EAGER);
+        // Named settings fetch less ahead in order.
+        let ahead: Vec<f64> = Prefetch::NAMED.iter().map(|(_, p)| p.ahead_s).collect();
+        assert!(ahead.windows(2).all(|w| w[0] < w[1]), "{ahead:?}");
+    }
 }

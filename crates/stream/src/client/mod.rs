@@ -47,7 +47,8 @@ pub mod updates;
 pub mod url;
 
 pub use api::{
-    Action, ClientConfig, ClientStats, FetchRequest, LayerDraw, PredictorKind, SceneUpdate,
+    Action, ClientConfig, ClientStats, FetchRequest, LayerDraw, PredictorKind, Prefetch,
+    SceneUpdate,
 };
 use deadline_record::DeadlineRecord;
 use selection::camera_ok;

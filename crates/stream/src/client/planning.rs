@@ -277,14 +277,16 @@ impl StreamClient {
         let (predicted, uncertain) = if fallback {
             (vec![], false)
         } else {
-            // App. C.5: poses too uncertain to plan for give way to the radius rule.
+            // App. C.5: poses too uncertain to plan for give way to the radius rule; the
+            // prefetch setting bounds how far ahead and how uncertain a planned pose may be.
+            let ahead = self.cfg.predict_horizon_s.min(self.cfg.prefetch.ahead_s);
             confident_poses(
                 &self.predictor.predict_uncertain(
                     &self.history,
-                    self.cfg.predict_horizon_s,
+                    ahead.max(0.0),
                     self.cfg.predict_step_s,
                 ),
-                BLEND_SIGMA_M,
+                BLEND_SIGMA_M.min(self.cfg.prefetch.max_sigma_m),
             )
         };
         let predicting = !predicted.is_empty();
@@ -313,6 +315,7 @@ impl StreamClient {
             .iter()
             .enumerate()
             .filter(|(i, t)| t.is_finite() && self.usable(*i) && !pinned_tile[*i])
+            .filter(|(i, _)| self.cfg.prefetch.upgrades || self.cache.level(*i).is_none())
             .map(|(i, t)| (i, *t))
             .collect();
         let budget = self.plan_budget();
