@@ -37,8 +37,8 @@ pub const DISTRICT_FRACTION: f64 = 1.0 / 3.0;
 pub const DOLLIES: u64 = 6;
 /// The predictors compared.
 const PREDICTORS: [&str; 2] = ["linear", "oracle"];
-/// The settings of the curve: no prefetch, 0.5 s ahead, then the named ones (thrifty also
-/// with upgrades).
+/// The settings of the curve: no prefetch, 0.5 s ahead, then the named ones (thrifty's
+/// horizon also with every upgrade and with none).
 fn settings() -> Vec<(String, Prefetch)> {
     let mut v = vec![
         (
@@ -57,15 +57,21 @@ fn settings() -> Vec<(String, Prefetch)> {
         ),
     ];
     for (name, p) in Prefetch::NAMED {
-        let upgrades = if p.upgrades { "" } else { ", no upgrades" };
-        v.push((format!("{name} ({} s{upgrades})", p.ahead_s), p));
-        if !p.upgrades {
-            // The same horizon with upgrades: what each of thrifty's two bounds saves.
-            let with = Prefetch {
-                upgrades: true,
-                ..p
-            };
-            v.push((format!("{} s, upgrades", p.ahead_s), with));
+        let gain = if p.upgrade_gain > 0.0 {
+            format!(", upgrades for >= {} utility", p.upgrade_gain)
+        } else {
+            String::new()
+        };
+        v.push((format!("{name} ({} s{gain})", p.ahead_s), p));
+        if p.upgrade_gain > 0.0 {
+            // The same horizon with every upgrade, and with none: what each bound saves.
+            for (what, g) in [("every upgrade", 0.0), ("no upgrades", f64::INFINITY)] {
+                let q = Prefetch {
+                    upgrade_gain: g,
+                    ..p
+                };
+                v.push((format!("{} s, {what}", p.ahead_s), q));
+            }
         }
     }
     v

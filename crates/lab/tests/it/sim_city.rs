@@ -153,28 +153,40 @@ fn dolly_session(
 }
 
 #[test]
-fn thrifty_prefetch_fetches_each_tile_once_and_less_than_eager() {
+fn thrifty_prefetch_fetches_less_than_eager_and_never_climbs_for_nothing() {
     use splat2tiles_stream::client::Prefetch;
     let scenes = common::scenes();
     let tmp = tempfile::tempdir().unwrap();
     let city = build_city(&scenes, &tmp.path().join("city"), &CitySpec::small(), None).unwrap();
     let truth = Truth::load(&city.dir.join("tileset.json")).unwrap();
-    let (eager, eager_twice, eager_chr) =
-        dolly_session(&city.dir, &truth, &city.grid, Prefetch::EAGER);
-    let (thrifty, thrifty_twice, thrifty_chr) =
-        dolly_session(&city.dir, &truth, &city.grid, Prefetch::THRIFTY);
+    let run = |p: Prefetch| dolly_session(&city.dir, &truth, &city.grid, p);
+    let (eager, eager_twice, eager_chr) = run(Prefetch::EAGER);
+    let (thrifty, thrifty_twice, thrifty_chr) = run(Prefetch::THRIFTY);
+    let once = Prefetch {
+        upgrade_gain: f64::INFINITY,
+        ..Prefetch::THRIFTY
+    };
+    let (never, never_twice, _) = run(once);
     eprintln!(
         "eager {eager} B ({eager_twice} tiles downloaded twice or more, CHR {eager_chr:?}); \
-         thrifty {thrifty} B ({thrifty_twice}, {thrifty_chr:?})"
+         thrifty {thrifty} B ({thrifty_twice}, {thrifty_chr:?}); no upgrades {never} B \
+         ({never_twice})"
     );
     // Eager climbs the variant ladder on a fast link (Low or High first, Best later); thrifty
-    // keeps the first level it fetched, so no tile comes twice and fewer bytes arrive.
+    // fetches a held tile again only for a visible gain, and with no upgrades never.
     assert!(
         eager_twice > 0,
         "eager downloaded no tile twice: the check says nothing"
     );
-    assert_eq!(thrifty_twice, 0);
-    assert!(thrifty < eager, "thrifty {thrifty} B, eager {eager} B");
+    assert!(
+        thrifty_twice < eager_twice,
+        "{thrifty_twice} vs {eager_twice}"
+    );
+    assert_eq!(never_twice, 0);
+    assert!(
+        never <= thrifty && thrifty < eager,
+        "{never} {thrifty} {eager}"
+    );
     // With the oracle at 200 Mbit/s the 1.5 s horizon still covers every first-time entry
     // that eager's 10 s does.
     assert!(

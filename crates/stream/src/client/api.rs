@@ -49,10 +49,10 @@ pub struct Prefetch {
     pub ahead_s: f64,
     /// Predicted poses more uncertain than this (metres, one sigma) are not planned for.
     pub max_sigma_m: f64,
-    /// Whether a tile already held may be fetched again at a better level. Without upgrades
-    /// every tile is downloaded once, at the level the planner first chose for it: the fewest
-    /// bytes, and on a slow link tiles fetched at Low stay at Low.
-    pub upgrades: bool,
+    /// Utility (the tileset's per-variant SSIM utility, Best = 1) that a better level must add
+    /// to a held tile for the tile to be fetched again: 0 upgrades whenever the planner asks (the
+    /// variant ladder is climbed on a fast link), infinity never (every tile downloaded once).
+    pub upgrade_gain: f64,
 }
 
 impl Prefetch {
@@ -61,20 +61,21 @@ impl Prefetch {
     pub const EAGER: Prefetch = Prefetch {
         ahead_s: 10.0,
         max_sigma_m: crate::predict::BLEND_SIGMA_M,
-        upgrades: true,
+        upgrade_gain: 0.0,
     };
     /// The next 4 s, poses up to 10 m sigma, upgrades as eager.
     pub const BALANCED: Prefetch = Prefetch {
         ahead_s: 4.0,
         max_sigma_m: 10.0,
-        upgrades: true,
+        upgrade_gain: 0.0,
     };
-    /// The next 1.5 s, poses up to 5 m sigma, each tile fetched once: what is about to be
-    /// seen, little more.
+    /// The next 1.5 s, poses up to 5 m sigma, and a tile fetched again only for at least 0.01
+    /// utility (an SSIM point): what is about to be seen, little more, and no climbing of the
+    /// variant ladder for differences nobody sees.
     pub const THRIFTY: Prefetch = Prefetch {
         ahead_s: 1.5,
         max_sigma_m: 5.0,
-        upgrades: false,
+        upgrade_gain: 0.01,
     };
 
     /// The named settings, in order of bytes fetched ahead.
@@ -335,7 +336,7 @@ mod tests {
         assert_eq!(Prefetch::from_name("balanced"), Some(Prefetch::BALANCED));
         assert_eq!(Prefetch::from_name("eager"), Some(Prefetch::EAGER));
         let p = Prefetch::from_name("2.5s").unwrap();
-        assert_eq!((p.ahead_s, p.upgrades), (2.5, true));
+        assert_eq!((p.ahead_s, p.upgrade_gain), (2.5, 0.0));
         assert_eq!(Prefetch::from_name("0").unwrap().ahead_s, 0.0);
         for bad in ["", "-1", "NaN", "inf", "fast"] {
             assert_eq!(Prefetch::from_name(bad), None, "{bad}");

@@ -247,6 +247,24 @@ impl StreamClient {
             || needs_fallback(self.predictor.as_ref(), &self.history)
     }
 
+    /// Whether tile `i` may be planned: missing, or held at a level that a usable better one
+    /// beats by at least the prefetch setting's `upgrade_gain` in utility.
+    fn worth_fetching(&self, i: usize) -> bool {
+        let gain = self.cfg.prefetch.upgrade_gain;
+        let Some(held) = self.cache.level(i) else {
+            return true;
+        };
+        if gain <= 0.0 {
+            return true;
+        }
+        let v = &self.catalog.tiles[i].variants;
+        let better = (0..held.index())
+            .filter(|&j| self.info[i].urls[j].is_some())
+            .map(|j| v[j].utility)
+            .fold(f64::NEG_INFINITY, f64::max);
+        better - v[held.index()].utility >= gain
+    }
+
     pub(super) fn usable(&self, i: usize) -> bool {
         let s = &self.state[i];
         !s.given_up && self.info[i].urls.iter().any(|u| u.is_some())
@@ -315,7 +333,7 @@ impl StreamClient {
             .iter()
             .enumerate()
             .filter(|(i, t)| t.is_finite() && self.usable(*i) && !pinned_tile[*i])
-            .filter(|(i, _)| self.cfg.prefetch.upgrades || self.cache.level(*i).is_none())
+            .filter(|(i, _)| self.worth_fetching(*i))
             .map(|(i, t)| (i, *t))
             .collect();
         let budget = self.plan_budget();
