@@ -236,7 +236,7 @@ fn simulate_tool_refuses_bad_input_with_the_culprit_named() {
     };
     convert(&common::scene("plant.splat"), &plant, &opts).expect("convert plant.splat");
     let p = plant.to_str().unwrap();
-    let cases: [(Vec<&str>, String); 5] = [
+    let cases: [(Vec<&str>, String); 6] = [
         (
             vec!["--trace", missing.to_str().unwrap()],
             "none.csv".into(),
@@ -251,6 +251,7 @@ fn simulate_tool_refuses_bad_input_with_the_culprit_named() {
             "--predictor 'psychic'".into(),
         ),
         (vec!["--planner", "nope"], "--planner 'nope'".into()),
+        (vec!["--prefetch", "soon"], "--prefetch 'soon'".into()),
     ];
     let good = common::repo().join("traces/plant_dolly.csv");
     default_anchor(&plant, rep);
