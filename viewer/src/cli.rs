@@ -50,9 +50,10 @@ pub struct Cli {
     /// Output folder of the headless modes (frame_0000.png, ...).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// How far ahead the streaming client fetches the tiles its predictor says will be seen:
-    /// thrifty (1.5 s, each tile once), balanced (4 s), eager (10 s), or seconds ahead.
-    #[arg(long, default_value = "eager", value_parser = parse_prefetch)]
+    /// What the streaming client fetches ahead and again: balanced (10 s ahead, a held tile
+    /// fetched again only for >= 0.01 utility), thrifty (1.5 s, the same upgrades), eager (10 s,
+    /// every upgrade), or seconds ahead with eager's upgrades.
+    #[arg(long, default_value = "balanced", value_parser = parse_prefetch)]
     pub prefetch: Prefetch,
     /// Record the camera path (12 Hz, at most one hour) to this CSV (splat2tiles trace, for
     /// `splat2tiles-lab simulate --trace`), written when the window closes; with

@@ -55,7 +55,7 @@ impl Default for ViewArgs {
             sh_degree: None,
             background: "0,0,0".into(),
             max_sse: 16.0,
-            prefetch: Prefetch::EAGER,
+            prefetch: Prefetch::BALANCED,
         }
     }
 }

@@ -61,7 +61,7 @@ fn streamed_frame(g: &Headless, url: &str, cam: &Camera, max_sse: f64) -> (Image
         cam.height,
         cam.fov_y_deg(),
         max_sse,
-        Prefetch::EAGER,
+        Prefetch::BALANCED,
     );
     let (early, mut clock) = bootstrap(&mut d, url, 0.0, 60.0).expect("tileset loads");
     let cfg = RendererConfig {

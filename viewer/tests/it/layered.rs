@@ -123,7 +123,7 @@ struct Frame {
 /// at each pose the client is ticked until idle (all it wants is held), then the frame is drawn
 /// at the pose's time (`FRAME_DT` apart).
 fn stream_dolly(g: &Headless, url: &str, cams: &[Camera], mode: BlendMode) -> Vec<Frame> {
-    let mut d = driver(url, W, H, FOV, MAX_SSE, Prefetch::EAGER);
+    let mut d = driver(url, W, H, FOV, MAX_SSE, Prefetch::BALANCED);
     let (early, mut clock) = bootstrap(&mut d, url, 0.0, 60.0).expect("tileset loads");
     let cfg = RendererConfig {
         blocking_sort: true,

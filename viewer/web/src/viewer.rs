@@ -118,7 +118,7 @@ impl Options {
                 let name = v
                     .get("prefetch")
                     .and_then(|m| m.as_str())
-                    .unwrap_or("eager");
+                    .unwrap_or("balanced");
                 Prefetch::from_name(name).ok_or_else(|| {
                     format!("unknown prefetch '{name}' (thrifty, balanced, eager, or seconds)")
                 })?

@@ -74,9 +74,10 @@ pub struct SimulateArgs {
     /// Client viewport in pixels.
     #[arg(long, default_value = "1280x720", help_heading = "Your own tileset")]
     pub viewport: String,
-    /// How far ahead the client fetches predicted tiles: thrifty (1.5 s, each tile once),
-    /// balanced (4 s) or eager (10 s, the client's default), or a number of seconds.
-    #[arg(long, default_value = "eager", help_heading = "Your own tileset")]
+    /// What the client fetches ahead and again: balanced (10 s ahead, a held tile fetched again
+    /// only for >= 0.01 utility; the client's default), thrifty (1.5 s, the same upgrades),
+    /// eager (10 s, every upgrade), or seconds ahead with eager's upgrades.
+    #[arg(long, default_value = "balanced", help_heading = "Your own tileset")]
     pub prefetch: String,
     /// Requests in flight at most.
     #[arg(long, default_value_t = 4, help_heading = "Your own tileset")]

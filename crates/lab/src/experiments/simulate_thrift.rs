@@ -10,12 +10,12 @@
 //! once would receive.
 
 use super::SimulateArgs;
-use super::simulate_city::{TRACE_S, add_ratio, label, pct, table4_traces, tgq_cell};
+use super::simulate_city::{TRACE_S, add_ratio, label, pct, pick_traces, table4_traces, tgq_cell};
 use crate::sim::report::{self, session_numbers};
 use crate::sim::score::{Chr, Truth, Waste};
 use crate::sim::session::run_session;
 use crate::sim::stream_city::{
-    BuiltCity, CitySpec, DEFAULT_ORIGIN, StreetGrid, build_city, evaluation_set,
+    BuiltCity, CitySpec, DEFAULT_ORIGIN, StreetGrid, build_city, evaluation_set, trace_set,
 };
 use crate::sim::svg::{Series, marked_chart};
 use crate::sim::transport::NetModel;
@@ -25,6 +25,7 @@ use splat2tiles_render::Image;
 use splat2tiles_stream::catalog::Level;
 use splat2tiles_stream::client::{ClientConfig, Prefetch};
 use splat2tiles_stream::plan::Planner;
+use splat2tiles_stream::split::Split;
 use splat2tiles_stream::trace::{self, Trace};
 use splat2tiles_tiles::tiling::TileKey;
 use std::collections::{HashMap, HashSet};
@@ -37,41 +38,32 @@ pub const DISTRICT_FRACTION: f64 = 1.0 / 3.0;
 pub const DOLLIES: u64 = 6;
 /// The predictors compared.
 const PREDICTORS: [&str; 2] = ["linear", "oracle"];
-/// The settings of the curve: no prefetch, 0.5 s ahead, then the named ones (thrifty's
-/// horizon also with every upgrade and with none).
+/// The settings of the curve: no prefetch, then 1.5, 4 and 10 s ahead, each with every upgrade
+/// and with upgrades only for at least 0.01 utility (the named settings are among them).
 fn settings() -> Vec<(String, Prefetch)> {
-    let mut v = vec![
-        (
-            "0 s (view only)".to_string(),
-            Prefetch {
-                ahead_s: 0.0,
-                ..Prefetch::EAGER
-            },
-        ),
-        (
-            "0.5 s".to_string(),
-            Prefetch {
-                ahead_s: 0.5,
-                ..Prefetch::EAGER
-            },
-        ),
-    ];
-    for (name, p) in Prefetch::NAMED {
-        let gain = if p.upgrade_gain > 0.0 {
-            format!(", upgrades for >= {} utility", p.upgrade_gain)
-        } else {
-            String::new()
-        };
-        v.push((format!("{name} ({} s{gain})", p.ahead_s), p));
-        if p.upgrade_gain > 0.0 {
-            // The same horizon with every upgrade, and with none: what each bound saves.
-            for (what, g) in [("every upgrade", 0.0), ("no upgrades", f64::INFINITY)] {
-                let q = Prefetch {
-                    upgrade_gain: g,
-                    ..p
-                };
-                v.push((format!("{} s, {what}", p.ahead_s), q));
+    let mut v = vec![(
+        "0 s (view only)".to_string(),
+        Prefetch {
+            ahead_s: 0.0,
+            ..Prefetch::EAGER
+        },
+    )];
+    for (ahead_s, max_sigma_m) in [(1.5, 5.0), (4.0, 10.0), (10.0, 20.0)] {
+        for upgrade_gain in [0.0, 0.01] {
+            let p = Prefetch {
+                ahead_s,
+                max_sigma_m,
+                upgrade_gain,
+            };
+            let mut name = if upgrade_gain > 0.0 {
+                format!("{ahead_s} s, upgrades for >= {upgrade_gain}")
+            } else {
+                format!("{ahead_s} s, every upgrade")
+            };
+            if let Some((n, _)) = Prefetch::NAMED.iter().find(|(_, q)| *q == p) {
+                name = format!("**{n}**: {name}");
             }
+            v.push((name, p));
         }
     }
     v
@@ -197,11 +189,17 @@ pub(super) fn thrift(args: &SimulateArgs) -> anyhow::Result<String> {
     let start = Instant::now();
     let mut city = City::build(args)?;
     let full = city.built.variant_bytes[Level::Best.index()];
-    let mut dollies: Vec<Dolly> = (0..DOLLIES)
+    let dollies: Vec<Dolly> = (0..DOLLIES)
         .map(|i| city.scored(district_dolly(&city.built.grid, args.seed + i)))
         .collect();
-    let eval = evaluation_set(&city.built.grid, &args.navigation).map_err(anyhow::Error::msg)?;
-    let mut walks: Vec<Dolly> = table4_traces(&eval)
+    let nav = &args.navigation;
+    let eval = evaluation_set(&city.built.grid, nav).map_err(anyhow::Error::msg)?;
+    let walks: Vec<Dolly> = table4_traces(&eval)
+        .into_iter()
+        .map(|t| city.scored(t))
+        .collect();
+    let val = trace_set(&city.built.grid, nav, Split::Val).map_err(anyhow::Error::msg)?;
+    let val: Vec<Dolly> = pick_traces(&val)
         .into_iter()
         .map(|t| city.scored(t))
         .collect();
@@ -209,26 +207,46 @@ pub(super) fn thrift(args: &SimulateArgs) -> anyhow::Result<String> {
         ("200 Mbps", NetModel::constant(200.0, 0.04)),
         ("10 Mbps", NetModel::constant(10.0, 0.04)),
     ];
-    let settings = settings();
+    let named: Vec<(String, Prefetch)> = Prefetch::NAMED
+        .iter()
+        .map(|(n, p)| (n.to_string(), *p))
+        .collect();
     let mut md = header(args, &city.built, &dollies, full);
     let mut plot: Vec<Series> = vec![];
-    // Dollies at both rates (with TGQ), then the Table 4 traces at 10 Mbps (many more
-    // first-time entries; no TGQ).
-    let runs = [
-        ("dollies", &nets[..], true),
-        ("Table 4 traces", &nets[1..], false),
+    let walks_md = traces_header("the Table 4 traces (test split", &walks);
+    let val_md = traces_header(
+        "the same choice of traces from the validation split (the named settings only; where a choice made on the test traces is checked",
+        &val,
+    );
+    // Dollies at both rates (with TGQ); the Table 4 traces at 10 Mbps (many more first-time
+    // entries; no TGQ); the validation traces.
+    let mut parts = [
+        (
+            "dollies",
+            dollies,
+            &nets[..],
+            true,
+            settings(),
+            String::new(),
+        ),
+        (
+            "Table 4 traces",
+            walks,
+            &nets[1..],
+            false,
+            settings(),
+            walks_md,
+        ),
+        ("validation traces", val, &nets[1..], false, named, val_md),
     ];
-    for (what, nets, tgq) in runs {
-        let traces = if tgq { &mut dollies } else { &mut walks };
+    for (what, traces, nets, tgq, settings, head) in parts.iter_mut() {
+        md.push_str(head);
         let n = traces.len() as u64;
-        if !tgq {
-            md.push_str(&walks_header(traces));
-        }
-        for (nname, net) in nets {
+        for (nname, net) in nets.iter() {
             for p in PREDICTORS {
                 let mut points = vec![];
-                for (sname, setting) in &settings {
-                    let c = cell(&mut city, traces, p, *setting, net, tgq)?;
+                for (sname, setting) in settings.iter() {
+                    let c = cell(&mut city, traces, p, *setting, net, *tgq)?;
                     let line = row(nname, p, sname, &c, full * n);
                     eprintln!("{line}");
                     md.push_str(&line);
@@ -262,11 +280,12 @@ pub(super) fn thrift(args: &SimulateArgs) -> anyhow::Result<String> {
     Ok(md)
 }
 
-/// The second table's heading.
-fn walks_header(walks: &[Dolly]) -> String {
-    let names: Vec<String> = walks.iter().map(|w| label(&w.trace)).collect();
+/// The heading of a table on other traces: `what` names them (an open parenthesis that the
+/// heading closes after the trace names).
+fn traces_header(what: &str, traces: &[Dolly]) -> String {
+    let names: Vec<String> = traces.iter().map(|w| label(&w.trace)).collect();
     format!(
-        "\nThe same settings on the Table 4 traces (test split, first {TRACE_S} s each: {}), 10 Mbps, the same client and budget; the traces move through the city, so most of their entries are first-time ones.\n\n| network | predictor | prefetch | received | by level (MB, Best / High / Medium / Low) | CHR after warm-up | CHR first-time | re-entries | WD bytes | utility held | TGQ (s) | TGQ cold start (s) |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "\nThe same settings on {what}, first {TRACE_S} s each: {}), 10 Mbps, the same client and budget; the traces move through the city, so most of their entries are first-time ones.\n\n| network | predictor | prefetch | received | by level (MB, Best / High / Medium / Low) | CHR after warm-up | CHR first-time | re-entries | WD bytes | utility held | TGQ (s) | TGQ cold start (s) |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         names.join(", ")
     )
 }

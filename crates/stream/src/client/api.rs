@@ -56,29 +56,30 @@ pub struct Prefetch {
 }
 
 impl Prefetch {
-    /// Everything the predictor's whole horizon shows, poses up to App. C.5's 20 m sigma: the
-    /// most prefetching, the highest cache hit rate on a link that can carry it.
+    /// Everything the predictor's whole horizon shows, poses up to App. C.5's 20 m sigma, and
+    /// every upgrade the planner asks for (the variant ladder climbed whenever the link allows).
     pub const EAGER: Prefetch = Prefetch {
         ahead_s: 10.0,
         max_sigma_m: crate::predict::BLEND_SIGMA_M,
         upgrade_gain: 0.0,
     };
-    /// The next 4 s, poses up to 10 m sigma, upgrades as eager.
+    /// Eager's horizon and sigma bound, and a tile fetched again only for at least 0.01
+    /// utility: the cache hits of eager (within 0.4 points on the city's test traces) for about
+    /// half its bytes (BENCHMARKS.md, "Data thrift"). The default.
     pub const BALANCED: Prefetch = Prefetch {
-        ahead_s: 4.0,
-        max_sigma_m: 10.0,
-        upgrade_gain: 0.0,
+        ahead_s: 10.0,
+        max_sigma_m: crate::predict::BLEND_SIGMA_M,
+        upgrade_gain: 0.01,
     };
-    /// The next 1.5 s, poses up to 5 m sigma, and a tile fetched again only for at least 0.01
-    /// utility (an SSIM point): what is about to be seen, little more, and no climbing of the
-    /// variant ladder for differences nobody sees.
+    /// The next 1.5 s, poses up to 5 m sigma, upgrades as balanced: what is about to be seen,
+    /// little more (the fewest bytes; fewer cache hits where the camera moves far).
     pub const THRIFTY: Prefetch = Prefetch {
         ahead_s: 1.5,
         max_sigma_m: 5.0,
         upgrade_gain: 0.01,
     };
 
-    /// The named settings, in order of bytes fetched ahead.
+    /// The named settings, in order of bytes fetched.
     pub const NAMED: [(&'static str, Prefetch); 3] = [
         ("thrifty", Prefetch::THRIFTY),
         ("balanced", Prefetch::BALANCED),
@@ -86,7 +87,7 @@ impl Prefetch {
     ];
 
     /// The setting a name stands for: `thrifty`, `balanced`, `eager`, or a number of seconds
-    /// ahead (e.g. `2.5`, with the eager sigma bound and upgrades).
+    /// ahead (e.g. `2.5`, with eager's sigma bound and upgrades).
     pub fn from_name(name: &str) -> Option<Prefetch> {
         if let Some((_, p)) = Prefetch::NAMED.iter().find(|(n, _)| *n == name) {
             return Some(*p);
@@ -149,7 +150,7 @@ pub struct ClientConfig {
     pub predict_horizon_s: f64,
     /// Seconds between predicted poses.
     pub predict_step_s: f64,
-    /// How far ahead predicted tiles are fetched ([`Prefetch::EAGER`] by default).
+    /// How far ahead predicted tiles are fetched, and which upgrades ([`Prefetch::BALANCED`]).
     pub prefetch: Prefetch,
     /// When the link cannot carry the missing tiles (in view: due now; predicted: due at their
     /// first predicted view) by their deadlines even at Low (earliest deadline first over the
@@ -197,7 +198,7 @@ impl Default for ClientConfig {
             predictor: PredictorKind::Linear,
             predict_horizon_s: 10.0,
             predict_step_s: 0.5,
-            prefetch: Prefetch::EAGER,
+            prefetch: Prefetch::BALANCED,
             low_under_overload: true,
             set_aside_late: true,
             max_retries: 3,
@@ -341,10 +342,9 @@ mod tests {
         for bad in ["", "-1", "NaN", "inf", "fast"] {
             assert_eq!(Prefetch::from_name(bad), None, "{bad}");
         }
-        // The client's default is eager, which is what every earlier measurement ran.
-        assert_eq!(ClientConfig::default().prefetch, Prefetch::EAGER);
-        // Named settings fetch less ahead in order.
-        let ahead: Vec<f64> = Prefetch::NAMED.iter().map(|(_, p)| p.ahead_s).collect();
-        assert!(ahead.windows(2).all(|w| w[0] < w[1]), "{ahead:?}");
+        assert_eq!(ClientConfig::default().prefetch, Prefetch::BALANCED);
+        // Named settings fetch more in order: a longer horizon, then every upgrade.
+        let n = Prefetch::NAMED.map(|(_, p)| (p.ahead_s, -p.upgrade_gain));
+        assert!(n.windows(2).all(|w| w[0] < w[1]), "{n:?}");
     }
 }
