@@ -167,13 +167,15 @@ fn the_fallback_rule_applies_to_predictors_that_need_history() {
     let tr = plant_walk();
     let (lo, hi) = bounds();
     let radius = (hi - lo).length();
-    // Tiles fetched in the first 5 s that no view set of that time needed.
+    // Tiles fetched in the first 5 s that no view set of that time needed, nor covered coarsely
+    // as an ancestor of one (`ClientConfig::cover_up`).
     let outside = |log: &SessionLog| {
         let viewed: BTreeSet<_> = log
             .ticks
             .iter()
             .filter(|t| t.t < 5.0)
             .flat_map(|t| t.view_set.iter().copied())
+            .flat_map(|k| std::iter::successors(Some(k), |k| k.parent()))
             .collect();
         log.requests
             .iter()

@@ -164,6 +164,13 @@ pub struct ClientConfig {
     /// oracle on the validation traces and leaves predictors whose deadlines miss untouched
     /// (BENCHMARKS.md, "Moore-Hodgson").
     pub set_aside_late: bool,
+    /// Coarse cover of a bare view (at least half of the view set with nothing drawn: a cold
+    /// start or a jump): the ancestor this many levels above each hole (further up past tiles
+    /// without content) is asked at Low before anything else when it costs fewer bytes than the
+    /// holes it covers; and holes drawn by a resident ancestor (or one on the way) are requested
+    /// after the prefetches: what enters next before the detail of what is already drawn
+    /// coarsely. 0: off. 1 by default (chosen on the validation traces, BENCHMARKS.md).
+    pub cover_up: u32,
     /// Retries of a failed request before the tile (or subtree) is given up.
     pub max_retries: u32,
     /// First retry delay in seconds (doubles per failure).
@@ -201,6 +208,7 @@ impl Default for ClientConfig {
             prefetch: Prefetch::BALANCED,
             low_under_overload: true,
             set_aside_late: true,
+            cover_up: 1,
             max_retries: 3,
             retry_base_s: 0.5,
         }

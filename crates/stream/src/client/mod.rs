@@ -179,6 +179,11 @@ struct Want {
     /// Set aside under overload with trusted deadlines (`ClientConfig::set_aside_late`): it
     /// cannot be on time without making others late, so it goes after the ones that can.
     late: bool,
+    /// An ancestor asked at Low to draw holes in view coarsely (`ClientConfig::cover_up`).
+    cover: bool,
+    /// A hole in view drawn by a resident ancestor or one on the way: it goes after the
+    /// prefetches.
+    covered: bool,
 }
 
 /// The streaming client (see the module docs).

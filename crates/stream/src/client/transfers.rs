@@ -95,10 +95,21 @@ impl StreamClient {
                     .filter(|v| self.cache.level(v.tile).is_some())
                     .min_by(|a, b| a.priority.total_cmp(&b.priority))
                     .map(|v| v.tile);
-                let victim = upgrade.or_else(|| {
+                // A hole drawn coarsely gives way to the wants before it, and takes no slot
+                // from a prefetch.
+                let covered = || {
                     self.wanted
                         .iter()
-                        .filter(|v| !v.in_view && v.deadline > w.deadline + PREEMPT_GUARD_S)
+                        .filter(|v| v.covered && !w.covered && !w.late)
+                        .filter(flying)
+                        .min_by(|a, b| a.priority.total_cmp(&b.priority))
+                        .map(|v| v.tile)
+                };
+                let victim = upgrade.or_else(covered).or_else(|| {
+                    self.wanted
+                        .iter()
+                        .filter(|v| !w.covered && !v.in_view)
+                        .filter(|v| v.deadline > w.deadline + PREEMPT_GUARD_S)
                         .filter(flying)
                         .max_by(|a, b| a.deadline.total_cmp(&b.deadline))
                         .map(|v| v.tile)
