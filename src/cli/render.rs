@@ -10,9 +10,9 @@ use glam::DVec3;
 use splat2tiles_core::camera;
 use splat2tiles_core::splat::Splats;
 use splat2tiles_render::image::Image;
-use splat2tiles_render::metrics;
 use splat2tiles_render::raster::{RenderOptions, render_with_stats};
 use splat2tiles_render::view::{CameraRequest, parse_vec3, resolve_camera};
+use splat2tiles_render::{metrics, object};
 use splat2tiles_tiles::geometry::{
     Instances, finite_bounds, frame_centres, load_instances, select_tiles, tileset_bounds,
     tileset_up,
@@ -62,13 +62,32 @@ pub struct RenderArgs {
 /// Arguments of `splat2tiles compare`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct CompareArgs {
-    /// First image (PNG).
+    /// First image (PNG); with --background, the reference whose object is measured.
     pub a: PathBuf,
     /// Second image (PNG), same size.
     pub b: PathBuf,
-    /// Print `{"ssim": .., "psnr": ..}` (psnr null when the images are identical).
+    /// Print `{"ssim": .., "psnr": ..}` (psnr null when the images are identical), with an
+    /// "object" entry when --background is given.
     #[arg(long)]
     pub json: bool,
+    /// Background colour R,G,B in [0, 1] of the renders: also measure the object alone, PSNR over
+    /// the pixels where the first image differs from this colour and SSIM on a crop framing them
+    /// (whole-frame numbers saturate when the object covers a small part of the frame).
+    #[arg(long)]
+    pub background: Option<String>,
+}
+
+/// The object-only metrics of a comparison (`--background`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjectScores {
+    /// PSNR over the object's pixels (infinite when equal; None without object pixels).
+    pub psnr: Option<f64>,
+    /// SSIM on the crop framing the object (None without object pixels).
+    pub ssim: Option<f64>,
+    /// Number of object pixels.
+    pub pixels: usize,
+    /// The crop `[x, y, width, height]`.
+    pub crop: Option<[u32; 4]>,
 }
 
 /// The default up axis for a scene file: +y for SPZ (RUB), -y otherwise (COLMAP, y down).
@@ -201,35 +220,86 @@ fn tileset_instances(
     Ok(load_instances(ts, &select_tiles(ts, cam, max_sse))?)
 }
 
-/// SSIM and PSNR of two PNG files.
-pub fn compare_files(a: &Path, b: &Path) -> anyhow::Result<(f64, f64)> {
+/// SSIM and PSNR of two PNG files, and with a background colour the object-only scores (the
+/// object: where `a` differs from the background).
+pub fn compare_images(
+    a: &Path,
+    b: &Path,
+    background: Option<[f32; 3]>,
+) -> anyhow::Result<(f64, f64, Option<ObjectScores>)> {
     let ia = Image::load_png(a)?;
     let ib = Image::load_png(b)?;
-    let s =
-        metrics::ssim(&ia, &ib).with_context(|| format!("{} vs {}", a.display(), b.display()))?;
+    let what = || format!("{} vs {}", a.display(), b.display());
+    let s = metrics::ssim(&ia, &ib).with_context(what)?;
     let p = metrics::psnr(&ia, &ib)?;
-    Ok((s, p))
+    let object = match background {
+        None => None,
+        Some(bg) => {
+            let mask = object::object_mask(&ia, bg);
+            Some(ObjectScores {
+                psnr: object::masked_psnr(&ia, &ib, &mask).with_context(what)?,
+                ssim: object::object_ssim(&ia, &ib, &mask).with_context(what)?,
+                pixels: mask.count,
+                crop: object::object_crop(&mask).map(|[x0, y0, x1, y1]| [x0, y0, x1 - x0, y1 - y0]),
+            })
+        }
+    };
+    Ok((s, p, object))
 }
 
 /// Runs `compare`: prints SSIM and PSNR (text or JSON) on stdout.
 pub fn run_compare(args: &CompareArgs) -> anyhow::Result<()> {
-    let (s, p) = compare_files(&args.a, &args.b)?;
-    outln!("{}", format_compare(s, p, args.json));
+    let background = match &args.background {
+        None => None,
+        Some(b) => {
+            let v = parse_vec3(b).context("--background")?.as_vec3().to_array();
+            if v.iter().any(|c| !(0.0..=1.0).contains(c)) {
+                anyhow::bail!("--background {b}: each of R,G,B must lie in [0, 1]");
+            }
+            Some(v)
+        }
+    };
+    let (s, p, object) = compare_images(&args.a, &args.b, background)?;
+    outln!("{}", format_compare(s, p, object.as_ref(), args.json));
     Ok(())
 }
 
-/// The `compare` output line(s).
-pub fn format_compare(ssim: f64, psnr: f64, json: bool) -> String {
-    if json {
-        let p = if psnr.is_finite() {
-            serde_json::json!(psnr)
-        } else {
-            serde_json::Value::Null
-        };
-        serde_json::json!({"ssim": ssim, "psnr": p}).to_string()
-    } else {
-        format!("SSIM {ssim:.6}\nPSNR {psnr:.3} dB")
+/// A PSNR for JSON: null when infinite (identical images) or absent.
+fn json_db(p: Option<f64>) -> serde_json::Value {
+    match p {
+        Some(p) if p.is_finite() => serde_json::json!(p),
+        _ => serde_json::Value::Null,
     }
+}
+
+/// The `compare` output line(s).
+pub fn format_compare(ssim: f64, psnr: f64, object: Option<&ObjectScores>, json: bool) -> String {
+    if json {
+        let mut v = serde_json::json!({"ssim": ssim, "psnr": json_db(Some(psnr))});
+        if let Some(o) = object {
+            v["object"] = serde_json::json!({
+                "psnr": json_db(o.psnr),
+                "ssim": o.ssim,
+                "pixels": o.pixels,
+                "crop": o.crop,
+            });
+        }
+        return v.to_string();
+    }
+    let mut out = format!("SSIM {ssim:.6}\nPSNR {psnr:.3} dB");
+    if let Some(o) = object {
+        let psnr = o
+            .psnr
+            .map_or("- (no object pixels)".into(), |p| format!("{p:.3} dB"));
+        out += &format!("\nobject PSNR {psnr} over {} pixels", o.pixels);
+        match (o.ssim, o.crop) {
+            (Some(s), Some([x, y, w, h])) => {
+                out += &format!("\nobject SSIM {s:.6} on the {w}x{h} crop at {x},{y}")
+            }
+            _ => out += "\nobject SSIM - (no object pixels)",
+        }
+    }
+    out
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@ mod scenes;
 use std::path::{Path, PathBuf};
 
 use super::{
-    CompareArgs, RenderArgs, compare_files, default_up_axis, format_compare, run_compare,
+    CompareArgs, RenderArgs, compare_images, default_up_axis, format_compare, run_compare,
     run_render,
 };
 use glam::DVec3;
@@ -106,15 +106,28 @@ fn render_then_compare() {
     let img = Image::load_png(&out).unwrap();
     assert_eq!((img.width, img.height), (64, 48));
     assert!(img.data.iter().any(|&v| v > 0.0), "the cloud is in view");
-    let (s, p) = compare_files(&out, &out).unwrap();
+    let (s, p, _) = compare_images(&out, &out, None).unwrap();
     assert_eq!((s, p), (1.0, f64::INFINITY));
-    assert_eq!(format_compare(s, p, true), r#"{"psnr":null,"ssim":1.0}"#);
+    assert_eq!(
+        format_compare(s, p, None, true),
+        r#"{"psnr":null,"ssim":1.0}"#
+    );
     run_compare(&CompareArgs {
         a: out.clone(),
         b: out.clone(),
         json: false,
+        background: Some("0,0,0".into()),
     })
     .unwrap();
+    // A background outside [0, 1] is refused, naming the option.
+    let e = run_compare(&CompareArgs {
+        a: out.clone(),
+        b: out.clone(),
+        json: false,
+        background: Some("0,2,0".into()),
+    })
+    .unwrap_err();
+    assert!(format!("{e:#}").contains("--background"), "{e:#}");
     // Reader errors propagate.
     a.input = dir.path().join("missing.ply");
     assert!(run_render(&a).is_err());

@@ -1,4 +1,5 @@
-//! `splat2tiles compare` through the binary: JSON output, and a size mismatch is exit code 2.
+//! `splat2tiles compare` through the binary: JSON output, the object-only scores on a background,
+//! and a size mismatch is exit code 2.
 
 use splat2tiles_render::Image;
 use std::process::Command;
@@ -60,4 +61,66 @@ fn a_scene_and_its_tileset_have_the_same_auto_views() {
         let ssim = splat2tiles_render::metrics::ssim(&a, &b).unwrap();
         assert!(ssim >= 0.99, "auto view {k}: SSIM {ssim}");
     }
+}
+
+/// The plant rendered small on grey, against the same render with its colours shifted on the
+/// object: whole-frame PSNR hides most of the error, the object scores do not, and they score
+/// the pixels the first image's object covers.
+#[test]
+fn compare_scores_the_object_on_its_background() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = crate::common::bin();
+    let reference = dir.path().join("ref.png");
+    let o = Command::new(&exe)
+        .arg("render")
+        .arg(crate::common::scene("plant.splat"))
+        .args(["--auto-view", "0", "--width", "320", "--height", "240"])
+        .args(["--background", "0.5,0.5,0.5", "-o"])
+        .arg(&reference)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = Image::load_png(&reference).unwrap();
+    let grey = (0.5f32 * 255.0).round() / 255.0;
+    let mut shifted = img.clone();
+    let mut object = 0;
+    for px in shifted.data.chunks_exact_mut(3) {
+        if px.iter().any(|v| (v - grey).abs() > 0.5 / 255.0) {
+            px[0] = (px[0] + 0.05).min(1.0);
+            object += 1;
+        }
+    }
+    let coded = dir.path().join("coded.png");
+    shifted.save_png(&coded).unwrap();
+    let run = |bg: &str| -> serde_json::Value {
+        let o = Command::new(&exe)
+            .args(["compare", "--json", "--background", bg])
+            .arg(&reference)
+            .arg(&coded)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let v = run("0.5,0.5,0.5");
+    let (whole, on_object) = (v["psnr"].as_f64().unwrap(), v["object"]["psnr"].as_f64().unwrap());
+    assert_eq!(v["object"]["pixels"].as_u64().unwrap(), object as u64);
+    assert!(object > 0 && object < 320 * 240 / 2, "{object} object pixels");
+    assert!(whole > on_object + 3.0, "whole {whole} dB, object {on_object} dB");
+    let crop = v["object"]["crop"].as_array().unwrap();
+    assert!(crop[2].as_u64().unwrap() < 320 || crop[3].as_u64().unwrap() < 240, "{crop:?}");
+    assert!(v["object"]["ssim"].as_f64().unwrap() <= v["ssim"].as_f64().unwrap());
+    // A background the render does not have makes every pixel the object: whole-frame scores.
+    let w = run("0,0,0");
+    assert_eq!(w["object"]["pixels"].as_u64().unwrap(), 320 * 240);
+    assert!((w["object"]["psnr"].as_f64().unwrap() - whole).abs() < 1e-9);
+    // A malformed background is a usage error naming the option.
+    let o = Command::new(&exe)
+        .args(["compare", "--background", "grey"])
+        .arg(&reference)
+        .arg(&coded)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--background"));
 }

@@ -2,10 +2,12 @@
 //! and SSIM/PSNR: the ground truth every quality number of the project is measured with.
 //!
 //! Entry points: [`render`] (instances of splat sets with model matrices, seen by a [`Camera`]),
-//! [`auto_views`], [`ssim`] and [`psnr`]. See `raster` for the exact rules followed.
+//! [`auto_views`], [`ssim`] and [`psnr`], and their object-only forms in [`object`]. See `raster`
+//! for the exact rules followed.
 
 pub mod image;
 pub mod metrics;
+pub mod object;
 pub mod raster;
 pub mod view;
 
