@@ -5,7 +5,10 @@
 //! SH1-3, every 4th splat) is encoded whole by every codec, decoded by that codec's own reader (ours, or
 //! splat-transform back to PLY), and rendered by the CPU reference renderer from the 8 automatic
 //! views at 1280x720 (mid-grey background) around the box holding 99% of the splat centres on each
-//! axis; the score is the mean SSIM against the float32 scene's renders. Bytes: the encoded file,
+//! axis; the score is the mean SSIM against the float32 scene's renders, and over the framed views
+//! the object alone (PSNR over the pixels where the reference differs from the background, pooled
+//! over the views, and SSIM on a crop framing them: whole-frame numbers saturate when the object
+//! covers a few percent of the frame). Bytes: the encoded file,
 //! and that file gzipped (`spz2::gzip`, zlib level 6, as an HTTP server sends it; SPZ and SOG are
 //! compressed already).
 //!
@@ -25,7 +28,7 @@ mod common;
 mod peer_views;
 use common::plant_sh3;
 use glam::DVec3;
-use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
+use peer_views::{ZOOMS, core_box, render_all, view_scores, zoomed};
 use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::splat::Splats;
@@ -47,6 +50,9 @@ struct Point {
     gz: usize,
     /// Mean SSIM at each zoom of [`ZOOMS`].
     ssim: [f64; 2],
+    /// The framed views over the object alone (`peer_views::ViewScores`): pooled PSNR (dB) and
+    /// mean crop SSIM; NaN in rows reused from a table without them.
+    object: [f64; 2],
     splats: usize,
 }
 
@@ -189,24 +195,26 @@ fn main() {
         let base: Vec<Vec<Image>> = cams.iter().map(|c| render_all(&rel, c)).collect();
         let mut add = |family: &'static str, codec: String, file: Vec<u8>, dec: &Splats| {
             assert_eq!(dec.len(), n, "{name} {codec}: splat count");
+            let scores = [0, 1].map(|k| view_scores(&base[k], dec, &cams[k]));
             let p = Point {
                 scene: name.clone(),
                 family,
                 codec,
                 gz: gzip(&file).len(),
                 file: file.len(),
-                ssim: [0, 1].map(|k| mean_ssim(&base[k], dec, &cams[k])),
+                ssim: scores.map(|s| s.ssim),
+                object: [scores[0].object_psnr, scores[0].crop_ssim],
                 splats: n,
             };
             eprintln!(
-                "{name}: {} {} {:.2} B/splat, SSIM {:.5} / {:.5} (raw {:.9} / {:.9})",
+                "{name}: {} {} {:.2} B/splat, SSIM {:.9} / {:.9}, object PSNR {:.3} dB, crop SSIM {:.6}",
                 p.family,
                 p.codec,
                 p.wire() as f64 / n as f64,
                 p.ssim[0],
                 p.ssim[1],
-                p.ssim[0],
-                p.ssim[1]
+                p.object[0],
+                p.object[1]
             );
             points.push(p);
         };
@@ -276,42 +284,46 @@ fn main() {
     eprintln!("wrote target/peers.md and docs/peers.svg");
 }
 
-/// Our smallest wire bytes per splat with both SSIMs at least `s`'s on `scene`, if any variant
-/// reaches them.
-fn ours_at(points: &[Point], scene: &str, s: [f64; 2]) -> Option<f64> {
+/// Our smallest wire bytes per splat on `scene` among the variants that `reaches`, if any.
+fn ours_at(points: &[Point], scene: &str, reaches: impl Fn(&Point) -> bool) -> Option<f64> {
     points
         .iter()
-        .filter(|p| {
-            p.scene == scene && p.family == "splat2tiles" && p.ssim[0] >= s[0] && p.ssim[1] >= s[1]
-        })
+        .filter(|p| p.scene == scene && p.family == "splat2tiles" && reaches(p))
         .map(|p| p.wire() as f64 / p.splats as f64)
         .min_by(f64::total_cmp)
 }
 
 fn table(points: &[Point]) -> String {
     let mut s = String::from(
-        "| scene | codec | B/splat file | B/splat gzip -6 | mean SSIM, framed | mean SSIM, 4x zoom | our B/splat at >= both SSIMs | ours / theirs |\n|---|---|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | codec | B/splat file | B/splat gzip -6 | mean SSIM, framed | mean SSIM, 4x zoom | our B/splat at >= both SSIMs | ours / theirs | object PSNR, framed (dB) | object crop SSIM, framed | our B/splat at >= its object PSNR | ours / theirs, object PSNR |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for p in points {
         let per = |b: usize| b as f64 / p.splats as f64;
-        let (ours, ratio) = if p.family == "splat2tiles" {
+        let mine = |b: Option<f64>| match b {
+            _ if p.family == "splat2tiles" => ("-".to_string(), "-".to_string()),
+            Some(b) => (format!("{b:.2}"), format!("{:.2}", b / per(p.wire()))),
+            None => ("(none)".into(), "-".into()),
+        };
+        let (ours, ratio) = mine(ours_at(points, &p.scene, |q| {
+            q.ssim[0] >= p.ssim[0] && q.ssim[1] >= p.ssim[1]
+        }));
+        let (ours_obj, ratio_obj) = if p.object[0].is_nan() {
             ("-".to_string(), "-".to_string())
         } else {
-            match ours_at(points, &p.scene, p.ssim) {
-                Some(b) => (format!("{b:.2}"), format!("{:.2}", b / per(p.wire()))),
-                None => ("(none)".into(), "-".into()),
-            }
+            mine(ours_at(points, &p.scene, |q| q.object[0] >= p.object[0]))
         };
         writeln!(
             s,
-            "| {} | {} {} | {:.2} | {:.2} | {:.5} | {:.5} | {ours} | {ratio} |",
+            "| {} | {} {} | {:.2} | {:.2} | {:.5} | {:.5} | {ours} | {ratio} | {:.2} | {:.5} | {ours_obj} | {ratio_obj} |",
             p.scene,
             p.family,
             p.codec,
             per(p.file),
             per(p.gz),
             p.ssim[0],
-            p.ssim[1]
+            p.ssim[1],
+            p.object[0],
+            p.object[1]
         )
         .unwrap();
     }
@@ -383,6 +395,11 @@ fn points_from_table(md: &str) -> Vec<Point> {
                 file: (num(2)? * 100.0).round() as usize,
                 gz: (num(3)? * 100.0).round() as usize,
                 ssim: [num(4)?, num(5)?],
+                // Tables written before the object columns: NaN (not compared).
+                object: [
+                    c.get(8).and_then(|v| v.parse().ok()).unwrap_or(f64::NAN),
+                    c.get(9).and_then(|v| v.parse().ok()).unwrap_or(f64::NAN),
+                ],
                 splats: 100,
             })
         })

@@ -17,7 +17,7 @@ mod common;
 mod peer_views;
 
 use glam::DVec3;
-use peer_views::{ZOOMS, core_box, mean_ssim, render_all, zoomed};
+use peer_views::{ZOOMS, core_box, render_all, view_scores, zoomed};
 use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::splat::Splats;
@@ -106,7 +106,7 @@ fn main() {
         let base: Vec<Vec<Image>> = cams.iter().map(|c| render_all(&rel, c)).collect();
         let report = |label: &str, file: &[u8], dec: &Splats| {
             let wire = file.len().min(gzip(file).len()) as f64 / n;
-            let s = [0, 1].map(|k| mean_ssim(&base[k], dec, &cams[k]));
+            let s = [0, 1].map(|k| view_scores(&base[k], dec, &cams[k]).ssim);
             println!(
                 "{f} | {label} | {wire:.2} | {:.5} | {:.5} | raw {:.12} {:.12}",
                 s[0], s[1], s[0], s[1]

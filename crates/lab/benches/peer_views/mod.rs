@@ -1,5 +1,5 @@
-//! The peers bench's views and score, shared with `examples/high_bits_probe.rs`: the box around
-//! the scene's core, the renders, the 1x / 4x view sets and the mean SSIM against a base.
+//! The peers bench's views and scores, shared with `examples/high_bits_probe.rs`: the box around
+//! the scene's core, the renders, the 1x / 4x view sets and their scores against a base.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -45,13 +45,56 @@ pub fn zoomed(cams: &[Camera], z: f64) -> Vec<Camera> {
         .collect()
 }
 
-/// Mean SSIM of `s` rendered from `cams` against `base` (0 for a failed comparison).
-pub fn mean_ssim(base: &[Image], s: &Splats, cams: &[Camera]) -> f64 {
+/// What the renders of `s` from `cams` score against `base` over the whole frame and over the
+/// object (`splat2tiles_render::object`: the pixels where the base differs from the grey
+/// background, and a crop framing them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewScores {
+    /// Mean whole-frame SSIM (0 for a failed comparison).
+    pub ssim: f64,
+    /// PSNR over the object pixels of every view pooled (one MSE over all of them); infinite when
+    /// they are equal, NaN when no view has any.
+    pub object_psnr: f64,
+    /// Mean SSIM on each view's object crop (views without object pixels left out; NaN if none).
+    pub crop_ssim: f64,
+}
+
+/// The [`ViewScores`] of `s` seen from `cams` against `base`.
+pub fn view_scores(base: &[Image], s: &Splats, cams: &[Camera]) -> ViewScores {
+    use splat2tiles_render::object::{masked_psnr, object_mask, object_ssim};
     let imgs = render_all(s, cams);
-    let sum: f64 = base
-        .iter()
-        .zip(&imgs)
-        .map(|(a, b)| ssim(a, b).unwrap_or(0.0))
-        .sum();
-    sum / base.len() as f64
+    let bg = render_options().background;
+    let (mut ssim_sum, mut se, mut px, mut crop_sum, mut crops) = (0.0, 0.0, 0usize, 0.0, 0usize);
+    for (a, b) in base.iter().zip(&imgs) {
+        ssim_sum += ssim(a, b).unwrap_or(0.0);
+        let mask = object_mask(a, bg);
+        if let Ok(Some(p)) = masked_psnr(a, b, &mask) {
+            // Back to the view's MSE, weighted by its object pixels.
+            let mse = if p.is_finite() {
+                10f64.powf(-p / 10.0)
+            } else {
+                0.0
+            };
+            se += mse * mask.count as f64;
+            px += mask.count;
+        }
+        if let Ok(Some(c)) = object_ssim(a, b, &mask) {
+            crop_sum += c;
+            crops += 1;
+        }
+    }
+    let object_psnr = match (px, se) {
+        (0, _) => f64::NAN,
+        (_, 0.0) => f64::INFINITY,
+        _ => 10.0 * (px as f64 / se).log10(),
+    };
+    ViewScores {
+        ssim: ssim_sum / base.len().max(1) as f64,
+        object_psnr,
+        crop_ssim: if crops == 0 {
+            f64::NAN
+        } else {
+            crop_sum / crops as f64
+        },
+    }
 }
