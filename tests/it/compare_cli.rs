@@ -103,12 +103,24 @@ fn compare_scores_the_object_on_its_background() {
         serde_json::from_slice(&o.stdout).unwrap()
     };
     let v = run("0.5,0.5,0.5");
-    let (whole, on_object) = (v["psnr"].as_f64().unwrap(), v["object"]["psnr"].as_f64().unwrap());
+    let (whole, on_object) = (
+        v["psnr"].as_f64().unwrap(),
+        v["object"]["psnr"].as_f64().unwrap(),
+    );
     assert_eq!(v["object"]["pixels"].as_u64().unwrap(), object as u64);
-    assert!(object > 0 && object < 320 * 240 / 2, "{object} object pixels");
-    assert!(whole > on_object + 3.0, "whole {whole} dB, object {on_object} dB");
+    assert!(
+        object > 0 && object < 320 * 240 / 2,
+        "{object} object pixels"
+    );
+    assert!(
+        whole > on_object + 3.0,
+        "whole {whole} dB, object {on_object} dB"
+    );
     let crop = v["object"]["crop"].as_array().unwrap();
-    assert!(crop[2].as_u64().unwrap() < 320 || crop[3].as_u64().unwrap() < 240, "{crop:?}");
+    assert!(
+        crop[2].as_u64().unwrap() < 320 || crop[3].as_u64().unwrap() < 240,
+        "{crop:?}"
+    );
     assert!(v["object"]["ssim"].as_f64().unwrap() <= v["ssim"].as_f64().unwrap());
     // A background the render does not have makes every pixel the object: whole-frame scores.
     let w = run("0,0,0");
