@@ -1,0 +1,207 @@
+//! Bytes of a whole LOD output against splat-transform's Streamed SOG of the same scene, counted
+//! both ways: every tile or chunk (LOD parents included) and the leaves only (the full-detail
+//! splats, what a single SOG file holds), per input splat.
+//!
+//! Ours: `splat2tiles convert --variants all --no-utility` (release binary), each variant's
+//! content files summed over every tile and over the tiles without children; the output's other
+//! files (tileset.json, subtrees) once, in "every tile". Each file counts as sent: the file or its gzip -6, the
+//! smaller (SPZ and meshopt content gain from gzip; SOG's WebP does not). Theirs: the scene as a
+//! PLY, decimated by `--decimate 50%` per level until a level would hold fewer than 8k splats
+//! (SuperSplat halves per level; splat-transform's smallest chunk is 8k), then bundled as
+//! `lod-meta.json` with `-l` tags (`-g cpu` throughout); LOD 0's chunks are the leaves.
+//!
+//! Run: `npm install --prefix target/st37 @playcanvas/splat-transform@3.7.0` once, then
+//! `cargo build --release && cargo run --release -p splat2tiles-lab --example lod_bytes`
+//! (`LOD_SCENES=plant` for one scene). Prints a Markdown table.
+
+use splat2tiles_io::{read_path, write_ply};
+use splat2tiles_tiles::encode::spz2::gzip;
+use std::collections::{BTreeMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+/// Bytes sent for one file: the file or its gzip -6, the smaller.
+fn sent(path: &Path) -> u64 {
+    let b = std::fs::read(path).unwrap();
+    b.len().min(gzip(&b).len()) as u64
+}
+
+/// Every file under `dir`.
+fn files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = vec![];
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Our output's sent bytes: per variant in `variants::ALL`'s order (name, every tile, leaves
+/// only), the other files, and the splats of every tile.
+fn ours(scene: &Path, out: &Path) -> (Vec<(String, u64, u64)>, u64, u64) {
+    let bin = root().join("target/release/splat2tiles");
+    let st = Command::new(&bin)
+        .arg("convert")
+        .arg(scene)
+        .arg("-o")
+        .arg(out)
+        .args(["--variants", "all", "--no-utility", "--quiet"])
+        .status()
+        .expect("target/release/splat2tiles (cargo build --release)");
+    assert!(st.success(), "convert {}", scene.display());
+    let ts = splat2tiles_tiles::tiling::load::load_tileset(&out.join("tileset.json")).unwrap();
+    let parents: HashSet<_> = ts.tiles.iter().filter_map(|t| t.key.parent()).collect();
+    let mut per: BTreeMap<usize, (u64, u64)> = BTreeMap::new();
+    let mut counted = HashSet::new();
+    for t in &ts.tiles {
+        for (k, v) in splat2tiles_tiles::variants::ALL.into_iter().enumerate() {
+            let p = ts
+                .dir
+                .join(splat2tiles_tiles::variants::content_uri(ts.scheme, t.key, v));
+            if !p.exists() {
+                continue;
+            }
+            let b = sent(&p);
+            counted.insert(p);
+            let e = per.entry(k).or_default();
+            e.0 += b;
+            if !parents.contains(&t.key) {
+                e.1 += b;
+            }
+        }
+    }
+    let other = files(out)
+        .iter()
+        .filter(|p| !counted.contains(*p))
+        .map(|p| sent(p))
+        .sum();
+    let splats = splat2tiles_tiles::variants::content_variant_metadata(&ts)
+        .values()
+        .map(|m| m.0 as u64)
+        .sum();
+    let names = splat2tiles_tiles::variants::ALL.map(|v| v.name().to_string());
+    let per = per
+        .into_iter()
+        .map(|(k, (a, l))| (names[k].clone(), a, l))
+        .collect();
+    (per, other, splats)
+}
+
+/// Runs splat-transform 3.7.0 with `args` on the CPU (no GPU here).
+fn splat_transform(args: &[&str]) {
+    let cli = root().join("target/st37/node_modules/@playcanvas/splat-transform/bin/cli.mjs");
+    assert!(cli.exists(), "{}: see the run line", cli.display());
+    let st = Command::new("node")
+        .arg(&cli)
+        .args(["-q", "-w", "-g", "cpu"])
+        .args(args)
+        .status()
+        .unwrap();
+    assert!(st.success(), "splat-transform {args:?}");
+}
+
+/// Streamed SOG's sent bytes: (every chunk and the index, LOD 0's chunks), and the levels' sizes.
+fn theirs(ply: &Path, n: usize, dir: &Path) -> (u64, u64, Vec<usize>) {
+    let mut levels = vec![ply.to_path_buf()];
+    let mut counts = vec![n];
+    while counts[counts.len() - 1] / 2 >= 8192 {
+        let next = dir.join(format!("lod{}.ply", levels.len()));
+        let prev = levels[levels.len() - 1].to_str().unwrap().to_string();
+        splat_transform(&[&prev, "--decimate", "50%", next.to_str().unwrap()]);
+        counts.push(read_path(&next).unwrap().splats.len());
+        levels.push(next);
+    }
+    let out = dir.join("sog");
+    std::fs::create_dir_all(&out).unwrap();
+    let mut args: Vec<String> = vec![];
+    for (k, l) in levels.iter().enumerate() {
+        args.extend([l.to_str().unwrap().to_string(), "-l".into(), k.to_string()]);
+    }
+    args.push(out.join("lod-meta.json").to_str().unwrap().to_string());
+    splat_transform(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("lod-meta.json")).unwrap()).unwrap();
+    // LOD 0's chunks: the directories of the tree's leaves at lod 0, by the index's filenames.
+    let names: Vec<String> = meta["filenames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect();
+    let lod0: HashSet<PathBuf> = lod0_files(&meta["tree"], &names)
+        .into_iter()
+        .map(|f| out.join(f).parent().unwrap().to_path_buf())
+        .collect();
+    let (mut all, mut leaves) = (0, 0);
+    for f in files(&out) {
+        let b = sent(&f);
+        all += b;
+        if f.parent().is_some_and(|d| lod0.contains(d)) {
+            leaves += b;
+        }
+    }
+    (all, leaves, counts)
+}
+
+/// The filenames the tree's nodes give for LOD 0 (`lods: {"0": {"file": index, ...}}`).
+fn lod0_files(node: &serde_json::Value, names: &[String]) -> Vec<String> {
+    let mut out = vec![];
+    if let Some(f) = node["lods"]["0"]["file"].as_u64() {
+        out.push(names[f as usize].clone());
+    }
+    for c in node["children"].as_array().into_iter().flatten() {
+        out.extend(lod0_files(c, names));
+    }
+    out
+}
+
+fn main() {
+    let only = std::env::var("LOD_SCENES").unwrap_or_default();
+    println!(
+        "| scene | splats | ours: variant | every tile B/splat | leaves B/splat | our splats, all tiles / input | Streamed SOG every chunk B/splat | LOD 0 chunks B/splat | SOG splats, all levels / input |"
+    );
+    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|");
+    for f in ["plant.splat", "donut_fused_sh0.ply", "biker.spz"] {
+        if !f.contains(&only) {
+            continue;
+        }
+        let scene = root().join("data/scenes").join(f);
+        let tmp = tempfile::tempdir().unwrap();
+        let splats = read_path(&scene).unwrap().splats;
+        let n = splats.len();
+        let (per, other, our_splats) = ours(&scene, &tmp.path().join("ours"));
+        let ply = tmp.path().join("scene.ply");
+        write_ply(
+            &splats,
+            std::io::BufWriter::new(std::fs::File::create(&ply).unwrap()),
+        )
+        .unwrap();
+        let (all, lod0, counts) = theirs(&ply, n, tmp.path());
+        let b = |x: u64| x as f64 / n as f64;
+        let sog_splats: usize = counts.iter().sum();
+        for (v, every, leaves) in &per {
+            println!(
+                "| {f} | {n} | {v} | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} | {:.3} ({} levels) |",
+                b(every + other),
+                b(*leaves),
+                our_splats as f64 / n as f64,
+                b(all),
+                b(lod0),
+                sog_splats as f64 / n as f64,
+                counts.len()
+            );
+        }
+    }
+}
