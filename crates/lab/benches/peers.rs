@@ -1,5 +1,6 @@
 //! Fidelity per byte against the peers: our four variants, TileSplat's Table 6
-//! bit allocation, SPZ v2 (our writer), SPZ v3/v4 and PlayCanvas SOG (splat-transform).
+//! bit allocation, SPZ v2 (our writer), SPZ v3/v4, PlayCanvas SOG and compressed PLY
+//! (splat-transform).
 //!
 //! Each scene (the three shared scenes, `data/scenes/README.md`, and the plant with generated
 //! SH1-3, every 4th splat) is encoded whole by every codec, decoded by that codec's own reader (ours, or
@@ -13,7 +14,7 @@
 //! compressed already).
 //!
 //! Run: `npm ci --prefix tests/js` once, then `cargo bench --bench peers` (writes
-//! `target/peers.md` and `docs/peers.svg`; `PEERS_SCENES=plant` runs one scene; `PEERS_TIMEOUT_S`
+//! `target/peers.md`, `docs/peers.svg` and `docs/peers_object.svg`; `PEERS_SCENES=plant` runs one scene; `PEERS_TIMEOUT_S`
 //! bounds each splat-transform run, default 900 s; `PEERS_REPLOT=target/peers.md` only redraws
 //! the plot from a saved table; `PEERS_REUSE=saved.md` takes the splat-transform rows (SPZ v3/v4,
 //! SOG: their encoders do not change with ours, and SOG's takes most of the time) of each scene
@@ -132,6 +133,29 @@ fn via_splat_transform(
 /// The generated SH3 scene keeps every `SH3_STEP`-th splat of the plant (see `main`).
 const SH3_STEP: usize = 4;
 
+/// The splat-transform peers: (family, codec, output file, extra arguments).
+const SPLAT_TRANSFORM: [(&str, &str, &str, &[&str]); 4] = [
+    (
+        "SPZ",
+        "v3 (splat-transform)",
+        "s3.spz",
+        &["--spz-version", "3"],
+    ),
+    (
+        "SPZ",
+        "v4 (splat-transform)",
+        "s4.spz",
+        &["--spz-version", "4"],
+    ),
+    ("SOG", "SOG (splat-transform)", "s.sog", &["-g", "cpu"]),
+    (
+        "PLY",
+        "compressed (splat-transform)",
+        "s.compressed.ply",
+        &[],
+    ),
+];
+
 fn main() {
     // Re-plot a saved table without encoding anything again.
     if let Some(md) = std::env::var_os("PEERS_REPLOT") {
@@ -144,7 +168,11 @@ fn main() {
         let points = points_from_table(&std::fs::read_to_string(&md).unwrap());
         assert!(!points.is_empty(), "{}: no rows", md.to_string_lossy());
         std::fs::write(root().join("docs/peers.svg"), plot(&points)).unwrap();
-        eprintln!("wrote docs/peers.svg from {} rows", points.len());
+        std::fs::write(root().join("docs/peers_object.svg"), plot_object(&points)).unwrap();
+        eprintln!(
+            "wrote docs/peers.svg and docs/peers_object.svg from {} rows",
+            points.len()
+        );
         return;
     }
     let dir = root().join("data/scenes");
@@ -251,21 +279,7 @@ fn main() {
             std::io::BufWriter::new(std::fs::File::create(&ply).unwrap()),
         )
         .unwrap();
-        for (family, codec, file, extra) in [
-            (
-                "SPZ",
-                "v3 (splat-transform)",
-                "s3.spz",
-                &["--spz-version", "3"][..],
-            ),
-            (
-                "SPZ",
-                "v4 (splat-transform)",
-                "s4.spz",
-                &["--spz-version", "4"][..],
-            ),
-            ("SOG", "SOG (splat-transform)", "s.sog", &["-g", "cpu"][..]),
-        ] {
+        for (family, codec, file, extra) in SPLAT_TRANSFORM {
             match via_splat_transform(&ply, tmp.path(), file, extra) {
                 Ok((bytes, dec)) => add(family, codec.into(), bytes, &dec),
                 Err(e) => eprintln!("{name}: {codec} skipped: {e}"),
@@ -279,9 +293,9 @@ fn main() {
         std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
     std::fs::create_dir_all(&target).unwrap();
     std::fs::write(target.join("peers.md"), &md).unwrap();
-    let svg = plot(&points);
-    std::fs::write(root().join("docs/peers.svg"), svg).unwrap();
-    eprintln!("wrote target/peers.md and docs/peers.svg");
+    std::fs::write(root().join("docs/peers.svg"), plot(&points)).unwrap();
+    std::fs::write(root().join("docs/peers_object.svg"), plot_object(&points)).unwrap();
+    eprintln!("wrote target/peers.md, docs/peers.svg and docs/peers_object.svg");
 }
 
 /// Our smallest wire bytes per splat on `scene` among the variants that `reaches`, if any.
@@ -331,7 +345,7 @@ fn table(points: &[Point]) -> String {
 }
 
 /// Families in the plot's order.
-const FAMILIES: [&str; 4] = ["splat2tiles", "TileSplat Table 6", "SPZ", "SOG"];
+const FAMILIES: [&str; 5] = ["splat2tiles", "TileSplat Table 6", "SPZ", "SOG", "PLY"];
 
 /// One panel per scene (`sim::svg`): log10 (1 - SSIM at 4x zoom) against log10 wire bytes per
 /// splat, one line with dots per codec family.
@@ -363,6 +377,38 @@ fn plot(points: &[Point]) -> String {
                 scene,
                 "log10 B/splat sent (file or gzip -6, the smaller)",
                 "log10 (1 - SSIM), 4x zoom (lower is better)",
+                &series,
+            )
+        })
+        .collect();
+    panels(&charts, 2)
+}
+
+/// One panel per scene: object PSNR of the framed views (dB) against log10 wire bytes per splat,
+/// one line with dots per codec family (lossless points, infinite PSNR, left out).
+fn plot_object(points: &[Point]) -> String {
+    let mut scenes: Vec<&str> = points.iter().map(|p| p.scene.as_str()).collect();
+    scenes.dedup();
+    let charts: Vec<String> = scenes
+        .iter()
+        .map(|scene| {
+            let series: Vec<Series> = FAMILIES
+                .iter()
+                .map(|f| {
+                    let mut xy: Vec<(f64, f64)> = points
+                        .iter()
+                        .filter(|p| p.scene == *scene && p.family == *f && p.object[0].is_finite())
+                        .map(|p| ((p.wire() as f64 / p.splats as f64).log10(), p.object[0]))
+                        .collect();
+                    xy.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    (f.to_string(), xy)
+                })
+                .filter(|(_, xy)| !xy.is_empty())
+                .collect();
+            marked_chart(
+                scene,
+                "log10 B/splat sent (file or gzip -6, the smaller)",
+                "object PSNR, framed views (dB; higher is better)",
                 &series,
             )
         })

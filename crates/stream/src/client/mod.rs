@@ -123,6 +123,9 @@ struct Download {
     shown: bool,
     /// Whether the bytes kept may be resumed (an ETag was given).
     resumable: bool,
+    /// Started as the coarse cover of a bare view (`Want::cover`): dropped, not paused, once
+    /// no longer wanted.
+    cover: bool,
 }
 
 #[derive(Debug, Default)]

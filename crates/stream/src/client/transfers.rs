@@ -48,13 +48,19 @@ impl StreamClient {
 
     pub(super) fn schedule(&mut self, actions: &mut Vec<Action>) {
         let wanted: HashMap<usize, Level> = self.wanted.iter().map(|w| (w.tile, w.level)).collect();
-        // Pause downloads no longer wanted (or wanted at another level).
+        // Pause downloads no longer wanted (or wanted at another level); a cover no longer
+        // wanted is dropped: the view it stood in for is drawn or gone, and its bytes kept would
+        // wait for a bare view of the same place.
         for i in 0..self.state.len() {
             let Some(d) = &self.state[i].download else {
                 continue;
             };
             if d.req.is_some() && wanted.get(&i) != Some(&d.level) {
+                let cover = d.cover;
                 self.pause(i, actions);
+                if cover {
+                    self.drop_download(i);
+                }
             }
         }
         let wants = self.wanted.clone();
@@ -164,11 +170,13 @@ impl StreamClient {
             stream: progressive.then(PrefixStream::new),
             shown: false,
             resumable: false,
+            cover: false,
         });
         if d.id == fresh_scene {
             self.next_scene += 1;
         }
         d.req = Some(id);
+        d.cover = w.cover;
         let resume = !d.bytes.is_empty() && d.etag.is_some();
         if !resume {
             d.bytes.clear();
