@@ -67,9 +67,9 @@ fn ours(scene: &Path, out: &Path) -> (Vec<(String, u64, u64)>, u64, u64) {
     let mut counted = HashSet::new();
     for t in &ts.tiles {
         for (k, v) in splat2tiles_tiles::variants::ALL.into_iter().enumerate() {
-            let p = ts
-                .dir
-                .join(splat2tiles_tiles::variants::content_uri(ts.scheme, t.key, v));
+            let p = ts.dir.join(splat2tiles_tiles::variants::content_uri(
+                ts.scheme, t.key, v,
+            ));
             if !p.exists() {
                 continue;
             }
