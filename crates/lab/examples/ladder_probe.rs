@@ -33,7 +33,10 @@ fn score(
 ) -> (usize, peer_views::ViewScores) {
     let glb = Variant::Low.encode(s, [0.0; 3], IDENTITY).unwrap();
     let (dec, _) = decode_variant(&glb).unwrap();
-    (glb.len().min(gzip(&glb).len()), view_scores(base, &dec, cams))
+    (
+        glb.len().min(gzip(&glb).len()),
+        view_scores(base, &dec, cams),
+    )
 }
 
 fn main() {
@@ -88,10 +91,7 @@ fn main() {
                 DRAWN_DILATION_PER_RADIUS2,
             );
             let order = importance_order(&c.splats);
-            row(
-                format!("Low, clustered to {k}"),
-                &c.splats.select(&order),
-            );
+            row(format!("Low, clustered to {k}"), &c.splats.select(&order));
         }
     }
 }
