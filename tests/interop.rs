@@ -2,7 +2,8 @@
 //! `tests/js`: CesiumJS 1.145 renders the `--profile cesium` tileset of plant.splat (local, and
 //! placed on the globe with `tileset.modelMatrix`); 3DTilesRendererJS 0.5.3 with three.js 0.187's
 //! `GLTFGaussianSplatLoaderExtension` renders the default profile and refuses the SPZ_2 tiles of
-//! the cesium profile. Needs `node`, `npm ci --prefix tests/js` and Chromium (`/usr/bin/chromium`
+//! the cesium profile; three's own `GLTFLoader` loads one tile of Best, High and Medium and
+//! refuses Low. Needs `node`, `npm ci --prefix tests/js` and Chromium (`/usr/bin/chromium`
 //! or `$CHROMIUM`); a missing piece fails the test (CI installs them), it never skips.
 
 mod common;
@@ -462,4 +463,85 @@ fn cesiumjs_draws_every_object_of_a_flat_georeferenced_city_in_the_overview() {
         missing.is_empty(),
         "objects missing at the default SSE: {missing:?}"
     );
+}
+
+/// three.js 0.187's own glTF path (`GLTFLoader` + `GLTFGaussianSplatLoaderExtension`, with the
+/// meshopt decoder three ships) on one tile of each variant we write: Best, High and Medium load
+/// every splat and draw the plant; Low (SPZ_2) is refused, and the matrix says why: three has no
+/// `KHR_gaussian_splatting_compression_spz_2` plugin (GLTFLoader warns "Unknown extension") and
+/// its splat extension requires `SH_DEGREE_0_COEF_0`, which an SPZ_2 primitive carries inside
+/// the SPZ blob. If Low starts loading, update README.md's interop table.
+#[test]
+fn three_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
+    require_browser_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("plant");
+    // One leaf tile holding every splat, in all four variants.
+    convert(
+        &out,
+        &[
+            "--variants",
+            "all",
+            "--no-utility",
+            "--no-lod",
+            "--max-splats",
+            "200000",
+        ],
+    );
+    let glbs = tmp.path().join("glbs");
+    std::fs::create_dir_all(&glbs).unwrap();
+    for v in ["best", "high", "medium", "low"] {
+        std::fs::copy(
+            out.join(format!("tiles/{v}/0/0/0/0.glb")),
+            glbs.join(format!("{v}.glb")),
+        )
+        .unwrap();
+    }
+    let v = run_client("interop_three_glb.mjs", &glbs, &[]);
+    assert_eq!(v["httpMisses"], Value::Array(vec![]), "{v:#}");
+    let files = &v["files"];
+    let mut fractions = vec![];
+    for name in ["best.glb", "high.glb", "medium.glb"] {
+        let one = &files[name];
+        assert_eq!(one["loaded"], true, "{name}: {v:#}");
+        assert_eq!(one["result"]["threeRevision"], "187", "{v:#}");
+        assert_eq!(u(&one["result"]["splatObjects"]), 1, "{name}: {v:#}");
+        assert_eq!(u(&one["result"]["splats"]), PLANT_SPLATS, "{name}: {v:#}");
+        let fg = f(&one["image"]["foregroundFraction"]);
+        assert!((0.02..0.5).contains(&fg), "{name}: foreground {fg}: {v:#}");
+        fractions.push(fg);
+    }
+    // The three decode to the same picture within a percent of its pixels.
+    let (lo, hi) = fractions
+        .iter()
+        .fold((f64::MAX, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+    assert!(hi - lo < 0.01 * hi, "foreground fractions {fractions:?}");
+    // High and Medium need EXT_meshopt_compression, which three decodes.
+    for name in ["high.glb", "medium.glb"] {
+        let req = &files[name]["result"]["extensionsRequired"];
+        assert!(
+            req.as_array()
+                .unwrap()
+                .iter()
+                .any(|e| e == "EXT_meshopt_compression"),
+            "{name}: {v:#}"
+        );
+    }
+    let low = &files["low.glb"];
+    assert_eq!(low["loaded"], false, "{v:#}");
+    assert!(
+        low["result"]["error"]
+            .as_str()
+            .unwrap()
+            .contains("requires KHR_gaussian_splatting:SH_DEGREE_0_COEF_0"),
+        "{v:#}"
+    );
+    assert!(
+        low["problems"].as_array().unwrap().iter().any(|p| p
+            .as_str()
+            .unwrap()
+            .contains("Unknown extension \"KHR_gaussian_splatting_compression_spz_2\"")),
+        "{v:#}"
+    );
+    assert_eq!(f(&low["image"]["foregroundFraction"]), 0.0, "{v:#}");
 }
