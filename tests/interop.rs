@@ -2,8 +2,8 @@
 //! `tests/js`: CesiumJS 1.145 renders the `--profile cesium` tileset of plant.splat (local, and
 //! placed on the globe with `tileset.modelMatrix`); 3DTilesRendererJS 0.5.3 with three.js 0.187's
 //! `GLTFGaussianSplatLoaderExtension` renders the default profile and refuses the SPZ_2 tiles of
-//! the cesium profile; three's own `GLTFLoader` loads one tile of Best, High and Medium and
-//! refuses Low. Needs `node`, `npm ci --prefix tests/js` and Chromium (`/usr/bin/chromium`
+//! the cesium profile; three's own `GLTFLoader` and Babylon.js 9.28's glTF loader load one tile
+//! of Best, High and Medium and refuse Low. Needs `node`, `npm ci --prefix tests/js` and Chromium (`/usr/bin/chromium`
 //! or `$CHROMIUM`); a missing piece fails the test (CI installs them), it never skips.
 
 mod common;
@@ -28,6 +28,9 @@ fn require_browser_harness() {
         "playwright-core",
         "three",
         "3d-tiles-renderer",
+        "babylonjs",
+        "babylonjs-loaders",
+        "meshoptimizer",
     ] {
         assert!(
             nm.join(m).is_dir(),
@@ -471,12 +474,10 @@ fn cesiumjs_draws_every_object_of_a_flat_georeferenced_city_in_the_overview() {
 /// `KHR_gaussian_splatting_compression_spz_2` plugin (GLTFLoader warns "Unknown extension") and
 /// its splat extension requires `SH_DEGREE_0_COEF_0`, which an SPZ_2 primitive carries inside
 /// the SPZ blob. If Low starts loading, update README.md's interop table.
-#[test]
-fn three_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
-    require_browser_harness();
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("plant");
-    // One leaf tile holding every splat, in all four variants.
+/// One leaf tile of plant.splat holding every splat, in each variant we write, copied under
+/// `tmp` as best.glb, high.glb, medium.glb and low.glb; returns that folder.
+fn variant_glbs(tmp: &Path) -> std::path::PathBuf {
+    let out = tmp.join("plant");
     convert(
         &out,
         &[
@@ -488,7 +489,7 @@ fn three_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
             "200000",
         ],
     );
-    let glbs = tmp.path().join("glbs");
+    let glbs = tmp.join("glbs");
     std::fs::create_dir_all(&glbs).unwrap();
     for v in ["best", "high", "medium", "low"] {
         std::fs::copy(
@@ -497,25 +498,63 @@ fn three_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
         )
         .unwrap();
     }
-    let v = run_client("interop_three_glb.mjs", &glbs, &[]);
+    glbs
+}
+
+/// What an engine's glb run must show for Best, High and Medium: loaded, one splat object with
+/// every splat, the plant on screen, the three pictures alike (foreground within 1% of each
+/// other: High and Medium are near-lossless at this size).
+fn assert_loads_best_high_medium(v: &Value) {
     assert_eq!(v["httpMisses"], Value::Array(vec![]), "{v:#}");
-    let files = &v["files"];
     let mut fractions = vec![];
     for name in ["best.glb", "high.glb", "medium.glb"] {
-        let one = &files[name];
+        let one = &v["files"][name];
         assert_eq!(one["loaded"], true, "{name}: {v:#}");
-        assert_eq!(one["result"]["threeRevision"], "187", "{v:#}");
         assert_eq!(u(&one["result"]["splatObjects"]), 1, "{name}: {v:#}");
         assert_eq!(u(&one["result"]["splats"]), PLANT_SPLATS, "{name}: {v:#}");
         let fg = f(&one["image"]["foregroundFraction"]);
         assert!((0.02..0.5).contains(&fg), "{name}: foreground {fg}: {v:#}");
         fractions.push(fg);
     }
-    // The three decode to the same picture within a percent of its pixels.
     let (lo, hi) = fractions
         .iter()
         .fold((f64::MAX, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
     assert!(hi - lo < 0.01 * hi, "foreground fractions {fractions:?}");
+}
+
+/// Babylon.js 9.28's glTF loader (its `KHR_gaussian_splatting` extension; `EXT_meshopt_compression`
+/// through the meshoptimizer package's decoder) on one tile of each variant: Best, High and
+/// Medium load every splat into a `GaussianSplattingMesh` and draw the plant; Low is refused
+/// because Babylon has no `KHR_gaussian_splatting_compression_spz_2` ("Required extension ... is
+/// not available"). If Low starts loading, update README.md's interop table.
+#[test]
+fn babylon_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
+    require_browser_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let glbs = variant_glbs(tmp.path());
+    let v = run_client("interop_babylon_glb.mjs", &glbs, &[]);
+    assert_loads_best_high_medium(&v);
+    assert_eq!(v["files"]["best.glb"]["result"]["babylonVersion"], "9.28.0");
+    let low = &v["files"]["low.glb"];
+    assert_eq!(low["loaded"], false, "{v:#}");
+    assert!(
+        low["result"]["error"].as_str().unwrap().contains(
+            "Required extension KHR_gaussian_splatting_compression_spz_2 is not available"
+        ),
+        "{v:#}"
+    );
+    assert_eq!(f(&low["image"]["foregroundFraction"]), 0.0, "{v:#}");
+}
+
+#[test]
+fn three_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
+    require_browser_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let glbs = variant_glbs(tmp.path());
+    let v = run_client("interop_three_glb.mjs", &glbs, &[]);
+    assert_loads_best_high_medium(&v);
+    let files = &v["files"];
+    assert_eq!(files["best.glb"]["result"]["threeRevision"], "187", "{v:#}");
     // High and Medium need EXT_meshopt_compression, which three decodes.
     for name in ["high.glb", "medium.glb"] {
         let req = &files[name]["result"]["extensionsRequired"];
