@@ -3,7 +3,8 @@
 //! placed on the globe with `tileset.modelMatrix`); 3DTilesRendererJS 0.5.3 with three.js 0.187's
 //! `GLTFGaussianSplatLoaderExtension` renders the default profile and refuses the SPZ_2 tiles of
 //! the cesium profile; three's own `GLTFLoader` and Babylon.js 9.28's glTF loader load one tile
-//! of Best, High and Medium and refuse Low. Needs `node`, `npm ci --prefix tests/js` and Chromium (`/usr/bin/chromium`
+//! of Best, High and Medium (Best's screenshot matches the reference renderer from the page's
+//! camera) and refuse Low. Needs `node`, `npm ci --prefix tests/js` and Chromium (`/usr/bin/chromium`
 //! or `$CHROMIUM`); a missing piece fails the test (CI installs them), it never skips.
 
 mod common;
@@ -501,6 +502,39 @@ fn variant_glbs(tmp: &Path) -> std::path::PathBuf {
     glbs
 }
 
+/// SSIM of an engine's screenshot of `glb` (PNG at `shot`) against the reference renderer's
+/// render of the same file from the camera the page reported (`result.camera`: eye, target, up
+/// and vertical field of view in the glTF scene's frame), 640x480 on the pages' background;
+/// whole frame and on the crop framing the object (`render::object`).
+/// `turn_deg` turns the reference camera about the up axis through the target (0: the page's
+/// camera; a turned one is the control that the comparison can fail).
+fn ssim_against_reference(glb: &Path, shot: &Path, result: &Value, turn_deg: f64) -> (f64, f64) {
+    use glam::{DMat4, DQuat, DVec3};
+    use splat2tiles_render::{Camera, Image, RenderOptions, metrics, object, render};
+    let tile = splat2tiles_tiles::encode::read_tile_glb(&std::fs::read(glb).unwrap()).unwrap();
+    let c = &result["camera"];
+    let v3 = |k: &str| DVec3::new(f(&c[k][0]), f(&c[k][1]), f(&c[k][2]));
+    let (target, up) = (v3("target"), v3("up"));
+    let turn = DQuat::from_axis_angle(up.normalize(), turn_deg.to_radians());
+    let eye = target + turn * (v3("eye") - target);
+    let cam = Camera::look_at(640, 480, f(&c["fovYDeg"]), eye, target, up);
+    let bg = [26.0 / 255.0; 3];
+    let opts = RenderOptions {
+        background: bg,
+        ..RenderOptions::default()
+    };
+    let model = DMat4::from_cols_array(&tile.node_matrix);
+    let ours = render(&[(&tile.splats, model)], &cam, &opts);
+    let theirs = Image::load_png(shot).unwrap();
+    let mask = object::object_mask(&ours, bg);
+    (
+        metrics::ssim(&ours, &theirs).unwrap(),
+        object::object_ssim(&ours, &theirs, &mask)
+            .unwrap()
+            .unwrap_or(0.0),
+    )
+}
+
 /// What an engine's glb run must show for Best, High and Medium: loaded, one splat object with
 /// every splat, the plant on screen, the three pictures alike (foreground within 1% of each
 /// other: High and Medium are near-lossless at this size).
@@ -532,8 +566,26 @@ fn babylon_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
     require_browser_harness();
     let tmp = tempfile::tempdir().unwrap();
     let glbs = variant_glbs(tmp.path());
-    let v = run_client("interop_babylon_glb.mjs", &glbs, &[]);
+    let shots = tmp.path().join("shots");
+    std::fs::create_dir_all(&shots).unwrap();
+    let v = run_client(
+        "interop_babylon_glb.mjs",
+        &glbs,
+        &["--shots", shots.to_str().unwrap()],
+    );
     assert_loads_best_high_medium(&v);
+    // Best against the reference renderer from Babylon's camera: 0.991 whole frame and 0.960 on
+    // the object's crop measured (its splat shader and per-frame sort differ from the exact
+    // renderer's); the same camera turned 30 degrees must score below the crop's threshold.
+    let result = &v["files"]["best.glb"]["result"];
+    let (best, shot) = (glbs.join("best.glb"), shots.join("best.png"));
+    let (whole, crop) = ssim_against_reference(&best, &shot, result, 0.0);
+    assert!(
+        whole >= 0.98 && crop >= 0.93,
+        "SSIM {whole} / {crop}: {v:#}"
+    );
+    let (_, turned) = ssim_against_reference(&best, &shot, result, 30.0);
+    assert!(turned < 0.93, "a turned camera scores {turned} on the crop");
     assert_eq!(v["files"]["best.glb"]["result"]["babylonVersion"], "9.28.0");
     let low = &v["files"]["low.glb"];
     assert_eq!(low["loaded"], false, "{v:#}");
@@ -551,8 +603,27 @@ fn three_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
     require_browser_harness();
     let tmp = tempfile::tempdir().unwrap();
     let glbs = variant_glbs(tmp.path());
-    let v = run_client("interop_three_glb.mjs", &glbs, &[]);
+    let shots = tmp.path().join("shots");
+    std::fs::create_dir_all(&shots).unwrap();
+    let v = run_client(
+        "interop_three_glb.mjs",
+        &glbs,
+        &["--shots", shots.to_str().unwrap()],
+    );
     assert_loads_best_high_medium(&v);
+    // Best against the reference renderer from three's camera: 0.974 whole frame and 0.891 on
+    // the object's crop measured (three's GaussianSplat shader and sort differ from the exact
+    // renderer's more than Babylon's); the same camera turned 30 degrees must score below the
+    // crop's threshold.
+    let result = &v["files"]["best.glb"]["result"];
+    let (best, shot) = (glbs.join("best.glb"), shots.join("best.png"));
+    let (whole, crop) = ssim_against_reference(&best, &shot, result, 0.0);
+    assert!(
+        whole >= 0.95 && crop >= 0.85,
+        "SSIM {whole} / {crop}: {v:#}"
+    );
+    let (_, turned) = ssim_against_reference(&best, &shot, result, 30.0);
+    assert!(turned < 0.85, "a turned camera scores {turned} on the crop");
     let files = &v["files"];
     assert_eq!(files["best.glb"]["result"]["threeRevision"], "187", "{v:#}");
     // High and Medium need EXT_meshopt_compression, which three decodes.
