@@ -569,9 +569,9 @@ fn babylon_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
     let shots = tmp.path().join("shots");
     std::fs::create_dir_all(&shots).unwrap();
     let v = run_client(
-        "interop_babylon_glb.mjs",
+        "interop_glb.mjs",
         &glbs,
-        &["--shots", shots.to_str().unwrap()],
+        &["--engine", "babylon", "--shots", shots.to_str().unwrap()],
     );
     assert_loads_best_high_medium(&v);
     // Best against the reference renderer from Babylon's camera: 0.991 whole frame and 0.960 on
@@ -606,9 +606,9 @@ fn three_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
     let shots = tmp.path().join("shots");
     std::fs::create_dir_all(&shots).unwrap();
     let v = run_client(
-        "interop_three_glb.mjs",
+        "interop_glb.mjs",
         &glbs,
-        &["--shots", shots.to_str().unwrap()],
+        &["--engine", "three", "--shots", shots.to_str().unwrap()],
     );
     assert_loads_best_high_medium(&v);
     // Best against the reference renderer from three's camera: 0.974 whole frame and 0.891 on

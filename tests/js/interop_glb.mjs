@@ -1,10 +1,11 @@
-// Babylon.js glTF interop matrix: serves a folder of tile glbs (one per variant, e.g. best.glb,
-// high.glb, medium.glb, low.glb) and Babylon.js from node_modules, loads each in
-// interop_babylon_glb.html in headless Chromium (SwiftShader), and prints one JSON object: per
-// file the page's result (GaussianSplat objects and splats, or the loader's error), the console
-// messages of that load and the foreground pixels of its screenshot.
+// glTF interop matrix of one engine: serves a folder of tile glbs (one per variant, e.g.
+// best.glb, high.glb, medium.glb, low.glb) and the engines from node_modules, loads each file in
+// the engine's page (interop_three_glb.html: three.js GLTFLoader; interop_babylon_glb.html:
+// Babylon.js) in headless Chromium (SwiftShader), and prints one JSON object: per file the
+// page's result (splat objects and splats and the camera, or the loader's error), the console
+// messages of that load and the foreground pixels of its screenshot (saved to --shots).
 //
-// usage: node interop_babylon_glb.mjs GLB_DIR [--shots DIR] [--timeout SECONDS]
+// usage: node interop_glb.mjs GLB_DIR --engine three|babylon [--shots DIR] [--timeout SECONDS]
 // Exit 0 when every page finished (the caller judges what loaded), 1 when one did not.
 import fs from 'node:fs';
 import path from 'node:path';
@@ -13,26 +14,32 @@ import { finish, serve, launch, problems, parseArgs, foreground } from './intero
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const { pos, opt } = parseArgs(process.argv.slice(2));
-if (pos.length !== 1) {
-  console.error('usage: node interop_babylon_glb.mjs GLB_DIR [--timeout SECONDS]');
+const PAGES = {
+  three: { page: 'interop_three_glb.html', client: 'three.js GLTFLoader' },
+  babylon: { page: 'interop_babylon_glb.html', client: 'Babylon.js glTF loader' },
+};
+const engine = PAGES[opt.engine];
+if (pos.length !== 1 || !engine) {
+  console.error('usage: node interop_glb.mjs GLB_DIR --engine three|babylon [--shots DIR]');
   process.exit(2);
 }
 const timeoutMs = Number(opt.timeout ?? 80) * 1000;
 const files = fs.readdirSync(pos[0]).filter((f) => f.endsWith('.glb')).sort();
 
 const srv = await serve({
+  '/three/': path.join(here, 'node_modules/three'),
   '/nm/': path.join(here, 'node_modules'),
   '/glb/': path.resolve(pos[0]),
   '/': here,
 });
 const browser = await launch({ width: 640, height: 480 });
-const out = { client: 'Babylon.js glTF loader', ok: true, files: {} };
+const out = { client: engine.client, ok: true, files: {} };
 try {
   for (const f of files) {
     const first = browser.logs.length;
     const one = { finished: false };
     try {
-      await browser.page.goto(`${srv.base}/interop_babylon_glb.html?file=/glb/${f}`);
+      await browser.page.goto(`${srv.base}/${engine.page}?file=/glb/${f}`);
       await browser.page.waitForFunction(() => document.title.startsWith('done:'), null, {
         timeout: timeoutMs,
         polling: 250,
