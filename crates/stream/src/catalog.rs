@@ -211,6 +211,11 @@ impl TileCatalog {
         }
     }
 
+    /// The ancestors of `tile`, its parent first and its root last.
+    pub fn ancestors(&self, tile: usize) -> impl Iterator<Item = usize> + '_ {
+        std::iter::successors(self.tiles[tile].parent, |&p| self.tiles[p].parent)
+    }
+
     /// Tiles with content.
     pub fn content_tiles(&self) -> impl Iterator<Item = usize> + '_ {
         (0..self.tiles.len()).filter(|&i| self.tiles[i].has_content)

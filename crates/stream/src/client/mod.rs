@@ -594,6 +594,14 @@ impl StreamClient {
         }
     }
 
+    /// Whether a content download of `tile` is in flight (not paused).
+    fn downloading(&self, tile: usize) -> bool {
+        self.state[tile]
+            .download
+            .as_ref()
+            .is_some_and(|d| d.req.is_some())
+    }
+
     /// Requests in flight for tile contents (`content`) or for tileset and subtree files.
     fn in_flight(&self, content: bool) -> usize {
         self.requests

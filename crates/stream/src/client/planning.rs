@@ -424,8 +424,13 @@ impl StreamClient {
     /// costs fewer bytes than the holes it covers. Returns the covers asked.
     fn cover_wants(&self, frustum: &Frustum, wants: &mut Wants) -> HashSet<usize> {
         let mut holes: std::collections::BTreeMap<usize, u64> = Default::default();
+        let mut bare = 0usize;
         for &i in &self.view {
-            if self.cache.level(i).is_some() || !self.usable(i) || self.drawn_by_ancestor(i) {
+            if self.cache.level(i).is_some() || self.drawn_by_ancestor(i) {
+                continue;
+            }
+            bare += 1;
+            if !self.usable(i) {
                 continue;
             }
             let (Some(c), Some(low)) = (self.cover_of(i), self.usable_level(i, Level::Low)) else {
@@ -434,11 +439,6 @@ impl StreamClient {
             *holes.entry(c).or_default() += self.catalog.tiles[i].variants[low.index()].bytes;
         }
         let mut covers = HashSet::new();
-        let bare = self
-            .view
-            .iter()
-            .filter(|&&i| self.cache.level(i).is_none() && !self.drawn_by_ancestor(i))
-            .count();
         if holes.is_empty() || (bare as f64) < COVER_WHEN_BARE * self.view.len() as f64 {
             return covers;
         }
@@ -446,11 +446,8 @@ impl StreamClient {
             let Some(level) = self.usable_level(c, Level::Low) else {
                 continue;
             };
-            let flying = self.state[c]
-                .download
-                .as_ref()
-                .is_some_and(|d| d.req.is_some());
-            if !flying && self.catalog.tiles[c].variants[level.index()].bytes >= bytes {
+            if !self.downloading(c) && self.catalog.tiles[c].variants[level.index()].bytes >= bytes
+            {
                 continue;
             }
             let mut w = self.want(c, level, 0.0, frustum);
@@ -467,30 +464,22 @@ impl StreamClient {
         if self.cfg.cover_up == 0 {
             return None;
         }
-        let tiles = &self.catalog.tiles;
-        let mut a = tiles[tile].parent?;
+        let mut up = self.catalog.ancestors(tile);
+        let mut a = up.next()?;
         for _ in 1..self.cfg.cover_up {
-            match tiles[a].parent {
+            match up.next() {
                 Some(p) => a = p,
                 None => break,
             }
         }
-        while !self.usable(a) {
-            a = tiles[a].parent?;
-        }
-        Some(a)
+        std::iter::once(a).chain(up).find(|&a| self.usable(a))
     }
 
     /// Whether a resident ancestor of `tile` is drawn in its place.
     fn drawn_by_ancestor(&self, tile: usize) -> bool {
-        let mut a = self.catalog.tiles[tile].parent;
-        while let Some(p) = a {
-            if self.cache.level(p).is_some() {
-                return true;
-            }
-            a = self.catalog.tiles[p].parent;
-        }
-        false
+        self.catalog
+            .ancestors(tile)
+            .any(|p| self.cache.level(p).is_some())
     }
 
     /// Whether `tile` is a hole in view that an ancestor draws: resident, downloading, or among
@@ -499,18 +488,9 @@ impl StreamClient {
         if self.cfg.cover_up == 0 || !self.in_view[tile] || self.cache.level(tile).is_some() {
             return false;
         }
-        let mut a = self.catalog.tiles[tile].parent;
-        while let Some(p) = a {
-            let flying = self.state[p]
-                .download
-                .as_ref()
-                .is_some_and(|d| d.req.is_some());
-            if covers.contains(&p) || flying || self.cache.level(p).is_some() {
-                return true;
-            }
-            a = self.catalog.tiles[p].parent;
-        }
-        false
+        self.catalog
+            .ancestors(tile)
+            .any(|p| covers.contains(&p) || self.downloading(p) || self.cache.level(p).is_some())
     }
 
     /// Seconds from now to each tile's first predicted visibility (0 in view, infinite never);

@@ -70,17 +70,13 @@ impl StreamClient {
                 drawn[v] = true;
                 continue;
             }
-            let mut a = self.catalog.tiles[v].parent;
-            let mut found = false;
-            while let Some(p) = a {
-                if self.cache.level(p).is_some() {
-                    drawn[p] = true;
-                    found = true;
-                    break;
-                }
-                a = self.catalog.tiles[p].parent;
-            }
-            if !found {
+            let resident = self
+                .catalog
+                .ancestors(v)
+                .find(|&p| self.cache.level(p).is_some());
+            if let Some(p) = resident {
+                drawn[p] = true;
+            } else {
                 let mut stack = self.catalog.tiles[v].children.clone();
                 while let Some(c) = stack.pop() {
                     if self.cache.level(c).is_some() {

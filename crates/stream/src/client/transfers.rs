@@ -72,7 +72,7 @@ impl StreamClient {
             if self.cache.level(w.tile).is_some_and(|l| l <= w.level) {
                 continue;
             }
-            if s.download.as_ref().is_some_and(|d| d.req.is_some()) {
+            if self.downloading(w.tile) {
                 continue;
             }
             if self.in_flight(true) >= self.cfg.max_concurrent {
@@ -88,12 +88,7 @@ impl StreamClient {
                 // An upgrade in flight (its tile is drawn at a lower level meanwhile) gives way
                 // to a missing tile first: with upgrades of the view never paused, four Best
                 // upgrades held the link while tiles about to enter waited.
-                let flying = |v: &&Want| {
-                    self.state[v.tile]
-                        .download
-                        .as_ref()
-                        .is_some_and(|d| d.req.is_some())
-                };
+                let flying = |v: &&Want| self.downloading(v.tile);
                 let upgrade = self
                     .wanted
                     .iter()
