@@ -350,6 +350,24 @@ const FAMILIES: [&str; 5] = ["splat2tiles", "TileSplat Table 6", "SPZ", "SOG", "
 /// One panel per scene (`sim::svg`): log10 (1 - SSIM at 4x zoom) against log10 wire bytes per
 /// splat, one line with dots per codec family.
 fn plot(points: &[Point]) -> String {
+    let y = |p: &Point| Some((1.0 - p.ssim[1]).max(1e-6).log10());
+    scene_panels(points, "log10 (1 - SSIM), 4x zoom (lower is better)", y)
+}
+
+/// One panel per scene: object PSNR of the framed views (dB) against log10 wire bytes per splat,
+/// one line with dots per codec family (lossless points, infinite PSNR, left out).
+fn plot_object(points: &[Point]) -> String {
+    let y = |p: &Point| p.object[0].is_finite().then_some(p.object[0]);
+    scene_panels(
+        points,
+        "object PSNR, framed views (dB; higher is better)",
+        y,
+    )
+}
+
+/// One panel per scene of `y` (points where it is None left out) against log10 wire bytes per
+/// splat, one line with dots per codec family.
+fn scene_panels(points: &[Point], y_label: &str, y: impl Fn(&Point) -> Option<f64>) -> String {
     let mut scenes: Vec<&str> = points.iter().map(|p| p.scene.as_str()).collect();
     scenes.dedup();
     let charts: Vec<String> = scenes
@@ -361,12 +379,7 @@ fn plot(points: &[Point]) -> String {
                     let mut xy: Vec<(f64, f64)> = points
                         .iter()
                         .filter(|p| p.scene == *scene && p.family == *f)
-                        .map(|p| {
-                            (
-                                (p.wire() as f64 / p.splats as f64).log10(),
-                                (1.0 - p.ssim[1]).max(1e-6).log10(),
-                            )
-                        })
+                        .filter_map(|p| Some(((p.wire() as f64 / p.splats as f64).log10(), y(p)?)))
                         .collect();
                     xy.sort_by(|a, b| a.0.total_cmp(&b.0));
                     (f.to_string(), xy)
@@ -376,39 +389,7 @@ fn plot(points: &[Point]) -> String {
             marked_chart(
                 scene,
                 "log10 B/splat sent (file or gzip -6, the smaller)",
-                "log10 (1 - SSIM), 4x zoom (lower is better)",
-                &series,
-            )
-        })
-        .collect();
-    panels(&charts, 2)
-}
-
-/// One panel per scene: object PSNR of the framed views (dB) against log10 wire bytes per splat,
-/// one line with dots per codec family (lossless points, infinite PSNR, left out).
-fn plot_object(points: &[Point]) -> String {
-    let mut scenes: Vec<&str> = points.iter().map(|p| p.scene.as_str()).collect();
-    scenes.dedup();
-    let charts: Vec<String> = scenes
-        .iter()
-        .map(|scene| {
-            let series: Vec<Series> = FAMILIES
-                .iter()
-                .map(|f| {
-                    let mut xy: Vec<(f64, f64)> = points
-                        .iter()
-                        .filter(|p| p.scene == *scene && p.family == *f && p.object[0].is_finite())
-                        .map(|p| ((p.wire() as f64 / p.splats as f64).log10(), p.object[0]))
-                        .collect();
-                    xy.sort_by(|a, b| a.0.total_cmp(&b.0));
-                    (f.to_string(), xy)
-                })
-                .filter(|(_, xy)| !xy.is_empty())
-                .collect();
-            marked_chart(
-                scene,
-                "log10 B/splat sent (file or gzip -6, the smaller)",
-                "object PSNR, framed views (dB; higher is better)",
+                y_label,
                 &series,
             )
         })

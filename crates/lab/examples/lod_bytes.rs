@@ -2,7 +2,7 @@
 //! both ways: every tile or chunk (LOD parents included) and the leaves only (the full-detail
 //! splats, what a single SOG file holds), per input splat.
 //!
-//! Ours: `splat2tiles convert --variants all --no-utility` (release binary), each variant's
+//! Ours: `splat2tiles convert --variants all --no-utility` (the release binary), each variant's
 //! content files summed over every tile and over the tiles without children; the output's other
 //! files (tileset.json, subtrees) once, in "every tile". Each file counts as sent: the file or its gzip -6, the
 //! smaller (SPZ and meshopt content gain from gzip; SOG's WebP does not). Theirs: the scene as a
@@ -11,8 +11,11 @@
 //! `lod-meta.json` with `-l` tags (`-g cpu` throughout); LOD 0's chunks are the leaves.
 //!
 //! Run: `npm install --prefix target/st37 @playcanvas/splat-transform@3.7.0` once, then
-//! `cargo build --release && cargo run --release -p splat2tiles-lab --example lod_bytes`
-//! (`LOD_SCENES=plant` for one scene). Prints a Markdown table.
+//! `cargo run --release -p splat2tiles-lab --example lod_bytes` (it builds the release CLI;
+//! `LOD_SCENES=plant` for one scene). Prints a Markdown table.
+
+#[path = "../benches/common/mod.rs"]
+mod common;
 
 use splat2tiles_io::{read_path, write_ply};
 use splat2tiles_tiles::encode::spz2::gzip;
@@ -50,16 +53,15 @@ fn files(dir: &Path) -> Vec<PathBuf> {
 
 /// Our output's sent bytes: per variant in `variants::ALL`'s order (name, every tile, leaves
 /// only), the other files, and the splats of every tile.
-fn ours(scene: &Path, out: &Path) -> (Vec<(String, u64, u64)>, u64, u64) {
-    let bin = root().join("target/release/splat2tiles");
-    let st = Command::new(&bin)
+fn ours(bin: &Path, scene: &Path, out: &Path) -> (Vec<(String, u64, u64)>, u64, u64) {
+    let st = Command::new(bin)
         .arg("convert")
         .arg(scene)
         .arg("-o")
         .arg(out)
         .args(["--variants", "all", "--no-utility", "--quiet"])
         .status()
-        .expect("target/release/splat2tiles (cargo build --release)");
+        .expect("the release splat2tiles");
     assert!(st.success(), "convert {}", scene.display());
     let ts = splat2tiles_tiles::tiling::load::load_tileset(&out.join("tileset.json")).unwrap();
     let parents: HashSet<_> = ts.tiles.iter().filter_map(|t| t.key.parent()).collect();
@@ -169,6 +171,7 @@ fn lod0_files(node: &serde_json::Value, names: &[String]) -> Vec<String> {
 
 fn main() {
     let only = std::env::var("LOD_SCENES").unwrap_or_default();
+    let bin = common::release_binary();
     println!(
         "| scene | splats | ours: variant | every tile B/splat | leaves B/splat | our splats, all tiles / input | Streamed SOG every chunk B/splat | LOD 0 chunks B/splat | SOG splats, all levels / input |"
     );
@@ -181,7 +184,7 @@ fn main() {
         let tmp = tempfile::tempdir().unwrap();
         let splats = read_path(&scene).unwrap().splats;
         let n = splats.len();
-        let (per, other, our_splats) = ours(&scene, &tmp.path().join("ours"));
+        let (per, other, our_splats) = ours(&bin, &scene, &tmp.path().join("ours"));
         let ply = tmp.path().join("scene.ply");
         write_ply(
             &splats,
