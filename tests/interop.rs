@@ -469,12 +469,6 @@ fn cesiumjs_draws_every_object_of_a_flat_georeferenced_city_in_the_overview() {
     );
 }
 
-/// three.js 0.187's own glTF path (`GLTFLoader` + `GLTFGaussianSplatLoaderExtension`, with the
-/// meshopt decoder three ships) on one tile of each variant we write: Best, High and Medium load
-/// every splat and draw the plant; Low (SPZ_2) is refused, and the matrix says why: three has no
-/// `KHR_gaussian_splatting_compression_spz_2` plugin (GLTFLoader warns "Unknown extension") and
-/// its splat extension requires `SH_DEGREE_0_COEF_0`, which an SPZ_2 primitive carries inside
-/// the SPZ blob. If Low starts loading, update README.md's interop table.
 /// One leaf tile of plant.splat holding every splat, in each variant we write, copied under
 /// `tmp` as best.glb, high.glb, medium.glb and low.glb; returns that folder.
 fn variant_glbs(tmp: &Path) -> std::path::PathBuf {
@@ -556,6 +550,38 @@ fn assert_loads_best_high_medium(v: &Value) {
     assert!(hi - lo < 0.01 * hi, "foreground fractions {fractions:?}");
 }
 
+/// Runs `tests/js/interop_glb.mjs --engine ENGINE` on one tile of each variant (`variant_glbs`)
+/// and checks what every engine must show: Best, High and Medium load and draw the plant
+/// (`assert_loads_best_high_medium`), and Best's screenshot matches the reference renderer from
+/// the page's camera at SSIM >= `min.0` whole frame and >= `min.1` on the object's crop, while
+/// the same camera turned 30 degrees scores below `min.1` there (the comparison can fail).
+/// Returns the run's report for the engine's own checks.
+fn glb_matrix(engine: &str, min: (f64, f64)) -> Value {
+    let tmp = tempfile::tempdir().unwrap();
+    let glbs = variant_glbs(tmp.path());
+    let shots = tmp.path().join("shots");
+    std::fs::create_dir_all(&shots).unwrap();
+    let v = run_client(
+        "interop_glb.mjs",
+        &glbs,
+        &["--engine", engine, "--shots", shots.to_str().unwrap()],
+    );
+    assert_loads_best_high_medium(&v);
+    let result = &v["files"]["best.glb"]["result"];
+    let (best, shot) = (glbs.join("best.glb"), shots.join("best.png"));
+    let (whole, crop) = ssim_against_reference(&best, &shot, result, 0.0);
+    assert!(
+        whole >= min.0 && crop >= min.1,
+        "{engine}: SSIM {whole} / {crop}: {v:#}"
+    );
+    let (_, turned) = ssim_against_reference(&best, &shot, result, 30.0);
+    assert!(
+        turned < min.1,
+        "{engine}: a turned camera scores {turned} on the crop"
+    );
+    v
+}
+
 /// Babylon.js 9.28's glTF loader (its `KHR_gaussian_splatting` extension; `EXT_meshopt_compression`
 /// through the meshoptimizer package's decoder) on one tile of each variant: Best, High and
 /// Medium load every splat into a `GaussianSplattingMesh` and draw the plant; Low is refused
@@ -564,28 +590,10 @@ fn assert_loads_best_high_medium(v: &Value) {
 #[test]
 fn babylon_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
     require_browser_harness();
-    let tmp = tempfile::tempdir().unwrap();
-    let glbs = variant_glbs(tmp.path());
-    let shots = tmp.path().join("shots");
-    std::fs::create_dir_all(&shots).unwrap();
-    let v = run_client(
-        "interop_glb.mjs",
-        &glbs,
-        &["--engine", "babylon", "--shots", shots.to_str().unwrap()],
-    );
-    assert_loads_best_high_medium(&v);
     // Best against the reference renderer from Babylon's camera: 0.991 whole frame and 0.960 on
     // the object's crop measured (its splat shader and per-frame sort differ from the exact
-    // renderer's); the same camera turned 30 degrees must score below the crop's threshold.
-    let result = &v["files"]["best.glb"]["result"];
-    let (best, shot) = (glbs.join("best.glb"), shots.join("best.png"));
-    let (whole, crop) = ssim_against_reference(&best, &shot, result, 0.0);
-    assert!(
-        whole >= 0.98 && crop >= 0.93,
-        "SSIM {whole} / {crop}: {v:#}"
-    );
-    let (_, turned) = ssim_against_reference(&best, &shot, result, 30.0);
-    assert!(turned < 0.93, "a turned camera scores {turned} on the crop");
+    // renderer's).
+    let v = glb_matrix("babylon", (0.98, 0.93));
     assert_eq!(v["files"]["best.glb"]["result"]["babylonVersion"], "9.28.0");
     let low = &v["files"]["low.glb"];
     assert_eq!(low["loaded"], false, "{v:#}");
@@ -598,32 +606,19 @@ fn babylon_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
     assert_eq!(f(&low["image"]["foregroundFraction"]), 0.0, "{v:#}");
 }
 
+/// three.js 0.187's own glTF path (`GLTFLoader` + `GLTFGaussianSplatLoaderExtension`, with the
+/// meshopt decoder three ships) on one tile of each variant we write: Best, High and Medium load
+/// every splat and draw the plant; Low (SPZ_2) is refused, and the matrix says why: three has no
+/// `KHR_gaussian_splatting_compression_spz_2` plugin (GLTFLoader warns "Unknown extension") and
+/// its splat extension requires `SH_DEGREE_0_COEF_0`, which an SPZ_2 primitive carries inside
+/// the SPZ blob. If Low starts loading, update README.md's interop table.
 #[test]
 fn three_gltf_loader_loads_best_high_and_medium_and_refuses_low() {
     require_browser_harness();
-    let tmp = tempfile::tempdir().unwrap();
-    let glbs = variant_glbs(tmp.path());
-    let shots = tmp.path().join("shots");
-    std::fs::create_dir_all(&shots).unwrap();
-    let v = run_client(
-        "interop_glb.mjs",
-        &glbs,
-        &["--engine", "three", "--shots", shots.to_str().unwrap()],
-    );
-    assert_loads_best_high_medium(&v);
     // Best against the reference renderer from three's camera: 0.974 whole frame and 0.891 on
     // the object's crop measured (three's GaussianSplat shader and sort differ from the exact
-    // renderer's more than Babylon's); the same camera turned 30 degrees must score below the
-    // crop's threshold.
-    let result = &v["files"]["best.glb"]["result"];
-    let (best, shot) = (glbs.join("best.glb"), shots.join("best.png"));
-    let (whole, crop) = ssim_against_reference(&best, &shot, result, 0.0);
-    assert!(
-        whole >= 0.95 && crop >= 0.85,
-        "SSIM {whole} / {crop}: {v:#}"
-    );
-    let (_, turned) = ssim_against_reference(&best, &shot, result, 30.0);
-    assert!(turned < 0.85, "a turned camera scores {turned} on the crop");
+    // renderer's more than Babylon's).
+    let v = glb_matrix("three", (0.95, 0.85));
     let files = &v["files"];
     assert_eq!(files["best.glb"]["result"]["threeRevision"], "187", "{v:#}");
     // High and Medium need EXT_meshopt_compression, which three decodes.
