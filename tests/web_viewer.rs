@@ -737,12 +737,9 @@ fn dir_size(dir: &Path) -> u64 {
     n
 }
 
-/// The learned predictor runs in the browser: the viewer opened with `predictor=tcn` runs the
-/// committed TCN in wasm (answers 60 steps, a steady 1.4 m/s walk predicted ahead by 2..14 m at
-/// 5 s), keeps streaming with it for 7 s of walking, and the console stays clean. Prints the
-/// browser's ms per 30 s prediction (BENCHMARKS.md "Learned trajectory prediction").
-#[test]
-fn web_viewer_runs_the_tcn_predictor() {
+/// The viewer opened with `predictor` streaming the plant while `web_tcn.mjs` runs the model's
+/// check: the check's JSON after asserting the run finished with a clean console.
+fn learned_in_the_browser(predictor: &str) -> serde_json::Value {
     require_harness();
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("plant");
@@ -755,7 +752,7 @@ fn web_viewer_runs_the_tcn_predictor() {
     let o = Command::new("node")
         .arg(js_dir().join("web_tcn.mjs"))
         .arg(&viewing.base)
-        .args(["--runs", "30", "--timeout", "240"])
+        .args(["--predictor", predictor, "--runs", "30", "--timeout", "240"])
         .output()
         .expect("cannot run `node` (install Node >= 20)");
     drop(viewing);
@@ -767,16 +764,40 @@ fn web_viewer_runs_the_tcn_predictor() {
     );
     let c = &v["check"];
     eprintln!(
-        "wasm TCN: mean {} ms, min {} ms per 30 s prediction; load {} ms",
+        "wasm {predictor}: mean {} ms, min {} ms per 30 s prediction; load {} ms",
         c["meanMs"], c["minMs"], c["loadMs"]
     );
+    assert!(v["problems"].as_array().unwrap().is_empty(), "{v:#}");
+    assert_eq!(u(&v["stats"]["errors"]), 0, "{v:#}");
+    c.clone()
+}
+
+/// The learned predictor runs in the browser: the viewer opened with `predictor=tcn` runs the
+/// committed TCN in wasm (answers 60 steps, a steady 1.4 m/s walk predicted ahead by 2..14 m at
+/// 5 s), keeps streaming with it for 7 s of walking, and the console stays clean. Prints the
+/// browser's ms per 30 s prediction (BENCHMARKS.md "Learned trajectory prediction").
+#[test]
+fn web_viewer_runs_the_tcn_predictor() {
+    let c = learned_in_the_browser("tcn");
     assert_eq!(c["predictor"], "Tcn", "{c:#}");
     assert_eq!(u(&c["steps"]), 60, "{c:#}");
     let ahead = c["aheadAt5s"].as_f64().unwrap();
     assert!((2.0..14.0).contains(&ahead), "{c:#}");
     assert!(c["sidewaysAt5s"].as_f64().unwrap().abs() < 3.0, "{c:#}");
-    assert!(v["problems"].as_array().unwrap().is_empty(), "{v:#}");
-    assert_eq!(u(&v["stats"]["errors"]), 0, "{v:#}");
+}
+
+/// The learned view model runs in the browser: 60 mean poses plus two turned views for each of
+/// the first 3 s, a steady 1.4 m/s walk predicted 5.5..9 m ahead at 5 s with little drift, within
+/// the wasm latency budget (60 ms per prediction), and the viewer streams with it.
+#[test]
+fn web_viewer_runs_the_learned_view_model() {
+    let c = learned_in_the_browser("learned");
+    assert_eq!(c["predictor"], "Learned", "{c:#}");
+    assert_eq!(u(&c["steps"]), 60 + 2 * 6, "{c:#}");
+    let ahead = c["aheadAt5s"].as_f64().unwrap();
+    assert!((5.5..9.0).contains(&ahead), "{c:#}");
+    assert!(c["sidewaysAt5s"].as_f64().unwrap().abs() < 1.0, "{c:#}");
+    assert!(c["meanMs"].as_f64().unwrap() <= 60.0, "{c:#}");
 }
 
 /// Camera paths from the web viewer replay in `simulate`: the viewer opened at

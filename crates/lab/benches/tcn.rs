@@ -1,12 +1,12 @@
 //! Latency of one 30 s trajectory prediction (TileSplat App. C.5: 18 ms on CPU) with the
-//! committed TCN (`stream::learned`), against the heuristic predictors, single-threaded.
+//! committed TCN and view model (`stream::learned`), against linear extrapolation, one thread.
 //!
 //! Run: `taskset -c 0 cargo bench --bench tcn [-- NAME=FILE.onnx ...]` (one core). Prints ms
 //! per prediction (min, median) over 200 calls after 10 warm-up calls, and the model load time;
 //! each `NAME=FILE.onnx` (e.g. the App. C.4 sizes `tools/tcn/train.py` writes) is timed the same.
 
 use splat2tiles_stream::learned::window::straight_walk;
-use splat2tiles_stream::learned::{TcnPredictor, TrajectoryModel};
+use splat2tiles_stream::learned::{LearnedPredictor, TcnPredictor, TrajectoryModel};
 use splat2tiles_stream::predict::{LinearExtrapolation, Predictor};
 use std::time::Instant;
 
@@ -41,6 +41,10 @@ fn main() {
     );
     let (min, med) = time(&mut tcn, 200);
     println!("tcn 30 s prediction (60 steps): min {min:.2} ms, median {med:.2} ms");
+    let (min, med) = time(&mut LearnedPredictor::committed(), 200);
+    println!(
+        "learned 30 s prediction (60 steps, 12 turned views): min {min:.3} ms, median {med:.3} ms"
+    );
     let (min, med) = time(&mut LinearExtrapolation::default(), 200);
     println!("linear 30 s prediction: min {min:.3} ms, median {med:.3} ms");
     // cargo bench adds `--bench`; every NAME=FILE argument is a further model to time.

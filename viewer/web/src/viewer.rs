@@ -30,7 +30,7 @@ struct Options {
     camera: Option<ViewSpec>,
     /// Start walking instead of flying (`mode=walk`).
     walk: bool,
-    /// The trajectory predictor (`predictor=reactive|constant-velocity|linear|tcn`).
+    /// The trajectory predictor (`predictor=reactive|constant-velocity|linear|tcn|learned`).
     predictor: PredictorKind,
     /// How far ahead predicted tiles are fetched (`prefetch=thrifty|balanced|eager|SECONDS`).
     prefetch: Prefetch,
@@ -111,7 +111,7 @@ impl Options {
                     .and_then(|m| m.as_str())
                     .unwrap_or("linear");
                 PredictorKind::from_name(name).ok_or_else(|| {
-                    format!("unknown predictor '{name}' (reactive, constant-velocity, linear, tcn)")
+                    format!("unknown predictor '{name}' (reactive, constant-velocity, linear, tcn, learned)")
                 })?
             },
             prefetch: {
@@ -664,31 +664,49 @@ impl WebViewer {
     /// along +x and answers JSON: the page's predictor, ms per 30 s prediction (mean and min, the
     /// browser's clock) and the predicted advance along x and sideways drift at 5 s (metres).
     pub fn tcn_check(&self, runs: usize) -> Result<String, JsValue> {
-        use splat2tiles_stream::learned::{TcnPredictor, window::straight_walk};
-        use splat2tiles_stream::predict::Predictor;
-        let clock = || {
-            web_sys::window()
-                .and_then(|w| w.performance())
-                .map_or(0.0, |p| p.now())
-        };
-        let t0 = clock();
+        use splat2tiles_stream::learned::TcnPredictor;
+        let t0 = clock_ms();
         let mut p = TcnPredictor::committed().map_err(|e| JsValue::from_str(&e))?;
-        let load_ms = clock() - t0;
+        let load_ms = clock_ms() - t0;
+        let out = self.timed_predictions(&mut p, runs, load_ms);
+        match &p.last_error {
+            Some(e) => Err(JsValue::from_str(e)),
+            None => Ok(out),
+        }
+    }
+
+    /// [`tcn_check`](Self::tcn_check) for the learned view model (`stream::learned::view_model`).
+    pub fn learned_check(&self, runs: usize) -> String {
+        let t0 = clock_ms();
+        let mut p = splat2tiles_stream::learned::LearnedPredictor::committed();
+        let load_ms = clock_ms() - t0;
+        self.timed_predictions(&mut p, runs, load_ms)
+    }
+
+    /// Times `runs` 30 s predictions of `p` on the check's walk; the JSON of the checks above.
+    fn timed_predictions(
+        &self,
+        p: &mut dyn splat2tiles_stream::predict::Predictor,
+        runs: usize,
+        load_ms: f64,
+    ) -> String {
+        use splat2tiles_stream::learned::window::straight_walk;
         let h = straight_walk(10.0, 1.4);
         let now = h[h.len() - 1];
         let (mut sum, mut min, mut out) = (0.0, f64::INFINITY, vec![]);
         for _ in 0..runs.clamp(1, 1000) {
-            let t = clock();
+            let t = clock_ms();
             out = p.predict_uncertain(&h, 30.0, 0.5);
-            let ms = clock() - t;
+            let ms = clock_ms() - t;
             sum += ms;
             min = min.min(ms);
         }
-        if let Some(e) = &p.last_error {
-            return Err(JsValue::from_str(e));
-        }
-        let at5 = out.get(9).map(|u| u.pose.pos).unwrap_or(now.pos);
-        Ok(json!({
+        // The first pose predicted for 5 s ahead (the mean; turned views follow it).
+        let at5 = out
+            .iter()
+            .find(|u| (u.pose.t - now.t - 5.0).abs() < 1e-6)
+            .map_or(now.pos, |u| u.pose.pos);
+        json!({
             "predictor": format!("{:?}", self.options.predictor),
             "steps": out.len(),
             "loadMs": load_ms,
@@ -698,7 +716,7 @@ impl WebViewer {
             "sidewaysAt5s": at5.y - now.pos.y,
             "sigmaAt30s": out.last().map_or(0.0, |u| u.sigma_m),
         })
-        .to_string())
+        .to_string()
     }
 
     /// The adapter and surface as JSON.
@@ -711,4 +729,11 @@ impl WebViewer {
         })
         .to_string()
     }
+}
+
+/// The browser's clock (ms).
+fn clock_ms() -> f64 {
+    web_sys::window()
+        .and_then(|w| w.performance())
+        .map_or(0.0, |p| p.now())
 }

@@ -62,7 +62,7 @@ pub struct SimulateArgs {
     /// Round trip per request (e.g. 40ms).
     #[arg(long, default_value = "40ms", help_heading = "Your own tileset")]
     pub rtt: String,
-    /// Predictor: reactive, constant-velocity, linear, tcn or oracle (the trace itself).
+    /// Predictor: reactive, constant-velocity, linear, tcn, learned or oracle (the trace itself).
     #[arg(long, default_value = "linear", help_heading = "Your own tileset")]
     pub predictor: String,
     /// Planner: dc-dp, greedy-deadline, greedy-quality or distance-based.

@@ -327,8 +327,15 @@ fn client_config(s: &Scene, predictor: PredictorKind) -> ClientConfig {
     }
 }
 
-/// The predictors compared: the client's four kinds and the oracle of the trace.
-const PREDICTORS: [&str; 5] = ["reactive", "constant-velocity", "linear", "tcn", "oracle"];
+/// The predictors compared: the client's five kinds and the oracle of the trace.
+const PREDICTORS: [&str; 6] = [
+    "reactive",
+    "constant-velocity",
+    "linear",
+    "tcn",
+    "learned",
+    "oracle",
+];
 
 /// One session of `predictor` (a [`PREDICTORS`] name) on `tr` over `net`.
 fn session(s: &Scene, tr: &Trace, predictor: &str, net: &NetModel) -> SessionLog {

@@ -48,14 +48,16 @@ const TABLE5_S: f64 = 30.0;
 /// Quality samples per second on the plot trace.
 const QUALITY_HZ: f64 = 1.0;
 
-/// The Table 4 predictors; "tcn" is the committed learned model; "oracle, mirrored"
+/// The Table 4 predictors; "tcn" is TileSplat's TCN (the committed reference model), "learned"
+/// the view model with its turned views (`stream::learned::view_model`); "oracle, mirrored"
 /// is the oracle of the trace turned 180 degrees about its start: a damaged predictor the setup
 /// must rank below the oracle.
-const PREDICTORS: [&str; 6] = [
+const PREDICTORS: [&str; 7] = [
     "reactive",
     "constant-velocity",
     "linear",
     "tcn",
+    "learned",
     "oracle",
     "oracle, mirrored",
 ];

@@ -109,7 +109,7 @@ pub fn inputs(args: &SimulateArgs, source: &str, dir: &Path) -> anyhow::Result<T
     let (net, net_desc) = network(args, trace.poses.last().map_or(0.0, |p| p.t))?;
     if !known_predictor(&args.predictor) {
         bail!(
-            "--predictor '{}': expected reactive, constant-velocity, linear, tcn or oracle",
+            "--predictor '{}': expected reactive, constant-velocity, linear, tcn, learned or oracle",
             args.predictor
         );
     }

@@ -1,6 +1,7 @@
 //! Trace-driven streaming simulation: the real client over a simulated transport (bandwidth from
 //! a trace, RTT, overheads), camera traces, session logs and their summaries.
 
+pub mod learn;
 pub mod mirror;
 pub mod misses;
 pub mod network;

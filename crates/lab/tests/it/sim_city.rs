@@ -194,3 +194,113 @@ fn thrifty_prefetch_fetches_less_than_eager_and_never_climbs_for_nothing() {
         "{thrifty_chr:?} {eager_chr:?}"
     );
 }
+
+/// First-time CHR of `kind` over a street walk, a flight and a human session (the first of the
+/// tuning split's val scenes) placed in the small city, 40 s each at 10 Mbit/s.
+fn chr_of(truth: &Truth, dir: &std::path::Path, grid: &StreetGrid, kind: PredictorKind) -> Ratio {
+    use splat2tiles_lab::sim::stream_city::{NAVIGATION_DIR, flight, human_traces};
+    use splat2tiles_stream::split::Split;
+    let nav = common::repo().join(NAVIGATION_DIR);
+    let human = human_traces(grid, &nav, Split::Val).unwrap().swap_remove(0);
+    let mut total = Ratio::default();
+    for trace in [street_walk(grid, 17, 40.0), flight(grid, 37, 40.0), human] {
+        let cfg = CitySpec::small_client(kind);
+        let poses: Vec<_> = trace
+            .poses
+            .iter()
+            .filter(|p| p.t <= 40.0)
+            .copied()
+            .collect();
+        let log = run_session(
+            dir,
+            cfg.clone(),
+            &poses,
+            &NetModel::constant(10.0, 0.04),
+            SessionOptions::default(),
+        );
+        let needed = truth.needed_per_tick(&cfg, &log);
+        let resident = held_tiles(&log);
+        let views = tick_views(&log, needed.iter().map(Vec::as_slice), &resident);
+        let c = cache_hits(&views);
+        total.hits += c.first.hits;
+        total.n += c.first.n;
+    }
+    total
+}
+
+/// The learned view predictor ranks above linear extrapolation, and linear above reactive, on
+/// the small city: a regression of the model or of how the client uses its turned views shows.
+#[test]
+fn learned_beats_linear_beats_reactive_in_a_small_city() {
+    let tmp = tempfile::tempdir().unwrap();
+    let city = build_city(
+        &common::scenes(),
+        &tmp.path().join("city"),
+        &CitySpec::small(),
+        None,
+    )
+    .unwrap();
+    let truth = Truth::load(&city.dir.join("tileset.json")).unwrap();
+    let [learned, linear, reactive] = [
+        PredictorKind::Learned,
+        PredictorKind::Linear,
+        PredictorKind::Reactive,
+    ]
+    .map(|k| chr_of(&truth, &city.dir, &city.grid, k));
+    eprintln!("first-time CHR: learned {learned:?}, linear {linear:?}, reactive {reactive:?}");
+    let rate = |r: Ratio| r.rate().unwrap();
+    assert!(learned.n >= 200, "too few entries: {learned:?}");
+    assert!(
+        rate(learned) >= rate(linear) + 0.05,
+        "learned {learned:?} vs linear {linear:?}"
+    );
+    assert!(
+        rate(linear) >= rate(reactive) + 0.05,
+        "linear {linear:?} vs reactive {reactive:?}"
+    );
+}
+
+/// The committed view model is what fitting the city's tuning split gives (no test-split trace
+/// can enter: the tuning set refuses them), weight for weight.
+#[test]
+fn the_committed_view_model_refits_from_the_tuning_split_alone() {
+    use splat2tiles_lab::sim::learn::{fit, tuning_samples};
+    use splat2tiles_lab::sim::stream_city::{NAVIGATION_DIR, city_sources, trace_set, tuning_set};
+    use splat2tiles_stream::learned::ViewModel;
+    use splat2tiles_stream::split::{Split, TuningSet, split_of};
+    let spec = CitySpec::default();
+    let grid = StreetGrid::of(
+        &city_sources(&common::scenes(), spec.stride).unwrap(),
+        &spec.layout(),
+    );
+    let nav = common::repo().join(NAVIGATION_DIR);
+    let set = tuning_set(&grid, &nav).unwrap();
+    for t in set.train().iter().chain(set.val()) {
+        assert_ne!(split_of(t).unwrap(), Split::Test);
+    }
+    let test = trace_set(&grid, &nav, Split::Test).unwrap();
+    assert!(TuningSet::new().admit(test[0].clone()).is_err());
+    let committed = ViewModel::committed();
+    let (train, val) = tuning_samples(&set, 0.25);
+    let refit = fit(&train, &val, 1e-3, &committed.trained_on);
+    let close = |a: &[Vec<f64>], b: &[Vec<f64>]| {
+        a.iter()
+            .flatten()
+            .zip(b.iter().flatten())
+            .all(|(x, y)| (x - y).abs() <= 1e-9 * (1.0 + x.abs()))
+    };
+    assert!(close(&refit.yaw, &committed.yaw), "yaw weights differ");
+    assert!(
+        close(&refit.pitch, &committed.pitch),
+        "pitch weights differ"
+    );
+    assert!(
+        close(&refit.forward, &committed.forward),
+        "forward weights differ"
+    );
+    assert!(close(&refit.left, &committed.left), "left weights differ");
+    assert!(
+        close(&refit.yaw_spread, &committed.yaw_spread),
+        "spread weights differ"
+    );
+}

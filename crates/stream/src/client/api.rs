@@ -22,16 +22,20 @@ pub enum PredictorKind {
     /// TileSplat's learned TCN + LSTM with uncertainty (`stream::learned`; after 5 s of history,
     /// the radius rule blended in where it is uncertain).
     Tcn,
+    /// The learned view model (`stream::learned::view_model`): linear extrapolation's path
+    /// corrected, the view's yaw and pitch predicted (after 5 s of history; reactive before).
+    Learned,
 }
 
 impl PredictorKind {
-    /// The kind a name stands for (`reactive`, `constant-velocity`, `linear`, `tcn`).
+    /// The kind a name stands for (`reactive`, `constant-velocity`, `linear`, `tcn`, `learned`).
     pub fn from_name(name: &str) -> Option<PredictorKind> {
         match name {
             "reactive" => Some(PredictorKind::Reactive),
             "constant-velocity" => Some(PredictorKind::ConstantVelocity),
             "linear" => Some(PredictorKind::Linear),
             "tcn" => Some(PredictorKind::Tcn),
+            "learned" => Some(PredictorKind::Learned),
             _ => None,
         }
     }

@@ -266,6 +266,7 @@ fn predictor_of(kind: PredictorKind) -> Box<dyn Predictor + Send> {
             Ok(p) => Box::new(p),
             Err(_) => Box::new(LinearExtrapolation::default()),
         },
+        PredictorKind::Learned => Box::new(crate::learned::LearnedPredictor::committed()),
     }
 }
 
