@@ -32,9 +32,9 @@ const SAMPLE_S: f64 = 1.0 / 12.0;
 /// Speed (m/s) below which the direction of travel says little about the view.
 const SLOW_M_S: f64 = 0.3;
 /// Windows (seconds) of the yaw rates.
-const YAW_WINDOWS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
+pub const YAW_WINDOWS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 /// Windows (seconds) of the velocities.
-const VEL_WINDOWS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
+pub const VEL_WINDOWS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
 
 /// Yaw features: rates over [`YAW_WINDOWS`], mean offset over 2 and 5 s, direction of travel over
 /// 1 and 3 s (each weighted by how fast the camera moves).
