@@ -2,11 +2,14 @@
 //! experiment's budget), on the traces of one split: CHR after warm-up, first-time, re-entries, WD.
 //!
 //! `STREAM_CITY_DIR=DIR SPLIT=val|train|test cargo run --release -p splat2tiles-lab --example
-//! predictor_race -- linear learned ...` (names: `simulate`'s predictors, the oracle, `learned=FILE`
-//! (a view model's weights), and the
-//! diagnostic mixes `pos:A+ang:B`: A's positions with B's yaw and pitch). `ONLY=label` runs one
-//! trace; `NETWORK=hsdpa|fcc` a real log instead of 10 Mbit/s (`NETWORKS=DIR` another folder of
-//! logs), `NAVIGATION=DIR` other human traces. Tune on `val`; `test` is for the final table only.
+//! predictor_race -- linear learned ...`. Names: `simulate`'s predictors and the oracle;
+//! `learned=FILE` (a view model's weights); `MODEL@SIGMAS,HORIZON_S[,POSES]` (a view model with
+//! those turned views; MODEL is `learned`, `learned=FILE` or an ablation: `fixed-fan`,
+//! `learned-fixed-fan`, `learned-held-yaw`); the diagnostic mixes `pos:A+ang:B` (A's positions
+//! with B's yaw and pitch). `ONLY=label` runs one trace, `ALL=1` every trace of the split (its
+//! first 60 s); `NETWORK=hsdpa|fcc` a real log instead of 10 Mbit/s (`NETWORKS=DIR` another
+//! folder of logs); `NAVIGATION=DIR` other human traces. Tune on `val`; `test` is for the final
+//! table only.
 
 use splat2tiles_lab::experiments::simulate_city::{BUDGET, label, pick_traces};
 use splat2tiles_lab::sim::report::{client_setup, needed_cuts, session_numbers};
@@ -22,6 +25,7 @@ use splat2tiles_stream::predict::{
     ConstantVelocity, LinearExtrapolation, Oracle, Predictor, Reactive,
 };
 use splat2tiles_stream::split::Split;
+use splat2tiles_stream::trace::Trace;
 use splat2tiles_tiles::tiling::TileKey;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -85,7 +89,7 @@ fn predictor(name: &str, poses: &[ViewPose]) -> Box<dyn Predictor + Send> {
                 path,
             )
             .unwrap(),
-            None => splat2tiles_stream::learned::ViewModel::committed().clone(),
+            None => ablation(model),
         };
         let mut p = splat2tiles_stream::learned::LearnedPredictor::new(model);
         let mut it = hedge.split(',');
@@ -130,6 +134,35 @@ fn network(root: &std::path::Path) -> NetModel {
     m
 }
 
+/// The committed view model (`learned`) or one of its ablations: `fixed-fan` (no history
+/// features: linear's path, the yaw held, a fan as wide as the model's val RMS yaw error at each
+/// horizon), `learned-fixed-fan` (the model's mean, that fan), `learned-held-yaw` (the model with
+/// the yaw held: its fan around the current yaw).
+fn ablation(name: &str) -> splat2tiles_stream::learned::ViewModel {
+    let mut m = splat2tiles_stream::learned::ViewModel::committed().clone();
+    let zero = |t: &mut Vec<Vec<f64>>| t.iter_mut().flatten().for_each(|w| *w = 0.0);
+    let fixed = |m: &mut splat2tiles_stream::learned::ViewModel| {
+        for (row, rms) in m.yaw_spread.iter_mut().zip(&m.yaw_rms) {
+            row.iter_mut().for_each(|w| *w = 0.0);
+            // `outputs` turns a mean absolute error into a sigma (x 1.2533).
+            row[0] = rms / 1.2533;
+        }
+    };
+    match name {
+        "learned" => {}
+        "fixed-fan" => {
+            for t in [&mut m.yaw, &mut m.pitch, &mut m.forward, &mut m.left] {
+                zero(t);
+            }
+            fixed(&mut m);
+        }
+        "learned-fixed-fan" => fixed(&mut m),
+        "learned-held-yaw" => zero(&mut m.yaw),
+        _ => panic!("unknown view model {name}"),
+    }
+    m
+}
+
 #[derive(Default)]
 struct Sum {
     warm: Ratio,
@@ -169,7 +202,23 @@ fn main() {
         .map(|(k, (_, b, _))| (*k, b[Level::Low.index()] as u64))
         .collect();
     let nav = std::env::var("NAVIGATION").map_or(root.join(NAVIGATION_DIR), PathBuf::from);
-    let traces = pick_traces(&trace_set(&grid, &nav, split).unwrap());
+    let all = trace_set(&grid, &nav, split).unwrap();
+    // `ALL=1`: every trace of the split (its first 60 s), not only Table 4's six.
+    let traces = if std::env::var("ALL").is_ok() {
+        all.iter()
+            .map(|t| Trace {
+                headers: t.headers.clone(),
+                poses: t
+                    .poses
+                    .iter()
+                    .copied()
+                    .filter(|p| p.t <= t.poses[0].t + 60.0)
+                    .collect(),
+            })
+            .collect()
+    } else {
+        pick_traces(&all)
+    };
     let net = network(&root);
     let mut sums: Vec<Sum> = names.iter().map(|_| Sum::default()).collect();
     for tr in &traces {
