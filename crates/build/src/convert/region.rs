@@ -375,25 +375,60 @@ pub(super) fn build_leaves(
 
 /// Spacing samples of one leaf (`ind` in importance order): for every `step`-th splat, the
 /// distance to the nearest other distinct centre among the leaf's first [`NN_SEARCH_CAP`].
+/// With many samples a KD-tree (kiddo, as the LOD clustering uses) picks each sample's
+/// [`NN_CANDIDATES`] nearest centres and the distance is measured among those; when all of them
+/// coincide with the sample (duplicates), or with few samples, the whole pool is scanned. The
+/// answers are the scan's.
 fn leaf_spacing(s: &Splats, ind: &[usize], step: usize) -> Vec<f64> {
+    use kiddo::{ImmutableKdTree, SquaredEuclidean};
     let pool = &ind[..ind.len().min(NN_SEARCH_CAP)];
-    ind.iter()
-        .step_by(step.max(1))
-        .filter_map(|&i| {
+    let d2 = |p: [f64; 3], j: usize| {
+        let q = s.positions[j];
+        let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+    };
+    let scan = |p: [f64; 3]| {
+        pool.iter()
+            .map(|&j| d2(p, j))
+            .filter(|&v| v > 0.0)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let samples: Vec<usize> = ind.iter().step_by(step.max(1)).copied().collect();
+    let tree = (samples.len() >= TREE_MIN_SAMPLES)
+        .then(|| {
+            let pts: Vec<[f64; 3]> = pool.iter().map(|&j| s.positions[j]).collect();
+            ImmutableKdTree::<f64, 3>::new_from_slice(&pts).ok()
+        })
+        .flatten();
+    let k = std::num::NonZero::new(NN_CANDIDATES).unwrap_or(std::num::NonZero::<usize>::MIN);
+    samples
+        .into_iter()
+        .filter_map(|i| {
             let p = s.positions[i];
-            let best = pool
-                .iter()
-                .map(|&j| {
-                    let q = s.positions[j];
-                    let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-                    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-                })
-                .filter(|&d2| d2 > 0.0)
-                .fold(f64::INFINITY, f64::min);
+            let best = match &tree {
+                Some(t) => {
+                    let near = t
+                        .query(&p)
+                        .nearest_n::<SquaredEuclidean<f64>>(k)
+                        .execute()
+                        .into_iter()
+                        .filter_map(|r| pool.get(usize::try_from(r.item).ok()?))
+                        .map(|&j| d2(p, j))
+                        .filter(|&v| v > 0.0)
+                        .fold(f64::INFINITY, f64::min);
+                    if near.is_finite() { near } else { scan(p) }
+                }
+                None => scan(p),
+            };
             best.is_finite().then(|| best.sqrt())
         })
         .collect()
 }
+
+/// Samples of one leaf from which [`leaf_spacing`] builds a KD-tree instead of scanning.
+const TREE_MIN_SAMPLES: usize = 32;
+/// Nearest centres a sample's spacing is looked for among (duplicates of it included).
+const NN_CANDIDATES: usize = 8;
 
 /// A region root as the levels above see it: its key and the deepest leaf level below it (its
 /// content, splats and radius, is in the [`ContentStore`]).
@@ -529,4 +564,60 @@ pub(super) fn build_parents(
         });
     }
     Ok((parents, roots))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What every sample's spacing must be: the nearest other distinct centre over the pool.
+    fn scanned(s: &Splats, ind: &[usize], step: usize) -> Vec<f64> {
+        let pool = &ind[..ind.len().min(NN_SEARCH_CAP)];
+        ind.iter()
+            .step_by(step)
+            .filter_map(|&i| {
+                let p = s.positions[i];
+                let d = pool
+                    .iter()
+                    .map(|&j| {
+                        let q = s.positions[j];
+                        let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                        d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+                    })
+                    .filter(|&v| v > 0.0)
+                    .fold(f64::INFINITY, f64::min);
+                d.is_finite().then(|| d.sqrt())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_tree_finds_what_the_scan_finds_with_duplicates_and_without_distinct_centres() {
+        let mut s = Splats::new(0);
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..600 {
+            s.positions.push([next() * 4.0, next() * 4.0, next()]);
+        }
+        // Twenty copies of one centre: more than the tree's candidates.
+        for _ in 0..20 {
+            s.positions.push([1.5, 1.5, 0.5]);
+        }
+        let ind: Vec<usize> = (0..s.positions.len()).collect();
+        for step in [1, 3, 50] {
+            assert_eq!(
+                leaf_spacing(&s, &ind, step),
+                scanned(&s, &ind, step),
+                "step {step}"
+            );
+        }
+        // Only copies: no sample has a distinct neighbour.
+        let copies: Vec<usize> = (600..620).collect();
+        assert!(leaf_spacing(&s, &copies, 1).is_empty());
+    }
 }
