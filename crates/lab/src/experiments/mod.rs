@@ -40,6 +40,10 @@ pub struct SimulateArgs {
     /// Human navigation traces (experiment `city`; read only through `sim::split`).
     #[arg(long, default_value = crate::sim::stream_city::NAVIGATION_DIR)]
     pub navigation: PathBuf,
+    /// Traces of experiment `city`: `test` (the evaluation) or `val` (the tuning split's
+    /// validation traces, where rules are chosen; the same choice of six).
+    #[arg(long, default_value = "test", value_parser = ["test", "val"])]
+    pub split: String,
     /// HSDPA and FCC throughput logs (experiment `city`; `data/network-traces/README.md`).
     #[arg(long, default_value = "data/network-traces")]
     pub networks: PathBuf,

@@ -4,17 +4,20 @@
 //! Setup (every number goes into the table headers): the default city (1.5M splats, 716 tiles,
 //! 104.5 MiB of Best) georeferenced at `stream_city::DEFAULT_ORIGIN`; the client at 1280x720,
 //! 50 deg, SSE 16, 4 requests in flight, a [`BUDGET`] memory budget (smaller than the city and
-//! than what a 60 s trace downloads), 40 ms RTT. Traces: test split only
-//! (`stream_city::evaluation_set`), the first [`TRACE_S`] s of [`PER_KIND`] each of the human
-//! sessions (every [`HUMAN_EVERY`]-th), the street walks and the flights. Real networks: the first HSDPA and FCC logs
-//! (`sim::network`), each scaled to a mean of 10 Mbit/s and looped.
+//! than what a 60 s trace downloads), 40 ms RTT. Traces: the test split
+//! (`stream_city::evaluation_set`; `--split val`: the tuning split's val traces), the first
+//! [`TRACE_S`] s of [`PER_KIND`] each of the human sessions (every [`HUMAN_EVERY`]-th), the
+//! street walks and the flights. Real networks: the first HSDPA and FCC logs (`sim::network`),
+//! each scaled to a mean of 10 Mbit/s and looped.
 
 use super::SimulateArgs;
 use crate::sim::network::{Network, log_files, read_log};
 use crate::sim::report::{self, GOOD, QH, QW, TGQ_HZ, TGQ_WINDOW_S, quality, session_numbers, tgq};
 use crate::sim::score::{Chr, Ratio, Truth, Waste};
 use crate::sim::session::SessionLog;
-use crate::sim::stream_city::{BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set};
+use crate::sim::stream_city::{
+    BuiltCity, CitySpec, DEFAULT_ORIGIN, build_city, evaluation_set, tuning_set,
+};
 use crate::sim::svg::{Series, write_time_plots};
 use crate::sim::transport::NetModel;
 use anyhow::Context;
@@ -440,6 +443,23 @@ fn table3(args: &SimulateArgs, dir: &Path, city: &BuiltCity) -> String {
     md
 }
 
+/// The traces `--split` names: the evaluation's test traces, or the tuning split's val traces.
+fn city_split(
+    args: &SimulateArgs,
+    grid: &crate::sim::stream_city::StreetGrid,
+) -> anyhow::Result<(&'static str, Vec<Trace>)> {
+    Ok(match args.split.as_str() {
+        "val" => {
+            let set = tuning_set(grid, &args.navigation).map_err(anyhow::Error::msg)?;
+            ("val", set.val().to_vec())
+        }
+        _ => {
+            let eval = evaluation_set(grid, &args.navigation).map_err(anyhow::Error::msg)?;
+            ("test", eval.traces().to_vec())
+        }
+    })
+}
+
 /// Runs the city experiment; returns its markdown.
 pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
     let start = Instant::now();
@@ -457,13 +477,12 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
         .map(|(k, (_, b, _))| (*k, b[Level::Low.index()] as u64))
         .collect();
     let util: HashMap<TileKey, [f32; 4]> = meta.into_iter().map(|(k, (_, _, u))| (k, u)).collect();
-    let eval = evaluation_set(&city.grid, &args.navigation).map_err(anyhow::Error::msg)?;
-    let humans = eval
-        .traces()
+    let (split, all) = city_split(args, &city.grid)?;
+    let humans = all
         .iter()
         .filter(|t| t.header("kind") == Some("eyenav"))
         .count();
-    let traces = table4_traces(&eval);
+    let traces = pick_traces(&all);
     let mut scored: Vec<Scored> = traces
         .into_iter()
         .map(|trace| Scored {
@@ -474,7 +493,7 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
         .collect();
     let names: Vec<String> = scored.iter().map(|s| label(&s.trace)).collect();
     eprintln!(
-        "simulate: city traces ({} of {} test humans, every {HUMAN_EVERY}th): {}",
+        "simulate: city traces ({} of {} {split} humans, every {HUMAN_EVERY}th): {}",
         humans.div_ceil(HUMAN_EVERY),
         humans,
         names.join(", ")
@@ -483,7 +502,7 @@ pub(super) fn city(args: &SimulateArgs) -> anyhow::Result<String> {
     let best_mib = city.variant_bytes[0] as f64 / (1u64 << 20) as f64;
     let _ = writeln!(
         md,
-        "## Streaming city\n\nCity: {} (`sim::stream_city`, seed {}, origin {DEFAULT_ORIGIN}). Client: 1280x720, 50 deg, SSE 16, 4 requests in flight, memory budget {} MiB (the city has {best_mib:.1} MiB of Best), 40 ms RTT, 400 B/request. Traces (test split only, first {TRACE_S} s each): {}.\n",
+        "## Streaming city\n\nCity: {} (`sim::stream_city`, seed {}, origin {DEFAULT_ORIGIN}). Client: 1280x720, 50 deg, SSE 16, 4 requests in flight, memory budget {} MiB (the city has {best_mib:.1} MiB of Best), 40 ms RTT, 400 B/request. Traces ({split} split only, first {TRACE_S} s each): {}.\n",
         city.summary(),
         spec.seed,
         BUDGET >> 20,
