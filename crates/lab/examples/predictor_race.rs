@@ -18,12 +18,10 @@ use splat2tiles_lab::sim::session::run_session;
 use splat2tiles_lab::sim::stream_city::{CitySpec, NAVIGATION_DIR, StreetGrid, trace_set};
 use splat2tiles_lab::sim::transport::NetModel;
 use splat2tiles_stream::catalog::Level;
-use splat2tiles_stream::client::ClientConfig;
+use splat2tiles_stream::client::{ClientConfig, PredictorKind, predictor_of};
 use splat2tiles_stream::geom::ViewPose;
 use splat2tiles_stream::plan::Planner;
-use splat2tiles_stream::predict::{
-    ConstantVelocity, LinearExtrapolation, Oracle, Predictor, Reactive,
-};
+use splat2tiles_stream::predict::{Oracle, Predictor};
 use splat2tiles_stream::split::Split;
 use splat2tiles_stream::trace::Trace;
 use splat2tiles_tiles::tiling::TileKey;
@@ -63,26 +61,18 @@ fn one(name: &str, poses: &[ViewPose]) -> Box<dyn Predictor + Send> {
         "oracle" => Box::new(Oracle {
             trace: poses.to_vec(),
         }),
-        "reactive" => Box::new(Reactive),
-        "constant-velocity" => Box::new(ConstantVelocity::default()),
-        "linear" => Box::new(LinearExtrapolation::default()),
-        "tcn" => Box::new(splat2tiles_stream::learned::TcnPredictor::committed().unwrap()),
-        "learned" => Box::new(splat2tiles_stream::learned::LearnedPredictor::committed()),
-        _ => match name.strip_prefix("learned=") {
-            Some(path) => Box::new(splat2tiles_stream::learned::LearnedPredictor::new(
-                splat2tiles_stream::learned::ViewModel::from_json(
-                    &std::fs::read_to_string(path).unwrap(),
-                    path,
-                )
-                .unwrap(),
-            )),
-            None => panic!("unknown predictor {name}"),
-        },
+        _ => predictor_of(
+            PredictorKind::from_name(name).unwrap_or_else(|| panic!("unknown predictor {name}")),
+        ),
     }
 }
 
 fn predictor(name: &str, poses: &[ViewPose]) -> Box<dyn Predictor + Send> {
-    if let Some((model, hedge)) = name.split_once('@') {
+    // A view model with its turned views: `MODEL@...`, or `learned=FILE` with the defaults.
+    let view_model = name
+        .split_once('@')
+        .or_else(|| name.starts_with("learned=").then_some((name, "")));
+    if let Some((model, hedge)) = view_model {
         let model = match model.strip_prefix("learned=") {
             Some(path) => splat2tiles_stream::learned::ViewModel::from_json(
                 &std::fs::read_to_string(path).unwrap(),
@@ -92,10 +82,10 @@ fn predictor(name: &str, poses: &[ViewPose]) -> Box<dyn Predictor + Send> {
             None => ablation(model),
         };
         let mut p = splat2tiles_stream::learned::LearnedPredictor::new(model);
-        let mut it = hedge.split(',');
-        p.hedge_sigmas = it.next().unwrap().parse().unwrap();
-        p.hedge_horizon_s = it.next().map_or(10.0, |v| v.parse().unwrap());
-        p.hedge_poses = it.next().map_or(1, |v| v.parse().unwrap());
+        let mut it = hedge.split(',').filter(|v| !v.is_empty());
+        p.hedge_sigmas = it.next().map_or(p.hedge_sigmas, |v| v.parse().unwrap());
+        p.hedge_horizon_s = it.next().map_or(p.hedge_horizon_s, |v| v.parse().unwrap());
+        p.hedge_poses = it.next().map_or(p.hedge_poses, |v| v.parse().unwrap());
         return Box::new(p);
     }
     if let Some((p, a)) = name

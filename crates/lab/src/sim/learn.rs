@@ -175,9 +175,8 @@ pub fn fit(train: &[Sample], val: &[Sample], ridge: f64, trained_on: &str) -> Vi
         let col = |c: usize| s.targets.iter().map(|t| t[c]).collect::<Vec<f64>>();
         yaw.add(&s.features.yaw, &col(0), w);
         pitch.add(&s.features.pitch, &col(1), w);
-        let mut y = col(2);
-        y.extend(col(3));
-        pos.add(&s.features.pos, &y, w);
+        let (fwd, left) = (col(2), col(3));
+        pos.add(&s.features.pos, &[fwd.as_slice(), &left].concat(), w);
         // The mirror image: odd features and the left correction change sign.
         let x: Vec<f64> = s
             .features
@@ -186,9 +185,8 @@ pub fn fit(train: &[Sample], val: &[Sample], ridge: f64, trained_on: &str) -> Vi
             .zip(POS_ODD)
             .map(|(v, odd)| if odd { -v } else { *v })
             .collect();
-        let mut y = col(2);
-        y.extend(col(3).into_iter().map(|v| -v));
-        pos.add(&x, &y, w);
+        let mirrored: Vec<f64> = left.iter().map(|v| -v).collect();
+        pos.add(&x, &[fwd, mirrored].concat(), w);
     }
     let pos_w = pos.solve(ridge);
     let yaw_w = yaw.solve(ridge);

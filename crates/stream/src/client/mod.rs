@@ -256,7 +256,8 @@ impl std::fmt::Debug for StreamClient {
     }
 }
 
-fn predictor_of(kind: PredictorKind) -> Box<dyn Predictor + Send> {
+/// The predictor the client runs for `kind` (the committed models for `tcn` and `learned`).
+pub fn predictor_of(kind: PredictorKind) -> Box<dyn Predictor + Send> {
     match kind {
         PredictorKind::Reactive => Box::new(Reactive),
         PredictorKind::ConstantVelocity => Box::new(ConstantVelocity::default()),

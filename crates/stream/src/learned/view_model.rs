@@ -8,7 +8,7 @@
 //! `splat2tiles_lab::sim::learn` on the tuning split only.
 
 use crate::geom::{ViewPose, wrap_angle};
-use crate::predict::{LinearExtrapolation, Predictor, Uncertain, sample_trace};
+use crate::predict::{LinearExtrapolation, Predictor, sample_trace};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -334,18 +334,6 @@ impl Predictor for LearnedPredictor {
             }
         }
         out
-    }
-
-    fn predict_uncertain(
-        &mut self,
-        history: &[ViewPose],
-        horizon: f64,
-        step: f64,
-    ) -> Vec<Uncertain> {
-        self.predict(history, horizon, step)
-            .into_iter()
-            .map(|pose| Uncertain { pose, sigma_m: 0.0 })
-            .collect()
     }
 }
 
