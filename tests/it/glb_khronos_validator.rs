@@ -46,10 +46,20 @@ fn our_tiles_pass_the_khronos_validator() {
         ("sh3.glb", tile(3, 333), [100.5, -50.0, 1.5], m),
         ("sh1_identity.glb", tile(1, 1), [0.0; 3], IDENTITY),
     ];
-    let files: Vec<(&str, Vec<u8>)> = cases
+    let mut files: Vec<(&str, Vec<u8>)> = cases
         .iter()
         .map(|(name, splats, centre, matrix)| (*name, write_tile_glb(splats, *centre, *matrix)))
         .collect();
+    // The codebook variant's container: accessors without bufferView, payload in bufferView 0.
+    let codebook = splat2tiles_tiles::encode::codebook_glb::write_codebook_glb(
+        &tile(3, 333),
+        [100.5, -50.0, 1.5],
+        m,
+        &Default::default(),
+    )
+    .unwrap()
+    .0;
+    files.push(("codebook_sh3.glb", codebook));
     validate_without_errors(dir.path(), &files);
 }
 

@@ -6,6 +6,7 @@ mod common;
 
 mod client_layered;
 mod client_stream;
+mod codebook_variant;
 mod compare_cli;
 mod completeness;
 mod conformance;

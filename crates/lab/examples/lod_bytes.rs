@@ -10,6 +10,9 @@
 //! (SuperSplat halves per level; splat-transform's smallest chunk is 8k), then bundled as
 //! `lod-meta.json` with `-l` tags (`-g cpu` throughout); LOD 0's chunks are the leaves.
 //!
+//! The codebook variant (spec/codebook-variant.md) is one more row: each tile's Best content
+//! re-encoded with `write_codebook_glb`'s defaults.
+//!
 //! Run: `npm install --prefix target/st37 @playcanvas/splat-transform@3.7.0` once, then
 //! `cargo run --release -p splat2tiles-lab --example lod_bytes` (it builds the release CLI;
 //! `LOD_SCENES=plant` for one scene). Prints a Markdown table.
@@ -18,6 +21,7 @@
 mod common;
 
 use splat2tiles_io::{read_path, write_ply};
+use splat2tiles_tiles::encode::codebook_glb::write_codebook_glb;
 use splat2tiles_tiles::encode::spz2::gzip;
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -84,6 +88,27 @@ fn ours(bin: &Path, scene: &Path, out: &Path) -> (Vec<(String, u64, u64)>, u64, 
             }
         }
     }
+    // The codebook variant of each tile, from its lossless Best content (not yet a variant the
+    // converter writes): one more row.
+    let (mut cb_all, mut cb_leaves) = (0, 0);
+    for t in &ts.tiles {
+        let best = ts.dir.join(splat2tiles_tiles::variants::content_uri(
+            ts.scheme,
+            t.key,
+            splat2tiles_tiles::variants::Variant::Best,
+        ));
+        let Ok(glb) = std::fs::read(&best) else {
+            continue;
+        };
+        let (rel, m) = splat2tiles_tiles::variants::decode_variant(&glb).unwrap();
+        let (cb, _) = write_codebook_glb(&rel, [0.0; 3], m, &Default::default()).unwrap();
+        let b = cb.len().min(gzip(&cb).len()) as u64;
+        cb_all += b;
+        if !parents.contains(&t.key) {
+            cb_leaves += b;
+        }
+    }
+    per.insert(splat2tiles_tiles::variants::ALL.len(), (cb_all, cb_leaves));
     let other = files(out)
         .iter()
         .filter(|p| !counted.contains(*p))
@@ -93,7 +118,11 @@ fn ours(bin: &Path, scene: &Path, out: &Path) -> (Vec<(String, u64, u64)>, u64, 
         .values()
         .map(|m| m.0 as u64)
         .sum();
-    let names = splat2tiles_tiles::variants::ALL.map(|v| v.name().to_string());
+    let mut names: Vec<String> = splat2tiles_tiles::variants::ALL
+        .iter()
+        .map(|v| v.name().to_string())
+        .collect();
+    names.push("codebook (S2T, from Best)".into());
     let per = per
         .into_iter()
         .map(|(k, (a, l))| (names[k].clone(), a, l))

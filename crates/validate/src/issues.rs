@@ -259,6 +259,10 @@ catalogue! {
     SPLAT_ROTATION_NOT_UNIT => Error,
     /// Attribute data carried by a compression extension was not decoded, so not checked.
     CONTENT_DATA_NOT_CHECKED => Info,
+    /// A `S2T_gaussian_splatting_compression_codebook` payload that does not decode.
+    SPLAT_CODEBOOK_PAYLOAD_INVALID => Error,
+    /// A codebook payload whose splat count differs from the accessors' count.
+    SPLAT_CODEBOOK_COUNT_MISMATCH => Error,
     /// More issues were found than a report lists (10 000); the rest were dropped.
     ISSUES_TRUNCATED => Info,
     /// A splat centre lies outside its tile's bounding volume.

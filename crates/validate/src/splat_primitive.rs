@@ -10,6 +10,7 @@ use glam::{DMat3, DMat4, DQuat, DVec3};
 use splat2tiles_tiles::encode::gltf::{
     Accessor, AccessorType, BufferView, ComponentType, Gltf, KHR_GAUSSIAN_SPLATTING,
     KHR_GAUSSIAN_SPLATTING_SPZ_2, KhrGaussianSplatting, MODE_DEFAULT, MODE_POINTS, Primitive,
+    S2T_GAUSSIAN_SPLATTING_CODEBOOK,
 };
 
 const SPLAT: &str = "KHR_gaussian_splatting:";
@@ -86,7 +87,14 @@ pub(super) fn check(
     let attrs = &prim.attributes;
     check_attribute_set(ctx, name, &pp, attrs, compressed);
     let views = check_accessors(ctx, g, &pp, attrs, compressed);
-    if compressed {
+    let codebook = ext
+        .extensions
+        .as_ref()
+        .and_then(|c| c.get(S2T_GAUSSIAN_SPLATTING_CODEBOOK));
+    if let Some(child) = codebook {
+        let cp = format!("{ep}/extensions/{S2T_GAUSSIAN_SPLATTING_CODEBOOK}");
+        check_codebook(ctx, g, &cp, child, prim);
+    } else if compressed {
         ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
             at(&ep),
             "attribute data is inside a compression extension; values were not decoded",
@@ -115,6 +123,76 @@ pub(super) fn check(
     let rot = get(ROTATION).filter(|r| r.n == 4);
     let scale = get(SCALE).filter(|s| s.n == 3);
     gather_geometry(g.placements, m, (pos, rot, scale), want_shapes, geom)
+}
+
+/// Decodes a codebook payload (child object `child` at `cp`) and checks its splat count and
+/// positions against the POSITION accessor.
+fn check_codebook(
+    ctx: &mut Ctx<'_>,
+    g: &Glb<'_>,
+    cp: &str,
+    child: &serde_json::Value,
+    prim: &Primitive,
+) {
+    let at = |p: &str| format!("{}#{p}", g.name);
+    let invalid = |ctx: &mut Ctx<'_>, what: String| {
+        ctx.push(Issue::SPLAT_CODEBOOK_PAYLOAD_INVALID(at(cp), what));
+    };
+    let Some(v) = child.get("bufferView").and_then(|v| v.as_u64()) else {
+        return invalid(ctx, "bufferView is missing or not an index".into());
+    };
+    let bytes = g.doc.buffer_views.get(v as usize).and_then(|bv| {
+        let ok = *g.buffers.views_ok.get(v as usize)?;
+        let data = g.buffers.data.get(bv.buffer as usize)?.as_ref()?;
+        let start = usize::try_from(bv.byte_offset).ok()?;
+        let len = usize::try_from(bv.byte_length).ok()?;
+        ok.then(|| data.get(start..start.checked_add(len)?))
+            .flatten()
+    });
+    let Some(bytes) = bytes else {
+        return invalid(
+            ctx,
+            format!("bufferView {v} is missing or outside its buffer"),
+        );
+    };
+    let splats = match splat2tiles_tiles::encode::codebook::decode_payload(bytes) {
+        Ok(s) => s,
+        Err(e) => return invalid(ctx, e.to_string()),
+    };
+    let acc = prim
+        .attributes
+        .get("POSITION")
+        .and_then(|&i| g.doc.accessors.get(i as usize));
+    let Some(acc) = acc else { return };
+    if acc.count != splats.len() as u64 {
+        ctx.push(Issue::SPLAT_CODEBOOK_COUNT_MISMATCH(
+            at(cp),
+            format!(
+                "the payload holds {} splats, POSITION's count is {}",
+                splats.len(),
+                acc.count
+            ),
+        ));
+        return;
+    }
+    if let (Some(lo), Some(hi)) = (&acc.min, &acc.max)
+        && let Some((dlo, dhi)) = splats.bounds()
+    {
+        let outside = (0..3).any(|a| {
+            let tol = 1e-5
+                * (hi.get(a).copied().unwrap_or(0.0) - lo.get(a).copied().unwrap_or(0.0))
+                    .abs()
+                    .max(1e-6);
+            lo.get(a).is_some_and(|&l| dlo[a] < l - tol)
+                || hi.get(a).is_some_and(|&h| dhi[a] > h + tol)
+        });
+        if outside {
+            ctx.push(Issue::SPLAT_CODEBOOK_COUNT_MISMATCH(
+                at(cp),
+                format!("decoded positions span {dlo:?}..{dhi:?}, outside POSITION min/max"),
+            ));
+        }
+    }
 }
 
 /// The extension object's properties (mode, kernel, colorSpace, projection, sortingMethod) and

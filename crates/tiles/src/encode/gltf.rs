@@ -10,6 +10,9 @@ use serde_json::{Map, Value};
 pub const KHR_GAUSSIAN_SPLATTING: &str = "KHR_gaussian_splatting";
 /// The SPZ v2 compression child extension (decoding it is not this module's job).
 pub const KHR_GAUSSIAN_SPLATTING_SPZ_2: &str = "KHR_gaussian_splatting_compression_spz_2";
+/// This project's codebook compression child extension (spec/codebook-variant.md; only
+/// splat2tiles' viewers decode it).
+pub const S2T_GAUSSIAN_SPLATTING_CODEBOOK: &str = "S2T_gaussian_splatting_compression_codebook";
 /// Vendor (ratified) bufferView compression extension with filters.
 pub const EXT_MESHOPT_COMPRESSION: &str = "EXT_meshopt_compression";
 /// Core glTF quantized vertex attributes extension.

@@ -2,6 +2,7 @@
 //! GLB framing, tile writers (float, interleaved, meshopt, SPZ_2) and their readers.
 
 pub mod codebook;
+pub mod codebook_glb;
 pub mod exp_filter;
 pub mod glb;
 pub mod gltf;

@@ -294,7 +294,6 @@ fn write_spz2(
 ) -> Result<(Vec<u8>, Splats), GlbError> {
     // Errors name the caller's splat index: checked before reordering.
     check_writable(splats, centre)?;
-    let n = splats.len();
     // Stored in Morton order of the tile-relative positions (`super::storage_order`).
     let (raw, order) = if morton {
         let (order, stored) = in_storage_order(splats, centre, opts.max_sh_degree);
@@ -312,12 +311,34 @@ fn write_spz2(
     };
     let payload = spz_gzip(&raw);
     drop(raw);
+    let glb = compressed_glb(
+        &decoded,
+        payload,
+        node_matrix,
+        KHR_GAUSSIAN_SPLATTING_SPZ_2,
+        true,
+    )?;
+    Ok((glb, decoded))
+}
+
+/// A splat glb whose attributes live in `payload` (bufferView 0), decoded by the child extension
+/// `extension` of `KHR_gaussian_splatting`: accessors without bufferView for POSITION (min/max of
+/// `decoded`), the DC colour (COLOR_0 as RGBA bytes when `dc_in_color`, as SPZ_2 declares it,
+/// else `SH_DEGREE_0_COEF_0`), ROTATION, SCALE, OPACITY and SH degrees 1..=d.
+pub(super) fn compressed_glb(
+    decoded: &Splats,
+    payload: Vec<u8>,
+    node_matrix: [f64; 16],
+    extension: &str,
+    dc_in_color: bool,
+) -> Result<Vec<u8>, GlbError> {
     if payload.len() as u64 > u32::MAX as u64 {
         return Err(GlbError::TooLarge {
             bytes: payload.len() as u64,
         });
     }
-    let (lo, hi) = decoded.bounds().expect("at least one splat");
+    let n = decoded.len();
+    let (lo, hi) = decoded.bounds().ok_or(GlbError::EmptyTile)?;
     let degree = decoded.sh_degree;
     let mut accessors = vec![];
     let mut attributes = BTreeMap::new();
@@ -329,10 +350,14 @@ fn write_spz2(
     pos.min = Some(lo.to_vec());
     pos.max = Some(hi.to_vec());
     add(ATTR_POSITION.into(), pos);
-    let mut color = float_acc(AccessorType::Vec4, n);
-    color.component_type = ComponentType::U8.code();
-    color.normalized = true;
-    add(ATTR_COLOR_0.into(), color);
+    if dc_in_color {
+        let mut color = float_acc(AccessorType::Vec4, n);
+        color.component_type = ComponentType::U8.code();
+        color.normalized = true;
+        add(ATTR_COLOR_0.into(), color);
+    } else {
+        add(sh_attribute(0, 0), float_acc(AccessorType::Vec3, n));
+    }
     add(ATTR_ROTATION.into(), float_acc(AccessorType::Vec4, n));
     add(ATTR_SCALE.into(), float_acc(AccessorType::Vec3, n));
     add(ATTR_OPACITY.into(), float_acc(AccessorType::Scalar, n));
@@ -342,17 +367,11 @@ fn write_spz2(
         }
     }
     let mut children = Map::new();
-    children.insert(
-        KHR_GAUSSIAN_SPLATTING_SPZ_2.into(),
-        json!({ "bufferView": 0 }),
-    );
+    children.insert(extension.into(), json!({ "bufferView": 0 }));
     let mut bin = payload;
     let len = bin.len();
     bin.resize(len.next_multiple_of(4), 0);
-    let exts = vec![
-        KHR_GAUSSIAN_SPLATTING.to_string(),
-        KHR_GAUSSIAN_SPLATTING_SPZ_2.to_string(),
-    ];
+    let exts = vec![KHR_GAUSSIAN_SPLATTING.to_string(), extension.to_string()];
     let doc = splat_document(
         attributes,
         accessors,
@@ -370,11 +389,15 @@ fn write_spz2(
         exts.clone(),
         exts,
     );
-    Ok((write_gltf_glb(&doc, Some(&bin))?, decoded))
+    write_gltf_glb(&doc, Some(&bin))
 }
 
-/// The SPZ payload of a `KHR_gaussian_splatting_compression_spz_2` glb, if it is one.
-pub fn spz2_payload(bytes: &[u8]) -> Result<Option<Vec<u8>>, GlbError> {
+/// The bytes of bufferView `bufferView` of the child extension `extension` of the first
+/// primitive's `KHR_gaussian_splatting`, if the glb has that extension.
+pub(super) fn compressed_payload(
+    bytes: &[u8],
+    extension: &str,
+) -> Result<Option<Vec<u8>>, GlbError> {
     let chunks = read_glb(bytes)?;
     let doc = parse_json(&chunks)?;
     let view = doc
@@ -384,7 +407,7 @@ pub fn spz2_payload(bytes: &[u8]) -> Result<Option<Vec<u8>>, GlbError> {
         .and_then(|p| p.extensions.as_ref())
         .and_then(|e| e.gaussian_splatting.as_ref())
         .and_then(|g| g.extensions.as_ref())
-        .and_then(|c| c.get(KHR_GAUSSIAN_SPLATTING_SPZ_2))
+        .and_then(|c| c.get(extension))
         .and_then(|o| o.get("bufferView"))
         .and_then(|v| v.as_u64());
     let Some(v) = view else { return Ok(None) };
@@ -395,12 +418,18 @@ pub fn spz2_payload(bytes: &[u8]) -> Result<Option<Vec<u8>>, GlbError> {
     let bin = chunks
         .bin
         .ok_or_else(|| GlbError::invalid("/buffers/0", "no BIN chunk"))?;
-    let range = bv.byte_offset as usize..(bv.byte_offset + bv.byte_length) as usize;
+    let end = bv.byte_offset.saturating_add(bv.byte_length);
+    let range = bv.byte_offset as usize..end.min(usize::MAX as u64) as usize;
     Ok(Some(
         bin.get(range)
             .ok_or_else(|| GlbError::invalid(format!("/bufferViews/{v}"), "past the BIN chunk"))?
             .to_vec(),
     ))
+}
+
+/// The SPZ payload of a `KHR_gaussian_splatting_compression_spz_2` glb, if it is one.
+pub fn spz2_payload(bytes: &[u8]) -> Result<Option<Vec<u8>>, GlbError> {
+    compressed_payload(bytes, KHR_GAUSSIAN_SPLATTING_SPZ_2)
 }
 
 /// Reference decoder of our SPZ_2 tiles: splats (tile-relative, as stored) and node matrix.

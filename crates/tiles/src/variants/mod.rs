@@ -266,11 +266,14 @@ pub fn up_in_source(node_matrix: [f64; 16]) -> DVec3 {
     (m.transpose() * DVec3::Y).normalize_or(DVec3::Y)
 }
 
-/// Decodes any variant's glb (plain, interleaved, meshopt or SPZ_2) into tile-relative splats
+/// Decodes any variant's glb (plain, interleaved, meshopt, SPZ_2 or codebook) into tile-relative splats
 /// and the node matrix.
 pub fn decode_variant(glb: &[u8]) -> Result<(Splats, [f64; 16]), GlbError> {
     if spz2_payload(glb)?.is_some() {
         return read_spz2_glb(glb);
+    }
+    if crate::encode::codebook_glb::codebook_payload(glb)?.is_some() {
+        return crate::encode::codebook_glb::read_codebook_glb(glb);
     }
     let plain = decompress_meshopt_glb(glb)?;
     let t = read_tile_glb(&plain)?;
