@@ -19,7 +19,13 @@
 
 #[path = "../benches/common/mod.rs"]
 mod common;
+// Only its views and scores are used here.
+#[allow(dead_code)]
+#[path = "../benches/peer_views/mod.rs"]
+mod peer_views;
 
+use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+use splat2tiles_core::splat::Splats;
 use splat2tiles_io::{read_path, write_ply};
 use splat2tiles_tiles::encode::codebook_glb::write_codebook_glb;
 use splat2tiles_tiles::encode::spz2::gzip;
@@ -91,6 +97,7 @@ fn ours(bin: &Path, scene: &Path, out: &Path) -> (Vec<(String, u64, u64)>, u64, 
     // The codebook variant of each tile, from its lossless Best content (not yet a variant the
     // converter writes): one more row.
     let (mut cb_all, mut cb_leaves) = (0, 0);
+    let (mut ref_leaves, mut cb_decoded): (Option<Splats>, Option<Splats>) = (None, None);
     for t in &ts.tiles {
         let best = ts.dir.join(splat2tiles_tiles::variants::content_uri(
             ts.scheme,
@@ -101,14 +108,26 @@ fn ours(bin: &Path, scene: &Path, out: &Path) -> (Vec<(String, u64, u64)>, u64, 
             continue;
         };
         let (rel, m) = splat2tiles_tiles::variants::decode_variant(&glb).unwrap();
-        let (cb, _) = write_codebook_glb(&rel, [0.0; 3], m, &Default::default()).unwrap();
+        let (cb, dec) = write_codebook_glb(&rel, [0.0; 3], m, &Default::default()).unwrap();
         let b = cb.len().min(gzip(&cb).len()) as u64;
         cb_all += b;
         if !parents.contains(&t.key) {
             cb_leaves += b;
+            append_placed(&mut ref_leaves, &rel, m);
+            append_placed(&mut cb_decoded, &dec, m);
         }
     }
     per.insert(splat2tiles_tiles::variants::ALL.len(), (cb_all, cb_leaves));
+    let (r, c) = (ref_leaves.unwrap(), cb_decoded.unwrap());
+    let (lo, hi) = peer_views::core_box(&r);
+    let cams = auto_views_with(lo, hi, glam::DVec3::Y, 1280, 720, DEFAULT_FOV_Y_DEG);
+    let v = peer_views::view_scores(&peer_views::render_all(&r, &cams), &c, &cams);
+    eprintln!(
+        "{}: codebook leaves against Best leaves, 8 framed views: object PSNR {:.2} dB, crop SSIM {:.5}",
+        scene.display(),
+        v.object_psnr,
+        v.crop_ssim
+    );
     let other = files(out)
         .iter()
         .filter(|p| !counted.contains(*p))
@@ -128,6 +147,25 @@ fn ours(bin: &Path, scene: &Path, out: &Path) -> (Vec<(String, u64, u64)>, u64, 
         .map(|(k, (a, l))| (names[k].clone(), a, l))
         .collect();
     (per, other, splats)
+}
+
+/// Appends `tile` (tile-relative) placed by its node matrix `m` (rotation and translation) to
+/// `all`.
+fn append_placed(all: &mut Option<Splats>, tile: &Splats, m: [f64; 16]) {
+    let m = glam::DMat4::from_cols_array(&m);
+    let r = glam::DQuat::from_mat3(&glam::DMat3::from_mat4(m));
+    let mut t = tile.clone();
+    for p in &mut t.positions {
+        *p = m.transform_point3(glam::DVec3::from_array(*p)).to_array();
+    }
+    for q in &mut t.rotations {
+        let qq = r * glam::DQuat::from_xyzw(q[0] as f64, q[1] as f64, q[2] as f64, q[3] as f64);
+        *q = [qq.x as f32, qq.y as f32, qq.z as f32, qq.w as f32];
+    }
+    match all {
+        Some(a) => (0..t.len()).for_each(|i| a.push_from(&t, i)),
+        None => *all = Some(t),
+    }
 }
 
 /// Runs splat-transform 3.7.0 with `args` on the CPU (no GPU here).
