@@ -419,6 +419,37 @@ fn poke_sparse(p: &Path, a: usize, v: &Value, part: &str, k: usize, val: [u8; 4]
     std::fs::write(p, bytes).unwrap();
 }
 
+/// Replaces the glb at `p` by the codebook variant of its splats (`spec/codebook-variant.md`);
+/// returns where its payload starts in the file and its splat count.
+fn codebook_content(p: &Path) -> (usize, u32) {
+    use splat2tiles_tiles::encode::codebook_glb::write_codebook_glb;
+    let (rel, m) = splat2tiles_tiles::variants::decode_variant(&std::fs::read(p).unwrap()).unwrap();
+    let glb = write_codebook_glb(&rel, [0.0; 3], m, &Default::default())
+        .unwrap()
+        .0;
+    std::fs::write(p, &glb).unwrap();
+    let at = glb.windows(4).position(|w| w == b"S2TC").unwrap();
+    (at, rel.len() as u32)
+}
+
+/// Writes `val` at payload byte `offset` of the codebook glb `p` (payload at `cb.0`); an empty
+/// `val` instead makes the positions section one byte longer than the payload holds.
+fn poke_codebook(cb: &(usize, u32), p: &Path, offset: usize, val: &[u8]) {
+    let mut bytes = std::fs::read(p).unwrap();
+    if val.is_empty() {
+        let payload = splat2tiles_tiles::encode::codebook_glb::codebook_payload(&bytes)
+            .unwrap()
+            .unwrap();
+        let sizes = splat2tiles_tiles::encode::codebook::section_sizes(&payload).unwrap();
+        let table = payload.len() - sizes.iter().sum::<usize>() - 4 * sizes.len();
+        let grown = (payload.len() - table) as u32;
+        bytes[cb.0 + table..cb.0 + table + 4].copy_from_slice(&grown.to_le_bytes());
+    } else {
+        bytes[cb.0 + offset..cb.0 + offset + val.len()].copy_from_slice(val);
+    }
+    std::fs::write(p, bytes).unwrap();
+}
+
 type Mutation = fn(&Ts);
 
 #[expect(
@@ -867,6 +898,19 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             let x = v["accessors"][a]["max"][0].as_f64().unwrap();
             v["accessors"][a]["max"][0] = json!(x + 1.0);
         })
+    });
+    m.insert("glb_codebook", |t| {
+        codebook_content(&t.glb());
+    });
+    m.insert("glb_codebook_bad_magic", |t| {
+        poke_codebook(&codebook_content(&t.glb()), &t.glb(), 0, b"XXXX")
+    });
+    m.insert("glb_codebook_count_short", |t| {
+        let n = codebook_content(&t.glb());
+        poke_codebook(&n, &t.glb(), 8, &(n.1 - 1).to_le_bytes())
+    });
+    m.insert("glb_codebook_section_past_end", |t| {
+        poke_codebook(&codebook_content(&t.glb()), &t.glb(), 0, &[])
     });
     m.insert("glb_opacity_above_one", |t| {
         t.poke_glb("KHR_gaussian_splatting:OPACITY", 0, 1.5)
