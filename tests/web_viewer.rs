@@ -427,6 +427,90 @@ fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
     }
 }
 
+/// The codebook variant (`spec/codebook-variant.md`) decoded by the web viewer's wasm build: the
+/// High contents of a converted donut replaced by the codebook encoding of their splats (High is
+/// decoded whole, as the codebook variant is; Best streams as a prefix), drawn by the web viewer
+/// restricted to that level and by the native renderer from the same files; every splat
+/// resident, the images alike.
+#[test]
+fn web_viewer_decodes_the_codebook_variant_like_the_native_decoder() {
+    use splat2tiles_tiles::encode::codebook_glb::write_codebook_glb;
+    require_harness();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("donut");
+    run(Command::new(bin())
+        .arg("convert")
+        .arg(scene("donut_fused_sh0.ply"))
+        .args(["--variants", "best,high", "--no-utility", "-o"])
+        .arg(&dir));
+    let highs = files_under(&dir.join("tiles/high"), "glb");
+    assert!(!highs.is_empty(), "no High tile");
+    for f in highs {
+        let (rel, m) =
+            splat2tiles_tiles::variants::decode_variant(&std::fs::read(&f).unwrap()).unwrap();
+        let glb = write_codebook_glb(&rel, [0.0; 3], m, &Default::default())
+            .unwrap()
+            .0;
+        std::fs::write(&f, glb).unwrap();
+    }
+    let (w, h) = (480u32, 360u32);
+    // The native reference: the same tileset with content.uri on the replaced files.
+    let ts = std::fs::read_to_string(dir.join("tileset.json")).unwrap();
+    let ts_native = dir.join("tileset-codebook.json");
+    std::fs::write(&ts_native, ts.replace("tiles/best/", "tiles/high/")).unwrap();
+    let reference = tmp.path().join("reference.png");
+    let note = run(Command::new(bin())
+        .arg("render")
+        .arg(&ts_native)
+        .args(render_view(&ts_native, &["--auto-view", "0"], w, h))
+        .args(["--width", &w.to_string()])
+        .args(["--height", &h.to_string(), "-o"])
+        .arg(&reference));
+    std::fs::remove_file(&ts_native).unwrap();
+    let splats: u64 = note
+        .split(" tiles, ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no splat count in: {note}"));
+    let shot = tmp.path().join("web.png");
+    let (o, v) = run_web_viewer(
+        &dir,
+        &tmp.path().join("view.log"),
+        &shot,
+        (w, h),
+        &["--levels", "high", "--still", "--throttle", "100000000"],
+        "web_viewer.mjs",
+    );
+    assert_clean_run(&o, &v, "codebook");
+    let fetched = |dir: &str| {
+        v["responses"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|r| r["url"].as_str().is_some_and(|u| u.contains(dir)))
+    };
+    assert!(
+        fetched("/tiles/high/"),
+        "no codebook tile was fetched: {v:#}"
+    );
+    assert!(!fetched("/tiles/best/"), "Best tiles were fetched: {v:#}");
+    let fin = &v["final"];
+    assert!(u(&fin["errors"]) == 0, "{fin:#}");
+    assert_eq!(u(&fin["residentSplats"]), splats, "{fin:#}");
+    let s = ssim(
+        &Image::load_png(&shot).unwrap(),
+        &Image::load_png(&reference).unwrap(),
+    )
+    .unwrap();
+    eprintln!("web viewer codebook vs native codebook: SSIM {s:.4} ({splats} splats)");
+    assert!(
+        s >= MIN_SSIM,
+        "SSIM {s:.4} < {MIN_SSIM}: {}",
+        shot.display()
+    );
+}
+
 /// A generated city of `n` splats (copies of every 8th splat of the shared scenes,
 /// `data/scenes/README.md`)
 /// converted into `dir/name`, z up, georeferenced at `origin` when given, at most 16,384 splats
