@@ -26,9 +26,10 @@ import subprocess
 import sys
 import time
 
-# Test hook: the part task whose (phase:part) equals this value kills its splat2tiles process
-# and then itself (SIGKILL, as when a node dies) on its first attempt; a marker file in the
-# work folder remembers that attempt, so Ray's retry runs the part normally.
+# Test hook: the part task whose (phase:part) equals this value (in the driver's environment;
+# passed to the tasks, whose workers a running cluster started without it) kills its
+# splat2tiles process and then itself (SIGKILL, as when a node dies) on its first attempt; a
+# marker file in the work folder remembers that attempt, so Ray's retry runs the part normally.
 KILL_ENV = "SPLAT2TILES_RAY_KILL"
 
 
@@ -60,7 +61,7 @@ def _node_id():
 
 
 def part_step(binary, input_path, plan, part, phase, out, samples, memory_limit, threads, work,
-              route=None):
+              route=None, kill=None):
     """One part (one phase) of the plan; the body of the Ray part task."""
     argv = [binary, "convert", input_path, "--plan", plan, "--part", str(part),
             "--phase", phase, "-o", out, "--json", "--quiet"]
@@ -71,7 +72,6 @@ def part_step(binary, input_path, plan, part, phase, out, samples, memory_limit,
     if memory_limit:
         argv += ["--memory-limit", memory_limit]
     env = _env(threads)
-    kill = os.environ.get(KILL_ENV)
     marker = os.path.join(work, f".killed-{phase}-{part}")
     if kill == f"{phase}:{part}" and not os.path.exists(marker):
         open(marker, "w").close()
@@ -87,6 +87,9 @@ def part_step(binary, input_path, plan, part, phase, out, samples, memory_limit,
             if staged and os.listdir(os.path.join(parent, staged[0])):
                 break
             time.sleep(0.005)
+        # The marker says whether the step was still running when killed (mid-part).
+        with open(marker, "w") as f:
+            f.write("running" if child.poll() is None else "finished")
         child.kill()
         child.wait()
         os.kill(os.getpid(), signal.SIGKILL)
@@ -168,6 +171,7 @@ def convert(input_path, output, parts, work, binary="splat2tiles", convert_args=
             o["resources"] = {part_resources[i % len(part_resources)]: 0.001}
         return ray.remote(fn).options(**o)
 
+    kill = os.environ.get(KILL_ENV)
     t_route = time.time()
     route_dir = None
     route_reports = []
@@ -186,14 +190,14 @@ def convert(input_path, output, parts, work, binary="splat2tiles", convert_args=
         samples = [os.path.join(work, f"samples-{i}") for i in range(parts)]
         sample_reports = ray.get([
             pinned(part_step, i).remote(binary, input_path, plan, i, "samples", samples[i], [],
-                                        memory_limit, threads, work, route_dir)
+                                        memory_limit, threads, work, route_dir, kill)
             for i in range(parts)
         ])
     t2 = time.time()
     part_dirs = [os.path.join(work, f"part-{i}") for i in range(parts)]
     build_reports = ray.get([
         pinned(part_step, i).remote(binary, input_path, plan, i, "build", part_dirs[i], samples,
-                                    memory_limit, threads, work, route_dir)
+                                    memory_limit, threads, work, route_dir, kill)
         for i in range(parts)
     ])
     t3 = time.time()
