@@ -169,7 +169,7 @@ impl ChunkedInput {
                 }
                 None => return Ok(None),
             },
-            Kind::Splat if total > 0 && total % splat_file::RECORD_BYTES as u64 == 0 => (
+            Kind::Splat if total > 0 && total.is_multiple_of(splat_file::RECORD_BYTES as u64) => (
                 Decoder::Splat,
                 InputFormat::Splat,
                 total / splat_file::RECORD_BYTES as u64,
@@ -396,5 +396,82 @@ impl ChunkedInput {
                 (s, r, 0)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use splat2tiles_core::splat::Splat;
+
+    /// A `.splat` file of `n` records; returns its path (in `dir`) and bytes.
+    fn splat_file(dir: &Path, n: usize) -> (PathBuf, Vec<u8>) {
+        let mut s = Splats::new(0);
+        for i in 0..n {
+            s.push(
+                Splat {
+                    position: [i as f64, (i % 7) as f64, -(i as f64)],
+                    scale: [0.1; 3],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                    opacity: 0.5,
+                    sh0: [0.25; 3],
+                },
+                &[],
+            );
+        }
+        let mut bytes = Vec::new();
+        crate::write_splat_records(&s, &mut bytes).unwrap();
+        let path = dir.join("s.splat");
+        std::fs::write(&path, &bytes).unwrap();
+        (path, bytes)
+    }
+
+    /// Passes take the records inside the first bytes from them, so a whole pass reads each
+    /// byte of the file once in all; a range pass reads its records only; kept ranges hold the
+    /// file's bytes once a pass covered them.
+    #[test]
+    fn passes_count_what_they_read_and_keep_ranges() {
+        let tmp = tempfile::tempdir().unwrap();
+        let n = 50_000;
+        let (path, bytes) = splat_file(tmp.path(), n);
+        let len = bytes.len() as u64;
+        let c = ChunkedInput::open(&path).unwrap().unwrap();
+        assert_eq!(c.bytes_read(), HEAD_BYTES);
+        c.keep(&[(10, 100), (len - 50, 50), (HEAD_BYTES - 5, 10)]);
+        let mut seen = Vec::new();
+        c.for_each_block(3_000, |first, b| {
+            assert_eq!(first * 32, seen.len() as u64);
+            seen.extend_from_slice(b);
+            Ok::<_, ReadError>(())
+        })
+        .unwrap();
+        assert_eq!(seen, bytes);
+        assert_eq!(c.bytes_read(), len, "the first bytes are not read again");
+        let kept = c.kept();
+        assert_eq!(kept[0].as_deref(), Some(&bytes[10..110]));
+        assert_eq!(kept[1].as_deref(), Some(&bytes[len as usize - 50..]));
+        assert_eq!(
+            kept[2].as_deref(),
+            Some(&bytes[HEAD_BYTES as usize - 5..HEAD_BYTES as usize + 5])
+        );
+
+        // From the (empty) header: nothing read until a pass, then its range only.
+        let r = ChunkedInput::from_header(&path, &[], len).unwrap().unwrap();
+        assert_eq!((r.len(), r.bytes_read()), (n as u64, 0));
+        r.keep(&[(0, 64), (40_000 * 32 - 8, 16)]);
+        let mut got = Vec::new();
+        r.for_each_block_in(40_000..45_000, 700, |first, b| {
+            assert_eq!(first, 40_000 + got.len() as u64 / 32);
+            got.extend_from_slice(b);
+            Ok::<_, ReadError>(())
+        })
+        .unwrap();
+        assert_eq!(got, &bytes[40_000 * 32..45_000 * 32]);
+        assert_eq!(r.bytes_read(), 5_000 * 32);
+        assert_eq!(r.byte_range(40_000..45_000), 40_000 * 32..45_000 * 32);
+        // Neither kept range was read whole by that pass.
+        assert_eq!(r.kept(), vec![None, None]);
+        // A header that is not where the records start is refused.
+        assert!(ChunkedInput::from_header(&path, b"ply\n", len).is_err());
     }
 }

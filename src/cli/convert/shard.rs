@@ -186,6 +186,7 @@ fn run_route(args: &ConvertArgs, plan: &Path, dir: &Path, memory_limit: u64) -> 
     let (chunk, chunks) = (s.route_chunk as usize, s.route_chunks as usize);
     match route_input(&args.input, plan, dir, chunk, chunks, memory_limit) {
         Ok(r) => {
+            notes(&r.notes);
             if args.json {
                 let v = serde_json::json!({
                     "route": dir, "chunk": chunk, "chunks": chunks, "records": r.records,

@@ -246,22 +246,10 @@ pub fn convert_part(
     let plan = Plan::load(plan_path)?;
     let opts = plan.options(memory_limit, progress);
     let r = leaf_radius(&plan, plan_path, part, phase, &opts, samples)?;
-    let (input, format, fingerprint_read) = match routed {
-        Some(dir) => {
-            let (files, format) = super::route::routed_files(&plan, input_path, dir, part)?;
-            (Source::Routed(files), format, 0)
-        }
-        None => {
-            let input = open_input(input_path, memory_limit)?;
-            let read = plan.check_input(input_path, &input)?;
-            let format = SpillFormat::for_input(&input);
-            (Source::Input(input), format, read)
-        }
-    };
-    let name = input_path.display().to_string();
+    let (source, format, fingerprint_read) =
+        open_source(&plan, input_path, routed, part, memory_limit)?;
     let layout = &plan.layout;
     let degree = plan.file.input.sh_degree;
-    let budget = Budget::new(memory_limit, degree, opts.max_splats_per_tile);
     let units = plan.units_of(part);
     let unit_set: HashSet<TileKey> = units.iter().copied().collect();
 
@@ -272,31 +260,24 @@ pub fn convert_part(
     let staging = Staging::prepare(output)?;
     let dir = staging.path().to_path_buf();
     let relocate = |e: ConvertError| e.relocated(&dir, output);
-    let mut spiller = Spiller::new(
-        &name,
+    let (groups, spill_bytes) = split_source(
+        &plan,
+        &source,
+        &format,
+        input_path,
+        &units,
+        &dir,
         memory_limit,
-        layout,
-        format.clone(),
-        dir.join(SPILL_DIR),
-        budget.cap,
-        budget.chunk,
-        budget.write_budget,
-    );
-    spiller.all_finite = plan.file.input.dropped == 0;
-    let groups = match &input {
-        Source::Input(i) => spiller.split_units(i, &units, &plan.prefix),
-        Source::Routed(files) => spiller.split_files(files, &units, &plan.prefix),
-    }
+    )
     .map_err(relocate)?;
-    let input_bytes_read = match input {
-        Source::Input(i) => fingerprint_read + input_bytes_read(&i, plan.file.input.bytes),
-        Source::Routed(_) => 0,
-    };
     let mut report = PartReport {
         splats: groups.iter().map(|g| g.count()).sum(),
         units: units.len(),
-        spill_bytes: spiller.bytes,
-        input_bytes_read,
+        spill_bytes,
+        input_bytes_read: match source {
+            Source::Input(i) => fingerprint_read + input_bytes_read(&i, plan.file.input.bytes),
+            Source::Routed(_) => 0,
+        },
         leaf_radius: r,
         ..Default::default()
     };
@@ -424,6 +405,61 @@ enum Source {
     Input(super::source::Input),
     /// The part's routed files, in input order.
     Routed(Vec<PathBuf>),
+}
+
+/// Where part `part` reads its splats: its routed files in `routed`, else the input (checked
+/// against the plan); with their spill format and the bytes the input's check read.
+fn open_source(
+    plan: &Plan,
+    input_path: &Path,
+    routed: Option<&Path>,
+    part: usize,
+    memory_limit: u64,
+) -> Result<(Source, SpillFormat, u64), ConvertError> {
+    Ok(match routed {
+        Some(dir) => {
+            let (files, format) = super::route::routed_files(plan, input_path, dir, part)?;
+            (Source::Routed(files), format, 0)
+        }
+        None => {
+            let input = open_input(input_path, memory_limit)?;
+            let read = plan.check_input(input_path, &input)?;
+            let format = SpillFormat::for_input(&input);
+            (Source::Input(input), format, read)
+        }
+    })
+}
+
+/// The part's splats from `source` split into groups of regions below its `units`, spilled
+/// under the staging folder `dir`; with the bytes written to spill files.
+fn split_source(
+    plan: &Plan,
+    source: &Source,
+    format: &SpillFormat,
+    input_path: &Path,
+    units: &[TileKey],
+    dir: &Path,
+    memory_limit: u64,
+) -> Result<(Vec<super::spill::Group>, u64), ConvertError> {
+    let name = input_path.display().to_string();
+    let o = &plan.file.options;
+    let budget = Budget::new(memory_limit, plan.file.input.sh_degree, o.max_splats);
+    let mut spiller = Spiller::new(
+        &name,
+        memory_limit,
+        &plan.layout,
+        format.clone(),
+        dir.join(SPILL_DIR),
+        budget.cap,
+        budget.chunk,
+        budget.write_budget,
+    );
+    spiller.all_finite = plan.file.input.dropped == 0;
+    let groups = match source {
+        Source::Input(i) => spiller.split_units(i, units, &plan.prefix),
+        Source::Routed(files) => spiller.split_files(files, units, &plan.prefix),
+    }?;
+    Ok((groups, spiller.bytes))
 }
 
 /// The leaf radius the build phase of `part` uses (from the plan or every part's samples;

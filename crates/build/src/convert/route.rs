@@ -5,7 +5,8 @@
 //! `.splat` records have fixed sizes; an input read whole, such as SPZ, is routed in one chunk)
 //! and writes `DIR/chunk-C/part-I.spill` for every part I (spill records, `spill_records`, with
 //! the splat's index among the finite input splats, in input order) and `route.json`. The chunk
-//! folder is staged and renamed into place, so it is whole or absent, and a rerun replaces it.
+//! folder is written through a staging folder (`crate::output::Staging`), so it is whole or
+//! absent, and a rerun replaces it.
 //! A part built with `--route DIR` reads its files of every chunk, in chunk order, and never
 //! the input.
 
@@ -16,6 +17,7 @@ use super::shard::{bad, parse, read_bounded};
 use super::source::Input;
 use super::spill_records::{Codec, SpillFormat};
 use super::{Budget, ConvertError, check_interrupt, io_err};
+use crate::output::Staging;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use splat2tiles_io::ChunkedInput;
@@ -65,6 +67,8 @@ pub struct RouteReport {
     pub input_bytes_read: u64,
     /// Wall-clock seconds.
     pub seconds: f64,
+    /// Notes about the chunk's folder.
+    pub notes: Vec<String>,
 }
 
 /// The name of chunk `c`'s folder.
@@ -190,41 +194,31 @@ pub fn route_input(
     }
     let format = SpillFormat::for_input(&input);
     let budget = Budget::new(memory_limit, p.sh_degree, plan.file.options.max_splats);
-    let final_dir = chunk_dir(dir, chunk);
-    std::fs::create_dir_all(dir).map_err(io_err(dir, "creating folder"))?;
-    let staging = dir.join(format!(".chunk-{chunk}.tmp-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&staging);
-    let result = (|| {
-        std::fs::create_dir(&staging).map_err(io_err(&staging, "creating folder"))?;
-        let counts = write_parts(&plan, &input, range.clone(), &format, &staging, &budget)?;
-        let fingerprint_read = check_blocks(&plan, input_path, &input, &ranges, chunks)?;
-        let route = RouteFile {
-            splat2tiles_route: ROUTE_VERSION,
-            plan: plan.id.clone(),
-            chunk,
-            chunks,
-            records: [range.start, range.end],
-            raw: format.is_raw(),
-            record_bytes: format.record_bytes() as u64,
-            parts: counts.clone(),
-        };
-        let path = staging.join(ROUTE_FILE);
-        let json = serde_json::to_vec(&route).expect("route records serialise");
-        std::fs::write(&path, json).map_err(io_err(&path, "writing"))?;
-        Ok::<_, ConvertError>((counts, fingerprint_read))
-    })();
-    let (counts, fingerprint_read) = match result {
-        Ok(r) => r,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&staging);
-            return Err(e);
-        }
+    let target = chunk_dir(dir, chunk);
+    crate::output::check_not_over_inputs(&target, &[input_path, plan_path])?;
+    let staging = Staging::prepare(&target)?;
+    let staged = staging.path().to_path_buf();
+    let relocate = |e: ConvertError| e.relocated(&staged, &target);
+    let counts =
+        write_parts(&plan, &input, range.clone(), &format, &staged, &budget).map_err(relocate)?;
+    let fingerprint_read = check_blocks(&plan, input_path, &input, &ranges, chunks)?;
+    let route = RouteFile {
+        splat2tiles_route: ROUTE_VERSION,
+        plan: plan.id.clone(),
+        chunk,
+        chunks,
+        records: [range.start, range.end],
+        raw: format.is_raw(),
+        record_bytes: format.record_bytes() as u64,
+        parts: counts.clone(),
     };
+    let path = staged.join(ROUTE_FILE);
+    let json = serde_json::to_vec(&route).expect("route records serialise");
+    std::fs::write(&path, json)
+        .map_err(io_err(&path, "writing"))
+        .map_err(relocate)?;
     // A rerun replaces the chunk's earlier folder.
-    if final_dir.exists() {
-        std::fs::remove_dir_all(&final_dir).map_err(io_err(&final_dir, "replacing"))?;
-    }
-    std::fs::rename(&staging, &final_dir).map_err(io_err(&final_dir, "writing"))?;
+    let notes = staging.commit()?;
     let splats: u64 = counts.iter().sum();
     Ok(RouteReport {
         records: range.end - range.start,
@@ -232,6 +226,7 @@ pub fn route_input(
         bytes: splats * format.record_bytes() as u64,
         input_bytes_read: input_bytes_read(&input, bytes) + header_read + fingerprint_read,
         seconds: start.elapsed().as_secs_f64(),
+        notes,
     })
 }
 
