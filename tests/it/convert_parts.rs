@@ -210,6 +210,35 @@ fn routed_parts_read_the_input_at_most_three_times() {
     }
 }
 
+/// An SPZ input (gzipped, read whole) is routed in one chunk, and gives the single-machine
+/// bytes; several chunks are refused.
+#[test]
+fn an_spz_input_is_routed_in_one_chunk() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = scene("biker.spz");
+    let extra = ["--max-splats", "4096", "--no-utility"];
+    let base = tmp.path().join("base");
+    single(&input, &base, &extra);
+    let (work, out) = (tmp.path().join("w"), tmp.path().join("out"));
+    let all = shard_steps(&input, &work, 3, &extra, "256MiB", Some(1), &out);
+    assert_same_files(&base, &out);
+    assert!(all[2..].iter().all(|r| r["inputReadBytes"] == 0));
+    let err = refused(
+        run(&[
+            os("convert"),
+            input.as_os_str(),
+            os("--plan"),
+            work.join("plan.json").as_os_str(),
+            os("--route"),
+            work.join("r2").as_os_str(),
+            os("--route-chunks"),
+            os("2"),
+        ]),
+        "route it in one chunk",
+    );
+    assert!(err.contains("biker.spz"), "{err}");
+}
+
 /// Routing refuses another input of the same size and splat count, and a part refuses routed
 /// files that are missing, truncated or of another plan, naming the file (exit 2); a routing
 /// step run again gives the same files.

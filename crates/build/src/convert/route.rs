@@ -199,8 +199,16 @@ pub fn route_input(
     let staging = Staging::prepare(&target)?;
     let staged = staging.path().to_path_buf();
     let relocate = |e: ConvertError| e.relocated(&staged, &target);
-    let counts =
-        write_parts(&plan, &input, range.clone(), &format, &staged, &budget).map_err(relocate)?;
+    let counts = write_parts(
+        &plan,
+        input_path,
+        &input,
+        range.clone(),
+        &format,
+        &staged,
+        &budget,
+    )
+    .map_err(relocate)?;
     let fingerprint_read = check_blocks(&plan, input_path, &input, &ranges, chunks)?;
     let route = RouteFile {
         splat2tiles_route: ROUTE_VERSION,
@@ -234,6 +242,7 @@ pub fn route_input(
 /// part whose unit holds it; returns the splats written per part.
 fn write_parts(
     plan: &Plan,
+    input_path: &Path,
     input: &Input,
     range: std::ops::Range<u64>,
     format: &SpillFormat,
@@ -275,10 +284,19 @@ fn write_parts(
         for (i, &part) in dest.iter().enumerate() {
             let part = part as usize;
             if part >= parts {
+                // Only a changed input puts a splat outside every unit; name its record.
+                let at = match input {
+                    Input::Chunked(c) if all_finite => Some(c.byte_range(b.idx[i]..b.idx[i] + 1)),
+                    _ => None,
+                };
                 return Err(bad(
-                    &plan.path,
-                    None,
-                    format!("splat {} lies in no unit of the plan", b.idx[i]),
+                    input_path,
+                    at.map(|r| r.start),
+                    format!(
+                        "splat {} lies in no unit of plan {} (the input changed?)",
+                        b.idx[i],
+                        plan.path.display()
+                    ),
                 ));
             }
             rec.clear();
