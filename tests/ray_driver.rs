@@ -168,6 +168,8 @@ struct Cluster {
     ray: PathBuf,
     root: tempfile::TempDir,
     address: String,
+    /// The cluster's authentication token (every node and the driver get it).
+    token: String,
 }
 
 impl Cluster {
@@ -179,10 +181,19 @@ impl Cluster {
             .tempdir_in("/tmp")
             .unwrap();
         let port = free_port();
+        // Token authentication on, with a token of its own: `ray start` turns it on whenever
+        // `~/.ray/auth_token` exists (a local `ray.init()` writes one), and a node or driver
+        // without the head's token is refused.
+        let seed = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_nanos();
+        let token = format!("{:032x}", seed ^ ((std::process::id() as u128) << 64));
         let c = Cluster {
             ray,
             root,
             address: format!("127.0.0.1:{port}"),
+            token,
         };
         c.start("head", &["--head", &format!("--port={port}")], "{}");
         c
@@ -211,10 +222,8 @@ impl Cluster {
         ] {
             a.push(format!("{flag}={}", free_port()));
         }
-        let o = Command::new(&self.ray)
-            .arg("start")
-            .args(&a)
-            .env("RAY_memory_monitor_refresh_ms", "0")
+        let o = self
+            .env(Command::new(&self.ray).arg("start").args(&a))
             .output()
             .unwrap();
         assert!(
@@ -225,16 +234,37 @@ impl Cluster {
         );
     }
 
-    /// Processes whose command line names the cluster's folder (this test's own excepted).
+    /// `cmd` with the cluster's environment: its token, no memory monitor.
+    fn env<'a>(&self, cmd: &'a mut Command) -> &'a mut Command {
+        cmd.env("RAY_AUTH_MODE", "token")
+            .env("RAY_AUTH_TOKEN", &self.token)
+            .env("RAY_memory_monitor_refresh_ms", "0")
+    }
+
+    /// Processes whose command line names the cluster's folder or that hold a file under it
+    /// open (Ray's agents rename themselves, `ray::DashboardAgent`, but keep their logs open);
+    /// this test's own process excepted.
     fn processes(&self) -> Vec<i32> {
-        let root = self.root.path().to_string_lossy().into_owned();
+        let root = self.root.path();
+        let root_s = root.to_string_lossy().into_owned();
         let mut pids = Vec::new();
         for e in std::fs::read_dir("/proc").unwrap().flatten() {
             let Ok(pid) = e.file_name().to_string_lossy().parse::<i32>() else {
                 continue;
             };
+            if pid == std::process::id() as i32 {
+                continue;
+            }
             let cmd = std::fs::read(e.path().join("cmdline")).unwrap_or_default();
-            if String::from_utf8_lossy(&cmd).contains(&root) && pid != std::process::id() as i32 {
+            let named = String::from_utf8_lossy(&cmd).contains(&root_s);
+            let holds = || {
+                std::fs::read_dir(e.path().join("fd"))
+                    .into_iter()
+                    .flatten()
+                    .flatten()
+                    .any(|fd| std::fs::read_link(fd.path()).is_ok_and(|t| t.starts_with(root)))
+            };
+            if named || holds() {
                 pids.push(pid);
             }
         }
@@ -295,7 +325,9 @@ fn ray_cluster_of_three_nodes_converts_with_pinned_parts_and_a_killed_one() {
     cluster.start("worker_b", &[], r#"{"worker_b": 1}"#);
     let out = tmp.path().join("out");
     let work = tmp.path().join("work");
-    let o = Command::new(&py)
+    let mut driver = Command::new(&py);
+    let o = cluster
+        .env(&mut driver)
         .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/splat2tiles_ray.py"))
         .arg(&input)
         .arg("-o")
@@ -315,7 +347,6 @@ fn ray_cluster_of_three_nodes_converts_with_pinned_parts_and_a_killed_one() {
         // Part 1's build task (on worker_b) kills its splat2tiles process and itself once.
         .env("SPLAT2TILES_RAY_KILL", "build:1")
         .env("RAY_ADDRESS", &cluster.address)
-        .env("RAY_memory_monitor_refresh_ms", "0")
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
