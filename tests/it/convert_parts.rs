@@ -77,7 +77,72 @@ fn part_args<'a>(
     a
 }
 
-/// Runs every part (both phases) and the merge into `out`; returns the build reports.
+/// Routes chunk `c` of `chunks` of `input` into `dir`; returns the step's report.
+fn route(input: &Path, plan: &Path, dir: &Path, c: usize, chunks: usize) -> serde_json::Value {
+    let (c, k) = (c.to_string(), chunks.to_string());
+    let mut a = vec![
+        os("convert"),
+        input.as_os_str(),
+        os("--plan"),
+        plan.as_os_str(),
+        os("--route"),
+        dir.as_os_str(),
+    ];
+    a.extend([os("--route-chunk"), os(&c), os("--route-chunks"), os(&k)]);
+    a.push(os("--json"));
+    ok(run(&a))
+}
+
+/// Runs every part (both phases) and the merge into `out`, after routing the input in
+/// `chunks` chunks when given (the parts then read their routed files); returns the plan's,
+/// the routing steps', the samples' and the builds' reports.
+fn shard_steps(
+    input: &Path,
+    work: &Path,
+    parts: usize,
+    plan_extra: &[&str],
+    part_limit: &str,
+    chunks: Option<usize>,
+    out: &Path,
+) -> Vec<serde_json::Value> {
+    let plan_path = work.join("plan.json");
+    let p = plan(input, &plan_path, parts, plan_extra);
+    assert_eq!(p["partSplats"].as_array().unwrap().len(), parts);
+    let route_dir = work.join("route");
+    let mut all = vec![p];
+    for c in 0..chunks.unwrap_or(0) {
+        all.push(route(input, &plan_path, &route_dir, c, chunks.unwrap()));
+    }
+    let mut common = vec!["--memory-limit", part_limit];
+    let route_arg = route_dir.to_str().unwrap();
+    if chunks.is_some() {
+        common.extend(["--route", route_arg]);
+    }
+    let samples: Vec<PathBuf> = (0..parts).map(|i| work.join(format!("s{i}"))).collect();
+    for (i, s) in samples.iter().enumerate() {
+        let n = i.to_string();
+        let mut a = part_args(input, &plan_path, &n, s, &["--phase", "samples"]);
+        a.extend(common.iter().map(|s| os(s)));
+        all.push(ok(run(&a)));
+    }
+    let dirs: Vec<PathBuf> = (0..parts).map(|i| work.join(format!("p{i}"))).collect();
+    for (i, d) in dirs.iter().enumerate() {
+        let n = i.to_string();
+        let mut a = part_args(input, &plan_path, &n, d, &common);
+        a.push(os("--samples"));
+        a.extend(samples.iter().map(|s| s.as_os_str()));
+        all.push(ok(run(&a)));
+    }
+    let mut a = vec![os("merge"), plan_path.as_os_str()];
+    // Parts in any order.
+    a.extend(dirs.iter().rev().map(|d| d.as_os_str()));
+    a.extend([os("-o"), out.as_os_str(), os("--json")]);
+    let m = ok(run(&a));
+    assert_eq!(m["copiedBytes"], 0, "same file system: tiles hard-linked");
+    all
+}
+
+/// [`shard_steps`] without routing; returns the build reports.
 fn shard(
     input: &Path,
     work: &Path,
@@ -86,32 +151,160 @@ fn shard(
     part_limit: &str,
     out: &Path,
 ) -> Vec<serde_json::Value> {
-    let plan_path = work.join("plan.json");
-    let p = plan(input, &plan_path, parts, plan_extra);
-    assert_eq!(p["partSplats"].as_array().unwrap().len(), parts);
-    let samples: Vec<PathBuf> = (0..parts).map(|i| work.join(format!("s{i}"))).collect();
-    for (i, s) in samples.iter().enumerate() {
-        let n = i.to_string();
-        let mut a = part_args(input, &plan_path, &n, s, &["--phase", "samples"]);
-        a.extend([os("--memory-limit"), os(part_limit)]);
-        ok(run(&a));
+    let all = shard_steps(input, work, parts, plan_extra, part_limit, None, out);
+    all[all.len() - parts..].to_vec()
+}
+
+/// A city converted in 4 and in 16 parts with the input routed (in 4 and 3 chunks) gives the
+/// single-machine bytes, and the whole sharded run reads at most 3 times the input's bytes
+/// from the input file (the steps' own count: the plan's two passes, the routing's one; the
+/// parts read only their routed files), where a part that reads the input reads it whole.
+#[test]
+fn routed_parts_read_the_input_at_most_three_times() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("city.splat");
+    let n = 200_000u64;
+    write_city_splat(&input, n as usize, 41);
+    let size = std::fs::metadata(&input).unwrap().len();
+    let extra = ["--max-splats", "2048", "--no-utility"];
+    let base = tmp.path().join("base");
+    single(&input, &base, &extra);
+    for (parts, chunks) in [(4, 4), (16, 3)] {
+        let work = tmp.path().join(format!("w{parts}"));
+        let out = tmp.path().join(format!("out{parts}"));
+        let all = shard_steps(&input, &work, parts, &extra, "256MiB", Some(chunks), &out);
+        assert_same_files(&base, &out);
+        let read: Vec<u64> = all
+            .iter()
+            .map(|r| r["inputReadBytes"].as_u64().expect("inputReadBytes"))
+            .collect();
+        let total: u64 = read.iter().sum();
+        let routed: u64 = all[1..=chunks]
+            .iter()
+            .map(|r| r["splats"].as_u64().unwrap())
+            .sum();
+        assert_eq!(routed, n);
+        assert!(read[1..=chunks].iter().sum::<u64>() >= size, "{read:?}");
+        assert!(read[chunks + 1..].iter().all(|&b| b == 0), "{read:?}");
+        assert!(
+            total <= 3 * size,
+            "{parts} parts read {total} bytes of a {size}-byte input: {read:?}"
+        );
+        eprintln!(
+            "{parts} parts, {chunks} routing chunks: {total} bytes read of {size} ({:.3}x)",
+            total as f64 / size as f64
+        );
+        // Without routing, a part reads the input whole.
+        let p0 = work.join("unrouted");
+        let plan_path = work.join("plan.json");
+        let r = ok(run(&part_args(
+            &input,
+            &plan_path,
+            "0",
+            &p0,
+            &["--phase", "samples"],
+        )));
+        assert!(r["inputReadBytes"].as_u64().unwrap() >= size, "{r}");
+        std::fs::remove_dir_all(&work).unwrap();
+        std::fs::remove_dir_all(&out).unwrap();
     }
-    let mut reports = Vec::new();
-    let dirs: Vec<PathBuf> = (0..parts).map(|i| work.join(format!("p{i}"))).collect();
-    for (i, d) in dirs.iter().enumerate() {
-        let n = i.to_string();
-        let mut a = part_args(input, &plan_path, &n, d, &["--memory-limit", part_limit]);
-        a.push(os("--samples"));
-        a.extend(samples.iter().map(|s| s.as_os_str()));
-        reports.push(ok(run(&a)));
-    }
-    let mut a = vec![os("merge"), plan_path.as_os_str()];
-    // Parts in any order.
-    a.extend(dirs.iter().rev().map(|d| d.as_os_str()));
-    a.extend([os("-o"), out.as_os_str(), os("--json")]);
-    let m = ok(run(&a));
-    assert_eq!(m["copiedBytes"], 0, "same file system: tiles hard-linked");
-    reports
+}
+
+/// An SPZ input (gzipped, read whole) is routed in one chunk, and gives the single-machine
+/// bytes; several chunks are refused.
+#[test]
+fn an_spz_input_is_routed_in_one_chunk() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = scene("biker.spz");
+    let extra = ["--max-splats", "4096", "--no-utility"];
+    let base = tmp.path().join("base");
+    single(&input, &base, &extra);
+    let (work, out) = (tmp.path().join("w"), tmp.path().join("out"));
+    let all = shard_steps(&input, &work, 3, &extra, "256MiB", Some(1), &out);
+    assert_same_files(&base, &out);
+    assert!(all[2..].iter().all(|r| r["inputReadBytes"] == 0));
+    let err = refused(
+        run(&[
+            os("convert"),
+            input.as_os_str(),
+            os("--plan"),
+            work.join("plan.json").as_os_str(),
+            os("--route"),
+            work.join("r2").as_os_str(),
+            os("--route-chunks"),
+            os("2"),
+        ]),
+        "route it in one chunk",
+    );
+    assert!(err.contains("biker.spz"), "{err}");
+}
+
+/// Routing refuses another input of the same size and splat count, and a part refuses routed
+/// files that are missing, truncated or of another plan, naming the file (exit 2); a routing
+/// step run again gives the same files.
+#[test]
+fn routing_refuses_foreign_inputs_and_broken_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("city.splat");
+    write_city_splat(&input, 60_000, 13);
+    let extra = [
+        "--max-splats",
+        "2048",
+        "--no-utility",
+        "--lod-radius",
+        "0.5",
+    ];
+    let plan_path = tmp.path().join("plan.json");
+    plan(&input, &plan_path, 2, &extra);
+    let dir = tmp.path().join("route");
+    let route_args = |input: &Path, c: &str| -> Vec<std::ffi::OsString> {
+        let mut a: Vec<std::ffi::OsString> = vec![
+            "convert".into(),
+            input.into(),
+            "--plan".into(),
+            plan_path.clone().into(),
+            "--route".into(),
+            dir.clone().into(),
+        ];
+        a.extend(["--route-chunk", c, "--route-chunks", "2", "--json"].map(Into::into));
+        a
+    };
+    let go = |a: Vec<std::ffi::OsString>| Command::new(bin()).args(a).output().unwrap();
+    // The same records in another order: same size and count, other content.
+    let other = tmp.path().join("other.splat");
+    let mut bytes = std::fs::read(&input).unwrap();
+    bytes.reverse();
+    let recs: Vec<u8> = bytes
+        .chunks(32)
+        .flat_map(|r| r.iter().rev().copied().collect::<Vec<_>>())
+        .collect();
+    std::fs::write(&other, &recs).unwrap();
+    refused(go(route_args(&other, "1")), "not the input of plan");
+    assert!(!dir.join("chunk-1").exists(), "no partial output");
+    // Chunk 1 only: the part misses chunk 0.
+    ok(go(route_args(&input, "1")));
+    let out = tmp.path().join("p0");
+    let part = |out: &Path| {
+        let mut a = part_args(&input, &plan_path, "0", out, &[]);
+        a.extend([os("--route"), dir.as_os_str()]);
+        run(&a)
+    };
+    refused(part(&out), "chunk-0/route.json: missing");
+    ok(go(route_args(&input, "0")));
+    let before = tree_files(&dir);
+    ok(go(route_args(&input, "0")));
+    assert_eq!(tree_files(&dir), before, "a rerun gives the same files");
+    // A truncated routed file.
+    let f = dir.join("chunk-1/part-0.spill");
+    let len = std::fs::metadata(&f).unwrap().len();
+    let file = std::fs::OpenOptions::new().write(true).open(&f).unwrap();
+    file.set_len(len - 7).unwrap();
+    refused(part(&out), "chunk-1/part-0.spill: byte ");
+    assert!(!out.exists(), "no partial output");
+    // Routed for another plan.
+    ok(go(route_args(&input, "1")));
+    plan(&input, &plan_path, 3, &extra);
+    refused(part(&out), "routed for another plan");
 }
 
 /// 400k splats of a city in 4 parts (parts spilling at 64 MiB) and in 1 and 3 parts give the
@@ -214,6 +407,10 @@ fn variants_and_georeferenced_scenes_merge_identically() {
         let out = tmp.path().join(format!("out-{name}"));
         shard(&input, &work, 4, extra, "256MiB", &out);
         assert_same_files(&base, &out);
+        // Routed in 2 chunks (wide records, decoded whole), the same bytes.
+        let (work, out) = (work.join("routed"), out.join("routed"));
+        shard_steps(&input, &work, 4, extra, "256MiB", Some(2), &out);
+        assert_same_files(&base, &out);
     }
 }
 
@@ -237,6 +434,25 @@ fn non_finite_splats_are_dropped_alike() {
     let splats: u64 = reports.iter().map(|r| r["splats"].as_u64().unwrap()).sum();
     assert_eq!(splats, 120_000 - 121);
     assert_same_files(&base, &out);
+    // Routed in one chunk (several are refused with NaN/Inf splats), the same bytes.
+    let w = tmp.path().join("wr");
+    let routed = tmp.path().join("routed");
+    shard_steps(&input, &w, 3, &extra, "64MiB", Some(1), &routed);
+    assert_same_files(&base, &routed);
+    let err = refused(
+        run(&[
+            os("convert"),
+            input.as_os_str(),
+            os("--plan"),
+            w.join("plan.json").as_os_str(),
+            os("--route"),
+            w.join("r2").as_os_str(),
+            os("--route-chunks"),
+            os("2"),
+        ]),
+        "route it in one chunk",
+    );
+    assert!(err.contains("city.splat"), "{err}");
 }
 
 /// A scene that fits one leaf is one unit (the root) in the first part; the other parts are

@@ -1,10 +1,12 @@
 //! Sharded conversion front ends: `convert IN --plan PLAN --parts N` (plan), `convert IN --plan
-//! PLAN --part I [--phase samples] -o PART_I` (a part) and `merge PLAN PART... -o OUT`.
+//! PLAN --route DIR [--route-chunk C --route-chunks K]` (routing), `convert IN --plan PLAN
+//! --part I [--phase samples] [--route DIR] -o PART_I` (a part) and `merge PLAN PART... -o OUT`.
 
 use super::{ConvertArgs, peak_rss_mib};
 use clap::Args;
 use splat2tiles_build::convert::{
-    ConvertError, ConvertOptions, MAX_PARTS, PartPhase, convert_part, make_plan, merge_parts,
+    ConvertError, ConvertOptions, MAX_PARTS, MAX_ROUTE_CHUNKS, PartPhase, convert_part, make_plan,
+    merge_parts, route_input,
 };
 use splat2tiles_io::limits::MemoryLimit;
 use std::path::{Path, PathBuf};
@@ -13,9 +15,22 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Args)]
 pub struct ShardArgs {
     /// With --plan (and no --part): split the tree into this many parts, balanced by splats.
-    #[arg(long, requires = "plan", conflicts_with = "part",
+    #[arg(long, requires = "plan", conflicts_with_all = ["part", "route"],
           value_parser = clap::value_parser!(u64).range(1..=MAX_PARTS as u64))]
     pub parts: Option<u64>,
+    /// With --plan (and no --part): read the input once (or chunk --route-chunk of it) and
+    /// write each part's splats to its own file in this folder. With --part: read the part's
+    /// splats from those files, not from the input.
+    #[arg(long, requires = "plan")]
+    pub route: Option<PathBuf>,
+    /// With --route (routing): the chunk of the input's records to route (0-based).
+    #[arg(long, requires = "route", conflicts_with = "part", default_value_t = 0)]
+    pub route_chunk: u64,
+    /// With --route (routing): chunks the input's records are routed in (each its own step,
+    /// which may run in parallel; 1 for SPZ and other inputs read whole).
+    #[arg(long, requires = "route", conflicts_with = "part", default_value_t = 1,
+          value_parser = clap::value_parser!(u64).range(1..=MAX_ROUTE_CHUNKS as u64))]
+    pub route_chunks: u64,
     /// With --plan: build this part (0-based) into --output.
     #[arg(long, requires = "plan", requires = "output")]
     pub part: Option<u64>,
@@ -84,9 +99,13 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
     crate::cli::install_interrupt_handler();
     let s = &args.shard;
     let Some(part) = s.part else {
+        if let Some(dir) = &s.route {
+            return run_route(args, plan, dir, opts.memory_limit);
+        }
         let Some(parts) = s.parts else {
             eprintln!(
-                "splat2tiles: --plan needs --parts N (write the plan) or --part I (build it)"
+                "splat2tiles: --plan needs --parts N (write the plan), --route DIR (route the \
+                 input) or --part I (build it)"
             );
             return crate::cli::EXIT_FAILURE;
         };
@@ -96,6 +115,7 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
                     let v = serde_json::json!({
                         "plan": plan, "splats": r.splats, "units": r.units,
                         "partSplats": r.part_splats, "droppedNonFinite": r.dropped_non_finite,
+                        "inputReadBytes": r.input_bytes_read,
                         "seconds": r.seconds, "peakRssMiB": peak_rss_mib(),
                         "readBytes": io_bytes("rchar"), "writtenBytes": io_bytes("wchar"),
                     });
@@ -126,6 +146,7 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
         part as usize,
         s.phase,
         &s.samples,
+        s.route.as_deref(),
         output,
         opts.memory_limit,
         progress,
@@ -137,6 +158,7 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
                     "part": part, "output": output, "splats": r.splats, "units": r.units,
                     "contentTiles": r.content_tiles, "bytes": r.bytes,
                     "spillBytes": r.spill_bytes, "leafRadius": r.leaf_radius,
+                    "inputReadBytes": r.input_bytes_read,
                     "seconds": r.seconds, "peakRssMiB": peak_rss_mib(),
                     "readBytes": io_bytes("rchar"), "writtenBytes": io_bytes("wchar"),
                 });
@@ -148,6 +170,36 @@ pub fn run(args: &ConvertArgs, plan: &Path, opts: &ConvertOptions) -> i32 {
                     r.splats,
                     r.units,
                     r.content_tiles,
+                    r.bytes as f64 / 1e6,
+                    r.seconds
+                );
+            }
+            0
+        }
+        Err(e) => fail(e),
+    }
+}
+
+/// Runs `convert --plan --route` (no --part): routes one chunk of the input.
+fn run_route(args: &ConvertArgs, plan: &Path, dir: &Path, memory_limit: u64) -> i32 {
+    let s = &args.shard;
+    let (chunk, chunks) = (s.route_chunk as usize, s.route_chunks as usize);
+    match route_input(&args.input, plan, dir, chunk, chunks, memory_limit) {
+        Ok(r) => {
+            notes(&r.notes);
+            if args.json {
+                let v = serde_json::json!({
+                    "route": dir, "chunk": chunk, "chunks": chunks, "records": r.records,
+                    "splats": r.splats, "bytes": r.bytes, "inputReadBytes": r.input_bytes_read,
+                    "seconds": r.seconds, "peakRssMiB": peak_rss_mib(),
+                    "readBytes": io_bytes("rchar"), "writtenBytes": io_bytes("wchar"),
+                });
+                outln!("{v}");
+            } else if !args.quiet {
+                outln!(
+                    "routed chunk {chunk} of {chunks} of {}: {} splats, {:.2} MB, {:.2} s",
+                    args.input.display(),
+                    r.splats,
                     r.bytes as f64 / 1e6,
                     r.seconds
                 );

@@ -10,7 +10,7 @@
 //! needed (`--lod-radius` given, or `--no-lod`).
 
 use super::part_files::{FileRec, list_files};
-use super::plan::{Plan, open_input};
+use super::plan::{Plan, input_bytes_read, open_input};
 use super::region::{self, GroupLeaves, RegionCtx, RootContent, WrittenParent};
 use super::shard::{F, bad, f3, key_arr, parse, read_bounded, v3};
 use super::spill::Spiller;
@@ -67,6 +67,8 @@ pub struct PartReport {
     pub bytes: u64,
     /// Bytes written to spill files.
     pub spill_bytes: u64,
+    /// Bytes read from the input file (none when the part reads its routed files).
+    pub input_bytes_read: u64,
     /// Leaf radius used (build phase with LOD).
     pub leaf_radius: Option<f64>,
     /// Wall-clock seconds.
@@ -226,7 +228,8 @@ impl TileRec {
 
 /// Runs `phase` of part `part` of the plan at `plan_path` over `input_path` into the folder
 /// `output`. The build phase takes every part's samples folder in `samples` when the plan needs
-/// the data's leaf radius.
+/// the data's leaf radius. With `routed` (the folder of the routing step) the part reads its
+/// routed files there, not the input.
 #[allow(clippy::too_many_arguments)]
 pub fn convert_part(
     input_path: &Path,
@@ -234,6 +237,7 @@ pub fn convert_part(
     part: usize,
     phase: PartPhase,
     samples: &[PathBuf],
+    routed: Option<&Path>,
     output: &Path,
     memory_limit: u64,
     progress: crate::progress::ProgressSink,
@@ -242,41 +246,38 @@ pub fn convert_part(
     let plan = Plan::load(plan_path)?;
     let opts = plan.options(memory_limit, progress);
     let r = leaf_radius(&plan, plan_path, part, phase, &opts, samples)?;
-    let input = open_input(input_path, memory_limit)?;
-    plan.check_input(input_path, &input)?;
-    let name = input_path.display().to_string();
+    let (source, format, fingerprint_read) =
+        open_source(&plan, input_path, routed, part, memory_limit)?;
     let layout = &plan.layout;
-    let degree = input.sh_degree();
-    let budget = Budget::new(memory_limit, degree, opts.max_splats_per_tile);
+    let degree = plan.file.input.sh_degree;
     let units = plan.units_of(part);
     let unit_set: HashSet<TileKey> = units.iter().copied().collect();
 
     let mut inputs: Vec<&Path> = vec![input_path, plan_path];
     inputs.extend(samples.iter().map(PathBuf::as_path));
+    inputs.extend(routed);
     crate::output::check_not_over_inputs(output, &inputs)?;
     let staging = Staging::prepare(output)?;
     let dir = staging.path().to_path_buf();
     let relocate = |e: ConvertError| e.relocated(&dir, output);
-    let format = SpillFormat::for_input(&input);
-    let mut spiller = Spiller::new(
-        &name,
+    let (groups, spill_bytes) = split_source(
+        &plan,
+        &source,
+        &format,
+        input_path,
+        &units,
+        &dir,
         memory_limit,
-        layout,
-        format.clone(),
-        dir.join(SPILL_DIR),
-        budget.cap,
-        budget.chunk,
-        budget.write_budget,
-    );
-    spiller.all_finite = plan.file.input.dropped == 0;
-    let groups = spiller
-        .split_units(&input, &units, &plan.prefix)
-        .map_err(relocate)?;
-    drop(input);
+    )
+    .map_err(relocate)?;
     let mut report = PartReport {
         splats: groups.iter().map(|g| g.count()).sum(),
         units: units.len(),
-        spill_bytes: spiller.bytes,
+        spill_bytes,
+        input_bytes_read: match source {
+            Source::Input(i) => fingerprint_read + input_bytes_read(&i, plan.file.input.bytes),
+            Source::Routed(_) => 0,
+        },
         leaf_radius: r,
         ..Default::default()
     };
@@ -396,6 +397,69 @@ pub fn convert_part(
     report.notes = staging.commit()?;
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// Where a part's splats come from.
+enum Source {
+    /// The input file.
+    Input(super::source::Input),
+    /// The part's routed files, in input order.
+    Routed(Vec<PathBuf>),
+}
+
+/// Where part `part` reads its splats: its routed files in `routed`, else the input (checked
+/// against the plan); with their spill format and the bytes the input's check read.
+fn open_source(
+    plan: &Plan,
+    input_path: &Path,
+    routed: Option<&Path>,
+    part: usize,
+    memory_limit: u64,
+) -> Result<(Source, SpillFormat, u64), ConvertError> {
+    Ok(match routed {
+        Some(dir) => {
+            let (files, format) = super::route::routed_files(plan, input_path, dir, part)?;
+            (Source::Routed(files), format, 0)
+        }
+        None => {
+            let input = open_input(input_path, memory_limit)?;
+            let read = plan.check_input(input_path, &input)?;
+            let format = SpillFormat::for_input(&input);
+            (Source::Input(input), format, read)
+        }
+    })
+}
+
+/// The part's splats from `source` split into groups of regions below its `units`, spilled
+/// under the staging folder `dir`; with the bytes written to spill files.
+fn split_source(
+    plan: &Plan,
+    source: &Source,
+    format: &SpillFormat,
+    input_path: &Path,
+    units: &[TileKey],
+    dir: &Path,
+    memory_limit: u64,
+) -> Result<(Vec<super::spill::Group>, u64), ConvertError> {
+    let name = input_path.display().to_string();
+    let o = &plan.file.options;
+    let budget = Budget::new(memory_limit, plan.file.input.sh_degree, o.max_splats);
+    let mut spiller = Spiller::new(
+        &name,
+        memory_limit,
+        &plan.layout,
+        format.clone(),
+        dir.join(SPILL_DIR),
+        budget.cap,
+        budget.chunk,
+        budget.write_budget,
+    );
+    spiller.all_finite = plan.file.input.dropped == 0;
+    let groups = match source {
+        Source::Input(i) => spiller.split_units(i, units, &plan.prefix),
+        Source::Routed(files) => spiller.split_files(files, units, &plan.prefix),
+    }?;
+    Ok((groups, spiller.bytes))
 }
 
 /// The leaf radius the build phase of `part` uses (from the plan or every part's samples;

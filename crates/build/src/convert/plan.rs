@@ -66,24 +66,27 @@ pub(super) struct PlanInput {
     pub(super) sh_degree: u8,
     /// [`fingerprint`] of the input file.
     pub(super) fingerprint: String,
+    /// The CRC-32 of each of the fingerprint's blocks (the routing step checks the blocks it
+    /// reads against them).
+    #[serde(default)]
+    pub(super) blocks: Vec<u32>,
+    /// The file's bytes before its first record, as hex, for a binary PLY or `.splat` input
+    /// whose records start within [`MAX_HEADER_BYTES`] (routing steps decode with it).
+    #[serde(default)]
+    pub(super) header: Option<String>,
 }
+
+/// Longest input header a plan keeps.
+pub(super) const MAX_HEADER_BYTES: usize = 64 << 10;
 
 /// Blocks [`fingerprint`] reads, evenly spaced over the file.
 const FINGERPRINT_BLOCKS: u64 = 64;
 /// Bytes of each block.
 const FINGERPRINT_BLOCK: u64 = 64 << 10;
 
-/// A fingerprint of the content of `path`: the CRC-32 of 64 blocks of 64 KiB spread evenly
-/// over the file (all of it when smaller than 4 MiB), as hex. It tells apart two files of the
-/// same size and splat count (a mirrored or re-ordered copy changes the bytes of every block)
-/// at the cost of reading 4 MiB, not the whole input.
-pub(super) fn fingerprint(path: &Path) -> Result<String, ConvertError> {
-    use std::io::{Read, Seek, SeekFrom};
-    let io = super::io_err(path, "reading");
-    let mut f = std::fs::File::open(path).map_err(io)?;
-    let len = f.metadata().map_err(super::io_err(path, "reading"))?.len();
-    let mut h = crc32fast::Hasher::new();
-    let mut buf = vec![0u8; FINGERPRINT_BLOCK as usize];
+/// The byte ranges (offset, length) [`fingerprint`] reads of a file of `len` bytes: 64 blocks
+/// of 64 KiB spread evenly over it (all of it when smaller than 4 MiB).
+pub(super) fn fingerprint_ranges(len: u64) -> Vec<(u64, u64)> {
     let span = FINGERPRINT_BLOCKS * FINGERPRINT_BLOCK;
     let starts: Vec<u64> = if len <= span {
         (0..len.div_ceil(FINGERPRINT_BLOCK))
@@ -95,15 +98,65 @@ pub(super) fn fingerprint(path: &Path) -> Result<String, ConvertError> {
             .map(|i| last / (FINGERPRINT_BLOCKS - 1) * i)
             .collect()
     };
-    for at in starts {
-        f.seek(SeekFrom::Start(at))
-            .map_err(super::io_err(path, "reading"))?;
-        let n = (len - at).min(FINGERPRINT_BLOCK) as usize;
-        f.read_exact(&mut buf[..n])
-            .map_err(super::io_err(path, "reading"))?;
-        h.update(&buf[..n]);
+    starts
+        .into_iter()
+        .map(|at| (at, (len - at).min(FINGERPRINT_BLOCK)))
+        .collect()
+}
+
+/// The fingerprint of a file of `len` bytes from the bytes of its [`fingerprint_ranges`], and
+/// the CRC-32 of each block.
+pub(super) fn fingerprint_of(len: u64, blocks: &[Vec<u8>]) -> (String, Vec<u32>) {
+    let mut h = crc32fast::Hasher::new();
+    for b in blocks {
+        h.update(b);
     }
-    Ok(format!("crc32-64x64k:{len}:{:08x}", h.finalize()))
+    let crcs = blocks.iter().map(|b| crc32fast::hash(b)).collect();
+    (format!("crc32-64x64k:{len}:{:08x}", h.finalize()), crcs)
+}
+
+/// Reads the ranges of `path` that `have` lacks (`None`); returns every range's bytes and the
+/// bytes read.
+pub(super) fn read_ranges(
+    path: &Path,
+    ranges: &[(u64, u64)],
+    have: Vec<Option<Vec<u8>>>,
+) -> Result<(Vec<Vec<u8>>, u64), ConvertError> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut file = None;
+    let mut read = 0u64;
+    let mut out = Vec::with_capacity(ranges.len());
+    for (&(at, n), got) in ranges.iter().zip(have) {
+        if let Some(b) = got {
+            out.push(b);
+            continue;
+        }
+        let io = super::io_err(path, "reading");
+        if file.is_none() {
+            file = Some(std::fs::File::open(path).map_err(io)?);
+        }
+        let f = file.as_mut().expect("opened");
+        let mut buf = vec![0u8; n as usize];
+        f.seek(SeekFrom::Start(at))
+            .and_then(|_| f.read_exact(&mut buf))
+            .map_err(super::io_err(path, "reading"))?;
+        read += n;
+        out.push(buf);
+    }
+    Ok((out, read))
+}
+
+/// A fingerprint of the content of `path`: the CRC-32 of 64 blocks of 64 KiB spread evenly
+/// over the file (all of it when smaller than 4 MiB), as hex. It tells apart two files of the
+/// same size and splat count (a mirrored or re-ordered copy changes the bytes of every block)
+/// at the cost of reading 4 MiB, not the whole input. Also returns the bytes read.
+pub(super) fn fingerprint(path: &Path) -> Result<(String, u64), ConvertError> {
+    let len = std::fs::metadata(path)
+        .map_err(super::io_err(path, "reading"))?
+        .len();
+    let ranges = fingerprint_ranges(len);
+    let (blocks, read) = read_ranges(path, &ranges, vec![None; ranges.len()])?;
+    Ok((fingerprint_of(len, &blocks).0, read))
 }
 
 /// The one field read before a plan is parsed whole (every other field is skipped unread).
@@ -166,6 +219,8 @@ pub struct PlanReport {
     pub part_splats: Vec<u64>,
     /// Splats dropped for NaN/Inf values.
     pub dropped_non_finite: u64,
+    /// Bytes read from the input file (both passes, the first bytes and the fingerprint).
+    pub input_bytes_read: u64,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -219,7 +274,19 @@ pub fn make_plan(
     let input = open_input(input_path, opts.memory_limit)?;
     let (up, a, budget) = frame_and_budget(&input, opts);
     let degree = input.sh_degree();
+    // The fingerprint's blocks are taken from the first pass's reads.
+    let ranges = fingerprint_ranges(bytes);
+    if let Input::Chunked(c) = &input {
+        c.keep(&ranges);
+    }
     let (acc, counts, _) = frame_pass(&input, a, opts, budget.chunk, false)?;
+    let kept = match &input {
+        Input::Chunked(c) => c.kept(),
+        Input::Memory(_) => vec![None; ranges.len()],
+    };
+    let (blocks, fingerprint_read) = read_ranges(input_path, &ranges, kept)?;
+    let (fingerprint, block_crcs) = fingerprint_of(bytes, &blocks);
+    drop(blocks);
     let dropped = check_counts(&counts, &input, &name, opts)? as u64;
     let layout = Layout::new(&acc, a, opts);
 
@@ -297,7 +364,12 @@ pub fn make_plan(
                 .map(|f| f.to_string_lossy().into_owned())
                 .unwrap_or_default(),
             bytes,
-            fingerprint: fingerprint(input_path)?,
+            fingerprint,
+            blocks: block_crcs,
+            header: match &input {
+                Input::Chunked(c) => c.header().filter(|h| h.len() <= MAX_HEADER_BYTES).map(hex),
+                Input::Memory(_) => None,
+            },
             splats: input.len(),
             finite: counts.finite,
             dropped,
@@ -327,8 +399,34 @@ pub fn make_plan(
         units: units.len(),
         part_splats,
         dropped_non_finite: dropped,
+        input_bytes_read: input_bytes_read(&input, bytes) + fingerprint_read,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Bytes read from the file of `input` (`bytes` long) so far: what its passes read, or the
+/// whole file for an input read whole.
+pub(super) fn input_bytes_read(input: &Input, bytes: u64) -> u64 {
+    match input {
+        Input::Chunked(c) => c.bytes_read(),
+        Input::Memory(_) => bytes,
+    }
+}
+
+/// `bytes` as lowercase hex.
+pub(super) fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Back from [`hex`]; `None` for anything but pairs of hex digits.
+pub(super) fn unhex(s: &str) -> Option<Vec<u8>> {
+    if !s.len().is_multiple_of(2) {
+        return None;
+    }
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok())
+        .collect()
 }
 
 /// Refuses to replace a file at `plan` that is not a plan (nothing of the user's is replaced).
@@ -509,6 +607,20 @@ impl Plan {
         if file.input.sh_degree > 3 {
             return Err(invalid(format!("input.shDegree: {}", file.input.sh_degree)));
         }
+        let nblocks = fingerprint_ranges(file.input.bytes).len();
+        if !(file.input.blocks.is_empty() || file.input.blocks.len() == nblocks) {
+            return Err(invalid(format!(
+                "input.blocks: {} checksums, {nblocks} blocks",
+                file.input.blocks.len()
+            )));
+        }
+        if let Some(h) = &file.input.header
+            && (h.len() > 2 * MAX_HEADER_BYTES || unhex(h).is_none())
+        {
+            return Err(invalid(format!(
+                "input.header: expected at most {MAX_HEADER_BYTES} bytes as hex"
+            )));
+        }
         if file.parts == 0 || file.parts > MAX_PARTS {
             return Err(invalid(format!("parts: {} (1 to {MAX_PARTS})", file.parts)));
         }
@@ -634,14 +746,20 @@ impl Plan {
             .collect()
     }
 
-    /// Refuses an input other than the one planned (size, splat count, SH degree).
-    pub(super) fn check_input(&self, path: &Path, input: &Input) -> Result<(), ConvertError> {
+    /// Refuses an input other than the one planned (size, splat count, SH degree, fingerprint);
+    /// returns the bytes the fingerprint read.
+    pub(super) fn check_input(&self, path: &Path, input: &Input) -> Result<u64, ConvertError> {
         let bytes = std::fs::metadata(path)
             .map_err(super::io_err(path, "reading"))?
             .len();
         let p = &self.file.input;
         let same = bytes == p.bytes && input.len() == p.splats && input.sh_degree() == p.sh_degree;
-        if same && fingerprint(path)? != p.fingerprint {
+        let (print, read) = if same {
+            fingerprint(path)?
+        } else {
+            (String::new(), 0)
+        };
+        if same && print != p.fingerprint {
             return Err(bad(
                 path,
                 None,
@@ -669,6 +787,6 @@ impl Plan {
                 ),
             ));
         }
-        Ok(())
+        Ok(read)
     }
 }

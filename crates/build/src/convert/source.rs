@@ -162,10 +162,26 @@ impl Input {
         records: usize,
         raw: bool,
         all_finite: bool,
+        f: impl FnMut(Batch<'_>) -> Result<(), ConvertError>,
+    ) -> Result<(), ConvertError> {
+        self.for_each_batch_in(0..self.len(), records, raw, all_finite, f)
+    }
+
+    /// [`Input::for_each_batch`] over the splats `range` of the file only. A range that does
+    /// not start at 0 needs `all_finite` (the indices among the finite splats are then the
+    /// file's) and a chunked input; a scene in memory is passed whole.
+    pub(super) fn for_each_batch_in(
+        &self,
+        range: std::ops::Range<u64>,
+        records: usize,
+        raw: bool,
+        all_finite: bool,
         mut f: impl FnMut(Batch<'_>) -> Result<(), ConvertError>,
     ) -> Result<(), ConvertError> {
+        let whole = range.start == 0 && range.end >= self.len();
+        debug_assert!(whole || all_finite);
         let c = match self {
-            Input::Chunked(c) if raw => c,
+            Input::Chunked(c) if raw || !whole => c,
             _ => {
                 return self.for_each_finite(records, |s, idx| {
                     f(Batch {
@@ -179,8 +195,25 @@ impl Input {
         let stride = c.record_bytes() as usize;
         let mut positions = Vec::with_capacity(records);
         let mut idx = Vec::with_capacity(records);
-        let mut next = 0u64;
-        c.for_each_block(records, |_, bytes| {
+        let mut next = range.start;
+        let per = records.div_ceil(rayon::current_num_threads()).max(1) * stride;
+        c.for_each_block_in(range, records, |_, bytes| {
+            if !raw {
+                // Decoded whole, one piece per thread (finite: `all_finite` holds here).
+                use rayon::prelude::*;
+                let pieces: Vec<Splats> = bytes.par_chunks(per).map(|b| c.decode(b)).collect();
+                for s in &pieces {
+                    idx.clear();
+                    idx.extend(next..next + s.len() as u64);
+                    next += s.len() as u64;
+                    f(Batch {
+                        positions: &s.positions,
+                        idx: &idx,
+                        recs: Recs::Splats(s),
+                    })?;
+                }
+                return Ok(());
+            }
             positions.clear();
             idx.clear();
             let keep: Option<Vec<usize>> = if all_finite {

@@ -102,6 +102,8 @@ pub(super) struct Spiller<'a> {
 enum Feed<'a> {
     Input(&'a Input),
     File(&'a Path),
+    /// Spill files read one after the other (a part's routed files, in input order).
+    Files(&'a [PathBuf]),
 }
 
 impl<'a> Spiller<'a> {
@@ -143,6 +145,13 @@ impl<'a> Spiller<'a> {
                 i.for_each_batch(self.chunk, self.format.is_raw(), self.all_finite, f)
             }
             Feed::File(p) => self.format.for_each_batch(p, self.chunk, f),
+            Feed::Files(ps) => {
+                let mut f = f;
+                for p in *ps {
+                    self.format.for_each_batch(p, self.chunk, &mut f)?;
+                }
+                Ok(())
+            }
         }
     }
 
@@ -181,6 +190,30 @@ impl<'a> Spiller<'a> {
         self.route(Feed::Input(input), TileKey::ROOT, Some((units, prefix)))
     }
 
+    /// [`Spiller::split_units`] reading the part's splats from spill files `files` (of this
+    /// spiller's format, in input order) instead of the input: the routing step's files.
+    pub(super) fn split_files(
+        &mut self,
+        files: &[PathBuf],
+        units: &[TileKey],
+        prefix: &[u64],
+    ) -> Result<Vec<Group>, ConvertError> {
+        if units.is_empty() {
+            return Ok(Vec::new());
+        }
+        std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
+        self.route(Feed::Files(files), TileKey::ROOT, Some((units, prefix)))
+    }
+
+    /// The file `feed` reads (the first, for several).
+    fn feed_path(&self, feed: &Feed<'_>) -> PathBuf {
+        match feed {
+            Feed::Input(_) => PathBuf::from(self.name),
+            Feed::File(p) => p.to_path_buf(),
+            Feed::Files(ps) => ps.first().cloned().unwrap_or_default(),
+        }
+    }
+
     fn too_dense(&self, count: u64, level: u32) -> ConvertError {
         ConvertError::TooDense {
             file: self.name.to_string(),
@@ -196,7 +229,7 @@ impl<'a> Spiller<'a> {
         feed: &Feed<'_>,
         n: usize,
         which: impl Fn([f64; 3]) -> usize + Sync,
-    ) -> Result<Vec<PathBuf>, ConvertError> {
+    ) -> Result<(Vec<PathBuf>, u64), ConvertError> {
         let per_file = (self.write_budget / n.max(1)).clamp(8 << 10, 4 << 20);
         let mut paths = Vec::with_capacity(n);
         let mut writers = Vec::with_capacity(n);
@@ -211,6 +244,7 @@ impl<'a> Spiller<'a> {
         let format = &self.format;
         let mut rec = Vec::with_capacity(format.record_bytes());
         let mut written = 0u64;
+        let mut records = 0u64;
         let mut dest = Vec::new();
         self.feed(feed, |b| {
             super::check_interrupt()?;
@@ -230,6 +264,7 @@ impl<'a> Spiller<'a> {
                     .write_all(&rec)
                     .map_err(super::io_err(&paths[gi], "writing spill file"))?;
                 written += rec.len() as u64;
+                records += 1;
             }
             Ok(())
         })?;
@@ -239,7 +274,7 @@ impl<'a> Spiller<'a> {
                 .map_err(super::io_err(p, "writing spill file"))?;
         }
         self.bytes += written;
-        Ok(paths)
+        Ok((paths, records))
     }
 
     /// Routes the splats of `feed`, all inside `key`'s cell, into groups of regions below it;
@@ -339,22 +374,36 @@ impl<'a> Spiller<'a> {
         // One file per group; past `max_open` groups, a first pass writes batches of
         // consecutive groups and a second pass splits each batch (bounded open files).
         let per = groups.len().div_ceil(self.max_open).max(1);
-        let paths = if per == 1 {
+        let (paths, routed) = if per == 1 {
             self.write_pass(&feed, groups.len(), |p| table[cell_of(p)] as usize)?
         } else {
-            let batches = self.write_pass(&feed, groups.len().div_ceil(per), |p| {
+            let (batches, routed) = self.write_pass(&feed, groups.len().div_ceil(per), |p| {
                 table[cell_of(p)] as usize / per
             })?;
             let mut paths = Vec::with_capacity(groups.len());
             for (b, batch) in batches.iter().enumerate() {
                 let n = per.min(groups.len() - b * per);
-                paths.extend(self.write_pass(&Feed::File(batch), n, |p| {
-                    table[cell_of(p)] as usize - b * per
-                })?);
+                paths.extend(
+                    self.write_pass(&Feed::File(batch), n, |p| {
+                        table[cell_of(p)] as usize - b * per
+                    })?
+                    .0,
+                );
                 std::fs::remove_file(batch).map_err(super::io_err(batch, "removing spill file"))?;
             }
-            paths
+            (paths, routed)
         };
+        let expected: u64 = groups.iter().flatten().map(|r| r.0.count).sum();
+        if routed != expected {
+            // A feed other than the one the histogram counted (a changed or foreign file).
+            return Err(ConvertError::Output {
+                path: self.feed_path(&feed),
+                why: format!(
+                    "{routed} splats inside the subtrees routed, {expected} expected: not the \
+                     splats the plan or histogram counted"
+                ),
+            });
+        }
         let mut out = Vec::new();
         for (grp, path) in groups.into_iter().zip(paths) {
             let only = grp[0].0;
