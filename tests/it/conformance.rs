@@ -902,6 +902,18 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
     m.insert("glb_codebook", |t| {
         codebook_content(&t.glb());
     });
+    m.insert("codebook_content_outside_box", |t| {
+        for g in t.glbs() {
+            codebook_content(&g);
+        }
+        edit_subtree(&t.leaf_subtree(), |j, bin| {
+            let r = leaf_row(j, bin);
+            let (off, _) = column(j, "boundingBox");
+            let at = off + r * 12 * 8;
+            let x = f64::from_le_bytes(bin[at..at + 8].try_into().unwrap());
+            set_f64(bin, at, x + 1000.0);
+        })
+    });
     m.insert("glb_codebook_bad_magic", |t| {
         poke_codebook(&codebook_content(&t.glb()), &t.glb(), 0, b"XXXX")
     });

@@ -93,7 +93,15 @@ pub(super) fn check(
         .and_then(|c| c.get(S2T_GAUSSIAN_SPLATTING_CODEBOOK));
     if let Some(child) = codebook {
         let cp = format!("{ep}/extensions/{S2T_GAUSSIAN_SPLATTING_CODEBOOK}");
-        check_codebook(ctx, g, &cp, child, prim);
+        if let Some(s) = check_codebook(ctx, g, &cp, child, prim) {
+            let splat = |i: usize| {
+                let p = DVec3::from_array(s.positions[i]);
+                let [x, y, z, w] = s.rotations[i].map(f64::from);
+                let sc = DVec3::from_array(s.scales[i].map(f64::from));
+                (p, shape_of(Some(DQuat::from_xyzw(x, y, z, w)), Some(sc)))
+            };
+            return gather_geometry(g.placements, m, (s.len(), &splat), want_shapes, geom);
+        }
     } else if compressed {
         ctx.push(Issue::CONTENT_DATA_NOT_CHECKED(
             at(&ep),
@@ -122,21 +130,28 @@ pub(super) fn check(
     // Wrongly typed attributes were reported above; their values are not used.
     let rot = get(ROTATION).filter(|r| r.n == 4);
     let scale = get(SCALE).filter(|s| s.n == 3);
-    gather_geometry(g.placements, m, (pos, rot, scale), want_shapes, geom)
+    let splat = |i: usize| {
+        let p = DVec3::new(pos.get(i, 0), pos.get(i, 1), pos.get(i, 2));
+        let q = rot.map(|r| DQuat::from_xyzw(r.get(i, 0), r.get(i, 1), r.get(i, 2), r.get(i, 3)));
+        let sv = scale.map(|s| DVec3::new(s.get(i, 0), s.get(i, 1), s.get(i, 2)));
+        (p, shape_of(q, sv))
+    };
+    gather_geometry(g.placements, m, (pos.count, &splat), want_shapes, geom)
 }
 
 /// Decodes a codebook payload (child object `child` at `cp`) and checks its splat count and
-/// positions against the POSITION accessor.
+/// positions against the POSITION accessor; the decoded splats when they agree.
 fn check_codebook(
     ctx: &mut Ctx<'_>,
     g: &Glb<'_>,
     cp: &str,
     child: &serde_json::Value,
     prim: &Primitive,
-) {
+) -> Option<splat2tiles_core::splat::Splats> {
     let at = |p: &str| format!("{}#{p}", g.name);
     let invalid = |ctx: &mut Ctx<'_>, what: String| {
         ctx.push(Issue::SPLAT_CODEBOOK_PAYLOAD_INVALID(at(cp), what));
+        None
     };
     let Some(v) = child.get("bufferView").and_then(|v| v.as_u64()) else {
         return invalid(ctx, "bufferView is missing or not an index".into());
@@ -163,7 +178,7 @@ fn check_codebook(
         .attributes
         .get("POSITION")
         .and_then(|&i| g.doc.accessors.get(i as usize));
-    let Some(acc) = acc else { return };
+    let acc = acc?;
     if acc.count != splats.len() as u64 {
         ctx.push(Issue::SPLAT_CODEBOOK_COUNT_MISMATCH(
             at(cp),
@@ -173,7 +188,7 @@ fn check_codebook(
                 acc.count
             ),
         ));
-        return;
+        return None;
     }
     if let (Some(lo), Some(hi)) = (&acc.min, &acc.max)
         && let Some((dlo, dhi)) = splats.bounds()
@@ -191,8 +206,10 @@ fn check_codebook(
                 at(cp),
                 format!("decoded positions span {dlo:?}..{dhi:?}, outside POSITION min/max"),
             ));
+            return None;
         }
     }
+    Some(splats)
 }
 
 /// The extension object's properties (mode, kernel, colorSpace, projection, sortingMethod) and
@@ -658,10 +675,25 @@ fn check_values(
 
 /// Appends the splat centres (and shapes when `want_shapes`) of mesh `m` in its first 16
 /// placements, in the tile frame (node matrix, then y-up -> z-up); true when any was appended.
+/// The local shape (rotation times scales) of a splat; zero without both.
+fn shape_of(q: Option<DQuat>, scale: Option<DVec3>) -> DMat3 {
+    match (q, scale) {
+        (Some(q), Some(s)) => {
+            let q = if q.length() > 0.0 {
+                q.normalize()
+            } else {
+                DQuat::IDENTITY
+            };
+            DMat3::from_quat(q) * DMat3::from_diagonal(s.abs())
+        }
+        _ => DMat3::ZERO,
+    }
+}
+
 fn gather_geometry(
     placements: &[(usize, DMat4)],
     m: usize,
-    (pos, rot, scale): (&View<'_>, Option<&View<'_>>, Option<&View<'_>>),
+    (count, splat): (usize, &dyn Fn(usize) -> (DVec3, DMat3)),
     want_shapes: bool,
     geom: &mut ContentGeom,
 ) -> bool {
@@ -682,28 +714,14 @@ fn gather_geometry(
     for w in worlds {
         let full = y_to_z * w;
         let lin = DMat3::from_mat4(full);
-        for i in 0..pos.count {
-            let p = DVec3::new(pos.get(i, 0), pos.get(i, 1), pos.get(i, 2));
+        for i in 0..count {
+            let (p, shape) = splat(i);
             if !p.is_finite() {
                 continue;
             }
             geom.centres.push(full.transform_point3(p));
             if want_shapes {
-                let shape = match (rot, scale) {
-                    (Some(r), Some(s)) => {
-                        let q =
-                            DQuat::from_xyzw(r.get(i, 0), r.get(i, 1), r.get(i, 2), r.get(i, 3));
-                        let q = if q.length() > 0.0 {
-                            q.normalize()
-                        } else {
-                            DQuat::IDENTITY
-                        };
-                        let sv = DVec3::new(s.get(i, 0), s.get(i, 1), s.get(i, 2)).abs();
-                        lin * DMat3::from_quat(q) * DMat3::from_diagonal(sv)
-                    }
-                    _ => DMat3::ZERO,
-                };
-                geom.shapes.get_or_insert_with(Vec::new).push(shape);
+                geom.shapes.get_or_insert_with(Vec::new).push(lin * shape);
             }
         }
         decoded = true;
