@@ -2,11 +2,11 @@
 //! as bufferView 0 under `KHR_gaussian_splatting`, accessors without bufferView; its reader.
 
 use super::codebook::{CodebookOptions, decode_payload, encode_payload};
-use super::glb::{GlbError, parse_json, read_glb};
+use super::glb::GlbError;
 use super::gltf::S2T_GAUSSIAN_SPLATTING_CODEBOOK;
-use super::spz2::{compressed_glb, compressed_payload};
+use super::spz2::{compressed_content, compressed_glb, compressed_payload};
 use super::storage_order::in_caller_order;
-use super::tile::{IDENTITY, check_writable};
+use super::tile::check_writable;
 use splat2tiles_core::splat::Splats;
 
 /// Writes `splats` (positions made relative to `centre`) as a codebook tile, and the splats it
@@ -36,20 +36,22 @@ pub fn codebook_payload(bytes: &[u8]) -> Result<Option<Vec<u8>>, GlbError> {
     compressed_payload(bytes, S2T_GAUSSIAN_SPLATTING_CODEBOOK)
 }
 
+/// The splats (tile-relative, payload order) of a codebook payload.
+pub(crate) fn codebook_splats(payload: &[u8]) -> Result<Splats, GlbError> {
+    decode_payload(payload).map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))
+}
+
 /// Decodes a codebook tile: splats (tile-relative, payload order) and node matrix.
 pub fn read_codebook_glb(bytes: &[u8]) -> Result<(Splats, [f64; 16]), GlbError> {
-    let payload = codebook_payload(bytes)?
+    let c = compressed_content(bytes, &[S2T_GAUSSIAN_SPLATTING_CODEBOOK])?
         .ok_or_else(|| GlbError::invalid("/meshes/0/primitives/0", "no codebook extension"))?;
-    let splats =
-        decode_payload(&payload).map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))?;
-    let doc = parse_json(&read_glb(bytes)?)?;
-    let m = doc.nodes.first().and_then(|n| n.matrix).unwrap_or(IDENTITY);
-    Ok((splats, m))
+    Ok((codebook_splats(&c.payload)?, c.matrix))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::encode::tile::IDENTITY;
     use crate::variants::decode_variant;
     use splat2tiles_core::splat::Splat;
 

@@ -392,25 +392,38 @@ pub(super) fn compressed_glb(
     write_gltf_glb(&doc, Some(&bin))
 }
 
-/// The bytes of bufferView `bufferView` of the child extension `extension` of the first
-/// primitive's `KHR_gaussian_splatting`, if the glb has that extension.
-pub(super) fn compressed_payload(
+/// A tile whose attributes a compression child extension of `KHR_gaussian_splatting` carries.
+pub(crate) struct Compressed {
+    /// The child extension's name.
+    pub extension: String,
+    /// The bytes of its `bufferView`.
+    pub payload: Vec<u8>,
+    /// The first node's matrix.
+    pub matrix: [f64; 16],
+}
+
+/// The first of `extensions` that the first primitive's `KHR_gaussian_splatting` has as a child,
+/// with its payload and the node matrix (the glb parsed once), if it has one.
+pub(crate) fn compressed_content(
     bytes: &[u8],
-    extension: &str,
-) -> Result<Option<Vec<u8>>, GlbError> {
+    extensions: &[&str],
+) -> Result<Option<Compressed>, GlbError> {
     let chunks = read_glb(bytes)?;
     let doc = parse_json(&chunks)?;
-    let view = doc
+    let children = doc
         .meshes
         .first()
         .and_then(|m| m.primitives.first())
         .and_then(|p| p.extensions.as_ref())
         .and_then(|e| e.gaussian_splatting.as_ref())
-        .and_then(|g| g.extensions.as_ref())
-        .and_then(|c| c.get(extension))
-        .and_then(|o| o.get("bufferView"))
-        .and_then(|v| v.as_u64());
-    let Some(v) = view else { return Ok(None) };
+        .and_then(|g| g.extensions.as_ref());
+    let found = extensions.iter().find_map(|&e| {
+        let v = children?.get(e)?.get("bufferView")?.as_u64()?;
+        Some((e, v))
+    });
+    let Some((extension, v)) = found else {
+        return Ok(None);
+    };
     let bv = doc
         .buffer_views
         .get(v as usize)
@@ -420,11 +433,25 @@ pub(super) fn compressed_payload(
         .ok_or_else(|| GlbError::invalid("/buffers/0", "no BIN chunk"))?;
     let end = bv.byte_offset.saturating_add(bv.byte_length);
     let range = bv.byte_offset as usize..end.min(usize::MAX as u64) as usize;
-    Ok(Some(
-        bin.get(range)
-            .ok_or_else(|| GlbError::invalid(format!("/bufferViews/{v}"), "past the BIN chunk"))?
-            .to_vec(),
-    ))
+    let payload = bin
+        .get(range)
+        .ok_or_else(|| GlbError::invalid(format!("/bufferViews/{v}"), "past the BIN chunk"))?
+        .to_vec();
+    let matrix = doc.nodes.first().and_then(|n| n.matrix).unwrap_or(IDENTITY);
+    Ok(Some(Compressed {
+        extension: extension.to_string(),
+        payload,
+        matrix,
+    }))
+}
+
+/// The bytes of bufferView `bufferView` of the child extension `extension` of the first
+/// primitive's `KHR_gaussian_splatting`, if the glb has that extension.
+pub(super) fn compressed_payload(
+    bytes: &[u8],
+    extension: &str,
+) -> Result<Option<Vec<u8>>, GlbError> {
+    Ok(compressed_content(bytes, &[extension])?.map(|c| c.payload))
 }
 
 /// The SPZ payload of a `KHR_gaussian_splatting_compression_spz_2` glb, if it is one.
@@ -432,16 +459,18 @@ pub fn spz2_payload(bytes: &[u8]) -> Result<Option<Vec<u8>>, GlbError> {
     compressed_payload(bytes, KHR_GAUSSIAN_SPLATTING_SPZ_2)
 }
 
+/// The splats (tile-relative, as stored) of an SPZ v2 payload.
+pub(crate) fn spz2_splats(payload: &[u8]) -> Result<Splats, GlbError> {
+    Ok(splat2tiles_io::read_bytes("tile.spz", payload)
+        .map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))?
+        .splats)
+}
+
 /// Reference decoder of our SPZ_2 tiles: splats (tile-relative, as stored) and node matrix.
 pub fn read_spz2_glb(bytes: &[u8]) -> Result<(Splats, [f64; 16]), GlbError> {
-    let payload = spz2_payload(bytes)?
+    let c = compressed_content(bytes, &[KHR_GAUSSIAN_SPLATTING_SPZ_2])?
         .ok_or_else(|| GlbError::invalid("/meshes/0/primitives/0", "no SPZ_2 extension"))?;
-    let splats = splat2tiles_io::read_bytes("tile.spz", &payload)
-        .map_err(|e| GlbError::invalid("/bufferViews/0", e.to_string()))?
-        .splats;
-    let doc = parse_json(&read_glb(bytes)?)?;
-    let m = doc.nodes.first().and_then(|n| n.matrix).unwrap_or(IDENTITY);
-    Ok((splats, m))
+    Ok((spz2_splats(&c.payload)?, c.matrix))
 }
 
 #[cfg(test)]

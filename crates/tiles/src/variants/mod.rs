@@ -16,8 +16,7 @@ use crate::encode::meshopt::{
 use crate::encode::read_tile_glb;
 use crate::encode::spz_rotation::RotationFit;
 use crate::encode::spz2::{
-    SpzOptions, read_spz2_glb, spz2_payload, write_spz2_glb, write_spz2_glb_and_decoded,
-    write_spz2_glb_as_given_and_decoded,
+    SpzOptions, write_spz2_glb, write_spz2_glb_and_decoded, write_spz2_glb_as_given_and_decoded,
 };
 use crate::encode::tile::{TileLayout, try_write_tile_glb};
 use crate::tiling::load::{
@@ -269,11 +268,18 @@ pub fn up_in_source(node_matrix: [f64; 16]) -> DVec3 {
 /// Decodes any variant's glb (plain, interleaved, meshopt, SPZ_2 or codebook) into tile-relative splats
 /// and the node matrix.
 pub fn decode_variant(glb: &[u8]) -> Result<(Splats, [f64; 16]), GlbError> {
-    if spz2_payload(glb)?.is_some() {
-        return read_spz2_glb(glb);
-    }
-    if crate::encode::codebook_glb::codebook_payload(glb)?.is_some() {
-        return crate::encode::codebook_glb::read_codebook_glb(glb);
+    use crate::encode::gltf::{KHR_GAUSSIAN_SPLATTING_SPZ_2, S2T_GAUSSIAN_SPLATTING_CODEBOOK};
+    let children = [
+        KHR_GAUSSIAN_SPLATTING_SPZ_2,
+        S2T_GAUSSIAN_SPLATTING_CODEBOOK,
+    ];
+    if let Some(c) = crate::encode::spz2::compressed_content(glb, &children)? {
+        let splats = if c.extension == KHR_GAUSSIAN_SPLATTING_SPZ_2 {
+            crate::encode::spz2::spz2_splats(&c.payload)?
+        } else {
+            crate::encode::codebook_glb::codebook_splats(&c.payload)?
+        };
+        return Ok((splats, c.matrix));
     }
     let plain = decompress_meshopt_glb(glb)?;
     let t = read_tile_glb(&plain)?;
