@@ -419,6 +419,17 @@ fn poke_sparse(p: &Path, a: usize, v: &Value, part: &str, k: usize, val: [u8; 4]
     std::fs::write(p, bytes).unwrap();
 }
 
+/// Moves the TILE_BOUNDING_BOX of a leaf 1000 m along x, away from its splats.
+fn move_leaf_box(t: &Ts) {
+    edit_subtree(&t.leaf_subtree(), |j, bin| {
+        let r = leaf_row(j, bin);
+        let (off, _) = column(j, "boundingBox");
+        let at = off + r * 12 * 8;
+        let x = f64::from_le_bytes(bin[at..at + 8].try_into().unwrap());
+        set_f64(bin, at, x + 1000.0);
+    });
+}
+
 /// Replaces the glb at `p` by the codebook variant of its splats (`spec/codebook-variant.md`);
 /// returns where its payload starts in the file and its splat count.
 fn codebook_content(p: &Path) -> (usize, u32) {
@@ -773,15 +784,7 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
             }
         })
     });
-    m.insert("content_outside_box", |t| {
-        edit_subtree(&t.leaf_subtree(), |j, bin| {
-            let r = leaf_row(j, bin);
-            let (off, _) = column(j, "boundingBox");
-            let at = off + r * 12 * 8;
-            let x = f64::from_le_bytes(bin[at..at + 8].try_into().unwrap());
-            set_f64(bin, at, x + 1000.0);
-        })
-    });
+    m.insert("content_outside_box", move_leaf_box);
     // glb contents
     m.insert("content_file_missing", |t| {
         std::fs::remove_file(t.glb()).unwrap()
@@ -906,13 +909,7 @@ fn mutations() -> BTreeMap<&'static str, Mutation> {
         for g in t.glbs() {
             codebook_content(&g);
         }
-        edit_subtree(&t.leaf_subtree(), |j, bin| {
-            let r = leaf_row(j, bin);
-            let (off, _) = column(j, "boundingBox");
-            let at = off + r * 12 * 8;
-            let x = f64::from_le_bytes(bin[at..at + 8].try_into().unwrap());
-            set_f64(bin, at, x + 1000.0);
-        })
+        move_leaf_box(t);
     });
     m.insert("glb_codebook_bad_magic", |t| {
         poke_codebook(&codebook_content(&t.glb()), &t.glb(), 0, b"XXXX")
