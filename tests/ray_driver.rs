@@ -69,6 +69,27 @@ fn ray_python() -> Result<PathBuf, String> {
     Ok(py)
 }
 
+/// The options of every conversion of these tests.
+const EXTRA: [&str; 3] = ["--max-splats", "4096", "--no-utility"];
+
+/// A generated city of `n` splats (`seed`) in `dir` and its single-machine conversion with
+/// [`EXTRA`]: the input's and the output's paths.
+fn city_and_single_run(dir: &Path, n: usize, seed: u64) -> (PathBuf, PathBuf) {
+    let input = dir.join("city.splat");
+    write_city_splat(&input, n, seed);
+    let base = dir.join("base");
+    let o = Command::new(bin())
+        .arg("convert")
+        .arg(&input)
+        .arg("-o")
+        .arg(&base)
+        .args(EXTRA)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (input, base)
+}
+
 #[test]
 fn ray_driver_converts_in_four_parts_with_a_killed_task() {
     let _one = RAY_TESTS.lock().unwrap_or_else(|e| e.into_inner());
@@ -80,19 +101,7 @@ fn ray_driver_converts_in_four_parts_with_a_killed_task() {
         }
     };
     let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("city.splat");
-    write_city_splat(&input, 300_000, 21);
-    let extra = ["--max-splats", "4096", "--no-utility"];
-    let base = tmp.path().join("base");
-    let o = Command::new(bin())
-        .arg("convert")
-        .arg(&input)
-        .arg("-o")
-        .arg(&base)
-        .args(extra)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (input, base) = city_and_single_run(tmp.path(), 300_000, 21);
 
     let out = tmp.path().join("out");
     let work = tmp.path().join("work");
@@ -116,7 +125,7 @@ fn ray_driver_converts_in_four_parts_with_a_killed_task() {
             "--json",
             "--",
         ])
-        .args(extra)
+        .args(EXTRA)
         // Part 1's build task kills its splat2tiles process and itself on the first attempt.
         .env("SPLAT2TILES_RAY_KILL", "build:1")
         .env("RAY_memory_monitor_refresh_ms", "0")
@@ -306,19 +315,7 @@ fn ray_cluster_of_three_nodes_converts_with_pinned_parts_and_a_killed_one() {
     };
     let start = Instant::now();
     let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("city.splat");
-    write_city_splat(&input, 200_000, 23);
-    let extra = ["--max-splats", "4096", "--no-utility"];
-    let base = tmp.path().join("base");
-    let o = Command::new(bin())
-        .arg("convert")
-        .arg(&input)
-        .arg("-o")
-        .arg(&base)
-        .args(extra)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (input, base) = city_and_single_run(tmp.path(), 200_000, 23);
 
     let cluster = Cluster::head(py.with_file_name("ray"));
     cluster.start("worker_a", &[], r#"{"worker_a": 1}"#);
@@ -343,7 +340,7 @@ fn ray_cluster_of_three_nodes_converts_with_pinned_parts_and_a_killed_one() {
             "2",
         ])
         .args(["--memory-limit", "256MiB", "--retries", "2", "--json", "--"])
-        .args(extra)
+        .args(EXTRA)
         // Part 1's build task (on worker_b) kills its splat2tiles process and itself once.
         .env("SPLAT2TILES_RAY_KILL", "build:1")
         .env("RAY_ADDRESS", &cluster.address)
