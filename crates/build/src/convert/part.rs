@@ -13,7 +13,7 @@ use super::part_files::{FileRec, list_files};
 use super::plan::{Plan, input_bytes_read, open_input};
 use super::region::{self, GroupLeaves, RegionCtx, RootContent, WrittenParent};
 use super::shard::{F, bad, f3, key_arr, parse, read_bounded, v3};
-use super::spill::Spiller;
+use super::spill::{Feed, Spiller};
 use super::spill_records::{Codec, SpillFormat};
 use super::store::ContentStore;
 use super::tileset::{TreeTile, build_tree, finish_tree, view_error};
@@ -455,10 +455,11 @@ fn split_source(
         budget.write_budget,
     );
     spiller.all_finite = plan.file.input.dropped == 0;
-    let groups = match source {
-        Source::Input(i) => spiller.split_units(i, units, &plan.prefix),
-        Source::Routed(files) => spiller.split_files(files, units, &plan.prefix),
-    }?;
+    let feed = match source {
+        Source::Input(i) => Feed::Input(i),
+        Source::Routed(files) => Feed::Files(files),
+    };
+    let groups = spiller.split_units(feed, units, &plan.prefix)?;
     Ok((groups, spiller.bytes))
 }
 

@@ -760,33 +760,46 @@ impl Plan {
             (String::new(), 0)
         };
         if same && print != p.fingerprint {
-            return Err(bad(
-                path,
-                None,
-                format!(
-                    "not the input of plan {}: the same size and splat count, other content \
-                     (fingerprint {} planned)",
-                    self.path.display(),
-                    p.fingerprint
-                ),
-            ));
+            return Err(self.other_content(path, None));
         }
         if !same {
-            return Err(bad(
-                path,
-                None,
-                format!(
-                    "not the input of plan {} ({} bytes, {} splats, SH degree {} planned; \
-                     {bytes} bytes, {} splats, SH degree {} here)",
-                    self.path.display(),
-                    p.bytes,
-                    p.splats,
-                    p.sh_degree,
-                    input.len(),
-                    input.sh_degree()
-                ),
-            ));
+            return Err(self.other_input(path, bytes, input));
         }
         Ok(read)
+    }
+
+    /// The error for `path`, whose size and splat count are the planned input's but whose
+    /// content (fingerprint) differs, at byte `at` where known.
+    pub(super) fn other_content(&self, path: &Path, at: Option<u64>) -> ConvertError {
+        bad(
+            path,
+            at,
+            format!(
+                "not the input of plan {}: the same size and splat count, other content \
+                 (fingerprint {} planned)",
+                self.path.display(),
+                self.file.input.fingerprint
+            ),
+        )
+    }
+
+    /// The error for `path` (`bytes` long, read as `input`) when its size, splat count or SH
+    /// degree differs from the planned input's.
+    pub(super) fn other_input(&self, path: &Path, bytes: u64, input: &Input) -> ConvertError {
+        let p = &self.file.input;
+        bad(
+            path,
+            None,
+            format!(
+                "not the input of plan {} ({} bytes, {} splats, SH degree {} planned; {bytes} \
+                 bytes, {} splats, SH degree {} here)",
+                self.path.display(),
+                p.bytes,
+                p.splats,
+                p.sh_degree,
+                input.len(),
+                input.sh_degree()
+            ),
+        )
     }
 }

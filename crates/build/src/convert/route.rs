@@ -165,20 +165,7 @@ pub fn route_input(
     let range = chunk as u64 * n / chunks as u64..(chunk as u64 + 1) * n / chunks as u64;
     let (input, header_read) = open_planned(&plan, input_path, range.start == 0, memory_limit)?;
     if bytes != p.bytes || input.len() != n || input.sh_degree() != p.sh_degree {
-        return Err(bad(
-            input_path,
-            None,
-            format!(
-                "not the input of plan {} ({} bytes, {} splats, SH degree {} planned; {bytes} \
-                 bytes, {} splats, SH degree {} here)",
-                plan.path.display(),
-                p.bytes,
-                n,
-                p.sh_degree,
-                input.len(),
-                input.sh_degree()
-            ),
-        ));
+        return Err(plan.other_input(input_path, bytes, &input));
     }
     if chunks > 1 && (p.dropped > 0 || matches!(input, Input::Memory(_))) {
         return Err(bad(
@@ -329,18 +316,7 @@ fn check_blocks(
     chunks: usize,
 ) -> Result<u64, ConvertError> {
     let p = &plan.file.input;
-    let foreign = |at: Option<u64>| {
-        bad(
-            path,
-            at,
-            format!(
-                "not the input of plan {}: the same size and splat count, other content \
-                 (fingerprint {} planned)",
-                plan.path.display(),
-                p.fingerprint
-            ),
-        )
-    };
+    let foreign = |at: Option<u64>| plan.other_content(path, at);
     let Input::Chunked(c) = input else {
         let (print, read) = fingerprint(path)?;
         return if print == p.fingerprint {

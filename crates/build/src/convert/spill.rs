@@ -99,7 +99,7 @@ pub(super) struct Spiller<'a> {
 }
 
 /// Where the splats of one routing pass come from.
-enum Feed<'a> {
+pub(super) enum Feed<'a> {
     Input(&'a Input),
     File(&'a Path),
     /// Spill files read one after the other (a part's routed files, in input order).
@@ -173,13 +173,14 @@ impl<'a> Spiller<'a> {
         self.route(Feed::Input(input), TileKey::ROOT, None)
     }
 
-    /// Routes the finite splats of `input` that lie in the subtrees `units` (a part of a
-    /// sharded conversion: disjoint, Morton order, at most [`histogram_levels`] deep) into
-    /// groups of regions below them; the other splats are read and skipped. `prefix`: the
-    /// prefix sums of the plan's histogram of the input's cells (one read of the input saved).
+    /// Routes the finite splats of `feed` (the input, or a part's routed spill files of this
+    /// spiller's format in input order) that lie in the subtrees `units` (a part of a sharded
+    /// conversion: disjoint, Morton order, at most [`histogram_levels`] deep) into groups of
+    /// regions below them; the other splats are read and skipped. `prefix`: the prefix sums of
+    /// the plan's histogram of the input's cells (one read of the input saved).
     pub(super) fn split_units(
         &mut self,
-        input: &Input,
+        feed: Feed<'_>,
         units: &[TileKey],
         prefix: &[u64],
     ) -> Result<Vec<Group>, ConvertError> {
@@ -187,22 +188,7 @@ impl<'a> Spiller<'a> {
             return Ok(Vec::new());
         }
         std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
-        self.route(Feed::Input(input), TileKey::ROOT, Some((units, prefix)))
-    }
-
-    /// [`Spiller::split_units`] reading the part's splats from spill files `files` (of this
-    /// spiller's format, in input order) instead of the input: the routing step's files.
-    pub(super) fn split_files(
-        &mut self,
-        files: &[PathBuf],
-        units: &[TileKey],
-        prefix: &[u64],
-    ) -> Result<Vec<Group>, ConvertError> {
-        if units.is_empty() {
-            return Ok(Vec::new());
-        }
-        std::fs::create_dir_all(&self.dir).map_err(super::io_err(&self.dir, "creating folder"))?;
-        self.route(Feed::Files(files), TileKey::ROOT, Some((units, prefix)))
+        self.route(feed, TileKey::ROOT, Some((units, prefix)))
     }
 
     /// The file `feed` reads (the first, for several).
