@@ -358,73 +358,80 @@ fn web_viewer_decodes_high_and_medium_like_the_native_decoder() {
         .arg(scene("donut_fused_sh0.ply"))
         .args(["--variants", "all", "--no-utility", "-o"])
         .arg(&dir));
-    let (w, h) = (480u32, 360u32);
     for level in ["high", "medium"] {
-        // The native reference: the same tileset with content.uri on this variant's files.
-        let native = tmp.path().join(format!("native-{level}"));
-        std::fs::create_dir_all(&native).unwrap();
-        let ts = std::fs::read_to_string(dir.join("tileset.json")).unwrap();
-        assert!(ts.contains("tiles/best/"), "no Best content template");
-        let ts_native = dir.join(format!("tileset-{level}.json"));
-        std::fs::write(
-            &ts_native,
-            ts.replace("tiles/best/", &format!("tiles/{level}/")),
-        )
-        .unwrap();
-        let reference = native.join("reference.png");
-        let note = run(Command::new(bin())
-            .arg("render")
-            .arg(&ts_native)
-            .args(render_view(&ts_native, &["--auto-view", "0"], w, h))
-            .args(["--width", &w.to_string()])
-            .args(["--height", &h.to_string(), "-o"])
-            .arg(&reference));
-        std::fs::remove_file(&ts_native).unwrap();
-        let splats: u64 = note
-            .split(" tiles, ")
-            .nth(1)
-            .and_then(|s| s.split(' ').next())
-            .and_then(|s| s.parse().ok())
-            .unwrap_or_else(|| panic!("no splat count in: {note}"));
-
-        let shot = native.join("web.png");
-        let (o, v) = run_web_viewer(
-            &dir,
-            &tmp.path().join(format!("view-{level}.log")),
-            &shot,
-            (w, h),
-            // Decoding is the point here, not pausing: no turn away and back and no throttle
-            // (with the default 120 kB/s and the turn, this test took 135 s alone; now 29 s).
-            &["--levels", level, "--still", "--throttle", "100000000"],
-            "web_viewer.mjs",
-        );
-        assert_clean_run(&o, &v, level);
-        let responses = v["responses"].as_array().unwrap();
-        assert!(
-            responses.iter().any(|r| r["url"]
-                .as_str()
-                .is_some_and(|u| u.contains(&format!("/tiles/{level}/")))),
-            "{level}: no {level} tile was fetched: {v:#}"
-        );
-        assert!(
-            !responses.iter().any(|r| r["url"]
-                .as_str()
-                .is_some_and(|u| u.contains("/tiles/best/"))),
-            "{level}: Best tiles were fetched although only {level} was allowed"
-        );
-        let fin = &v["final"];
-        assert!(u(&fin["errors"]) == 0, "{level}: {fin:#}");
-        assert_eq!(u(&fin["residentSplats"]), splats, "{level}: {fin:#}");
-        let a = Image::load_png(&shot).unwrap();
-        let b = Image::load_png(&reference).unwrap();
-        let s = ssim(&a, &b).unwrap();
-        eprintln!("web viewer {level} vs native {level}: SSIM {s:.4} ({splats} splats)");
-        assert!(
-            s >= MIN_SSIM,
-            "{level}: SSIM {s:.4} < {MIN_SSIM}: {}",
-            shot.display()
-        );
+        web_level_matches_native(tmp.path(), &dir, level);
     }
+}
+
+/// The web viewer restricted to `level` draws the tileset `dir` (converted into the folder
+/// `tmp`) like the native renderer drawing the same files (the tileset with content.uri on that
+/// level's files): only that level fetched, every splat resident, SSIM >= [`MIN_SSIM`].
+fn web_level_matches_native(tmp: &Path, dir: &Path, level: &str) {
+    let (w, h) = (480u32, 360u32);
+    // The native reference: the same tileset with content.uri on this variant's files.
+    let native = tmp.join(format!("native-{level}"));
+    std::fs::create_dir_all(&native).unwrap();
+    let ts = std::fs::read_to_string(dir.join("tileset.json")).unwrap();
+    assert!(ts.contains("tiles/best/"), "no Best content template");
+    let ts_native = dir.join(format!("tileset-{level}.json"));
+    std::fs::write(
+        &ts_native,
+        ts.replace("tiles/best/", &format!("tiles/{level}/")),
+    )
+    .unwrap();
+    let reference = native.join("reference.png");
+    let note = run(Command::new(bin())
+        .arg("render")
+        .arg(&ts_native)
+        .args(render_view(&ts_native, &["--auto-view", "0"], w, h))
+        .args(["--width", &w.to_string()])
+        .args(["--height", &h.to_string(), "-o"])
+        .arg(&reference));
+    std::fs::remove_file(&ts_native).unwrap();
+    let splats: u64 = note
+        .split(" tiles, ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no splat count in: {note}"));
+
+    let shot = native.join("web.png");
+    let (o, v) = run_web_viewer(
+        dir,
+        &tmp.join(format!("view-{level}.log")),
+        &shot,
+        (w, h),
+        // Decoding is the point here, not pausing: no turn away and back and no throttle
+        // (with the default 120 kB/s and the turn, this test took 135 s alone; now 29 s).
+        &["--levels", level, "--still", "--throttle", "100000000"],
+        "web_viewer.mjs",
+    );
+    assert_clean_run(&o, &v, level);
+    let responses = v["responses"].as_array().unwrap();
+    assert!(
+        responses.iter().any(|r| r["url"]
+            .as_str()
+            .is_some_and(|u| u.contains(&format!("/tiles/{level}/")))),
+        "{level}: no {level} tile was fetched: {v:#}"
+    );
+    assert!(
+        !responses.iter().any(|r| r["url"]
+            .as_str()
+            .is_some_and(|u| u.contains("/tiles/best/"))),
+        "{level}: Best tiles were fetched although only {level} was allowed"
+    );
+    let fin = &v["final"];
+    assert!(u(&fin["errors"]) == 0, "{level}: {fin:#}");
+    assert_eq!(u(&fin["residentSplats"]), splats, "{level}: {fin:#}");
+    let a = Image::load_png(&shot).unwrap();
+    let b = Image::load_png(&reference).unwrap();
+    let s = ssim(&a, &b).unwrap();
+    eprintln!("web viewer {level} vs native {level}: SSIM {s:.4} ({splats} splats)");
+    assert!(
+        s >= MIN_SSIM,
+        "{level}: SSIM {s:.4} < {MIN_SSIM}: {}",
+        shot.display()
+    );
 }
 
 /// The codebook variant (`spec/codebook-variant.md`) decoded by the web viewer's wasm build: the
@@ -453,62 +460,7 @@ fn web_viewer_decodes_the_codebook_variant_like_the_native_decoder() {
             .0;
         std::fs::write(&f, glb).unwrap();
     }
-    let (w, h) = (480u32, 360u32);
-    // The native reference: the same tileset with content.uri on the replaced files.
-    let ts = std::fs::read_to_string(dir.join("tileset.json")).unwrap();
-    let ts_native = dir.join("tileset-codebook.json");
-    std::fs::write(&ts_native, ts.replace("tiles/best/", "tiles/high/")).unwrap();
-    let reference = tmp.path().join("reference.png");
-    let note = run(Command::new(bin())
-        .arg("render")
-        .arg(&ts_native)
-        .args(render_view(&ts_native, &["--auto-view", "0"], w, h))
-        .args(["--width", &w.to_string()])
-        .args(["--height", &h.to_string(), "-o"])
-        .arg(&reference));
-    std::fs::remove_file(&ts_native).unwrap();
-    let splats: u64 = note
-        .split(" tiles, ")
-        .nth(1)
-        .and_then(|s| s.split(' ').next())
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("no splat count in: {note}"));
-    let shot = tmp.path().join("web.png");
-    let (o, v) = run_web_viewer(
-        &dir,
-        &tmp.path().join("view.log"),
-        &shot,
-        (w, h),
-        &["--levels", "high", "--still", "--throttle", "100000000"],
-        "web_viewer.mjs",
-    );
-    assert_clean_run(&o, &v, "codebook");
-    let fetched = |dir: &str| {
-        v["responses"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .any(|r| r["url"].as_str().is_some_and(|u| u.contains(dir)))
-    };
-    assert!(
-        fetched("/tiles/high/"),
-        "no codebook tile was fetched: {v:#}"
-    );
-    assert!(!fetched("/tiles/best/"), "Best tiles were fetched: {v:#}");
-    let fin = &v["final"];
-    assert!(u(&fin["errors"]) == 0, "{fin:#}");
-    assert_eq!(u(&fin["residentSplats"]), splats, "{fin:#}");
-    let s = ssim(
-        &Image::load_png(&shot).unwrap(),
-        &Image::load_png(&reference).unwrap(),
-    )
-    .unwrap();
-    eprintln!("web viewer codebook vs native codebook: SSIM {s:.4} ({splats} splats)");
-    assert!(
-        s >= MIN_SSIM,
-        "SSIM {s:.4} < {MIN_SSIM}: {}",
-        shot.display()
-    );
+    web_level_matches_native(tmp.path(), &dir, "high");
 }
 
 /// A generated city of `n` splats (copies of every 8th splat of the shared scenes,
