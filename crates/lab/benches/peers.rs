@@ -28,9 +28,7 @@ use std::time::Instant;
 mod common;
 mod peer_views;
 use common::plant_sh3;
-use glam::DVec3;
-use peer_views::{ZOOMS, core_box, render_all, view_scores, zoomed};
-use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+use peer_views::{ZOOMS, framed, render_all, view_scores, zoomed};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::splat::Splats;
 use splat2tiles_core::splat::importance::importance_order;
@@ -40,7 +38,7 @@ use splat2tiles_render::{Camera, Image};
 use splat2tiles_tiles::encode::spz2::{SpzOptions, encode_spz_v2, gzip};
 use splat2tiles_tiles::encode::table6;
 use splat2tiles_tiles::encode::tile::IDENTITY;
-use splat2tiles_tiles::variants::{ALL, decode_variant, relative};
+use splat2tiles_tiles::variants::{ALL, decode_variant};
 
 /// One encoded scene: which codec, how many bytes, what it looks like.
 struct Point {
@@ -212,13 +210,8 @@ fn main() {
     let mut points: Vec<Point> = vec![];
     for (name, splats, up) in &scenes {
         let t0 = std::time::Instant::now();
-        let (lo, hi) = core_box(splats);
-        let centre = ((lo + hi) * 0.5).to_array();
-        let rel = relative(splats, centre);
+        let (rel, views) = framed(splats, *up);
         let n = rel.len();
-        let up_s = up.to_z_up().transpose() * DVec3::Z;
-        let (rlo, rhi) = core_box(&rel);
-        let views = auto_views_with(rlo, rhi, up_s, 1280, 720, DEFAULT_FOV_Y_DEG);
         let cams: Vec<Vec<Camera>> = ZOOMS.iter().map(|&z| zoomed(&views, z)).collect();
         let base: Vec<Vec<Image>> = cams.iter().map(|c| render_all(&rel, c)).collect();
         let mut add = |family: &'static str, codec: String, file: Vec<u8>, dec: &Splats| {

@@ -8,9 +8,7 @@
 #[path = "../benches/peer_views/mod.rs"]
 mod peer_views;
 
-use glam::DVec3;
-use peer_views::{core_box, render_all, view_scores};
-use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+use peer_views::{framed, render_all, view_scores};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::splat::Splats;
 use splat2tiles_io::read_path;
@@ -19,7 +17,7 @@ use splat2tiles_tiles::encode::codebook::{
 };
 use splat2tiles_tiles::encode::spz2::gzip;
 use splat2tiles_tiles::encode::tile::IDENTITY;
-use splat2tiles_tiles::variants::{Variant, decode_variant, relative};
+use splat2tiles_tiles::variants::{Variant, decode_variant};
 use std::path::PathBuf;
 
 /// Named encoder settings of the sweep.
@@ -79,12 +77,8 @@ fn main() {
         }
         let sc = read_path(&root.join("data/scenes").join(f)).unwrap();
         let up: UpAxis = sc.format.default_up_axis().parse().unwrap();
-        let (lo, hi) = core_box(&sc.splats);
-        let rel = relative(&sc.splats, ((lo + hi) * 0.5).to_array());
+        let (rel, cams) = framed(&sc.splats, up);
         let n = rel.len() as f64;
-        let up_s = up.to_z_up().transpose() * DVec3::Z;
-        let (rlo, rhi) = core_box(&rel);
-        let cams = auto_views_with(rlo, rhi, up_s, 1280, 720, DEFAULT_FOV_Y_DEG);
         let base = render_all(&rel, &cams);
         let row = |name: &str, bytes: usize, s: &Splats| {
             let v = view_scores(&base, s, &cams);

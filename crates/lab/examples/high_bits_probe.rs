@@ -16,9 +16,7 @@ mod common;
 #[path = "../benches/peer_views/mod.rs"]
 mod peer_views;
 
-use glam::DVec3;
-use peer_views::{ZOOMS, core_box, render_all, view_scores, zoomed};
-use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+use peer_views::{ZOOMS, framed, render_all, view_scores, zoomed};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::splat::Splats;
 use splat2tiles_io::read_path;
@@ -29,7 +27,7 @@ use splat2tiles_tiles::encode::spz_rotation::RotationFit;
 use splat2tiles_tiles::encode::spz2::{SpzOptions, encode_spz_v2, gzip, write_spz2_glb};
 use splat2tiles_tiles::encode::table6;
 use splat2tiles_tiles::encode::tile::IDENTITY;
-use splat2tiles_tiles::variants::{LOW_SPZ, decode_variant, relative};
+use splat2tiles_tiles::variants::{LOW_SPZ, decode_variant};
 
 fn main() {
     let dir =
@@ -95,13 +93,8 @@ fn main() {
             let up: UpAxis = sc.format.default_up_axis().parse().unwrap();
             (sc.splats, up)
         };
-        let (lo, hi) = core_box(&splats);
-        let centre = ((lo + hi) * 0.5).to_array();
-        let rel = relative(&splats, centre);
+        let (rel, views) = framed(&splats, up);
         let n = rel.len() as f64;
-        let up_s = up.to_z_up().transpose() * DVec3::Z;
-        let (rlo, rhi) = core_box(&rel);
-        let views = auto_views_with(rlo, rhi, up_s, 1280, 720, DEFAULT_FOV_Y_DEG);
         let cams: Vec<Vec<Camera>> = ZOOMS.iter().map(|&z| zoomed(&views, z)).collect();
         let base: Vec<Vec<Image>> = cams.iter().map(|c| render_all(&rel, c)).collect();
         let report = |label: &str, file: &[u8], dec: &Splats| {

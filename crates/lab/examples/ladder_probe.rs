@@ -12,17 +12,15 @@
 #[path = "../benches/peer_views/mod.rs"]
 mod peer_views;
 
-use glam::DVec3;
-use peer_views::{core_box, render_all, view_scores};
+use peer_views::{framed, render_all, view_scores};
 use splat2tiles_build::lod::{DRAWN_DILATION_PER_RADIUS2, MergeRule, cluster_to_target};
-use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
 use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::splat::Splats;
 use splat2tiles_core::splat::importance::importance_order;
 use splat2tiles_io::read_path;
 use splat2tiles_tiles::encode::spz2::gzip;
 use splat2tiles_tiles::encode::tile::IDENTITY;
-use splat2tiles_tiles::variants::{Variant, decode_variant, relative};
+use splat2tiles_tiles::variants::{Variant, decode_variant};
 use std::path::PathBuf;
 
 /// Low's bytes as sent for `s` and what its decode scores against `base` from `cams`.
@@ -57,12 +55,8 @@ fn main() {
         }
         let sc = read_path(&root.join("data/scenes").join(f)).unwrap();
         let up: UpAxis = sc.format.default_up_axis().parse().unwrap();
-        let (lo, hi) = core_box(&sc.splats);
-        let rel = relative(&sc.splats, ((lo + hi) * 0.5).to_array());
+        let (rel, cams) = framed(&sc.splats, up);
         let n = rel.len();
-        let up_s = up.to_z_up().transpose() * DVec3::Z;
-        let (rlo, rhi) = core_box(&rel);
-        let cams = auto_views_with(rlo, rhi, up_s, 1280, 720, DEFAULT_FOV_Y_DEG);
         let base = render_all(&rel, &cams);
         let tile = rel.select(&importance_order(&rel));
         let row = |name: String, s: &Splats| {

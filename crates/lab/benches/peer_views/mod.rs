@@ -1,9 +1,12 @@
-//! The peers bench's views and scores, shared with `examples/high_bits_probe.rs`: the box around
-//! the scene's core, the renders, the 1x / 4x view sets and their scores against a base.
+//! The peers bench's views and scores, shared with the probes in `examples/`: the box around the
+//! scene's core, the framed scene, the renders, the 1x / 4x view sets and scores against a base.
 
 use glam::DVec3;
 use rayon::prelude::*;
+use splat2tiles_build::variants::relative;
 use splat2tiles_build::variants::utility::render_options;
+use splat2tiles_core::camera::{DEFAULT_FOV_Y_DEG, auto_views_with};
+use splat2tiles_core::frame::UpAxis;
 use splat2tiles_core::splat::Splats;
 use splat2tiles_render::{Camera, Image, render_splats, ssim};
 
@@ -20,6 +23,17 @@ pub fn core_box(s: &Splats) -> (DVec3, DVec3) {
         hi[a] = q(0.995);
     }
     (DVec3::from_array(lo), DVec3::from_array(hi))
+}
+
+/// `splats` made relative to the centre of their core box, and the 8 views at 1280x720 that
+/// frame that box with `up` (the scene's up axis) up: the bench's 1x view set.
+pub fn framed(splats: &Splats, up: UpAxis) -> (Splats, Vec<Camera>) {
+    let (lo, hi) = core_box(splats);
+    let rel = relative(splats, ((lo + hi) * 0.5).to_array());
+    let up_s = up.to_z_up().transpose() * DVec3::Z;
+    let (rlo, rhi) = core_box(&rel);
+    let cams = auto_views_with(rlo, rhi, up_s, 1280, 720, DEFAULT_FOV_Y_DEG);
+    (rel, cams)
 }
 
 /// The renders of `s` from `cams` (the reference renderer's options, in parallel).
